@@ -1,0 +1,138 @@
+"""Argument handling shared by the geometry functions: shape checks, broadcasting, and the error
+messages that name the offending element.
+
+Every public function follows one pattern: convert its arguments to C-contiguous float64 arrays
+(no copy when they already are), check their trailing shapes, allocate the output in its final
+shape, and call a Numba kernel that fills it. A kernel raises ``Rejected(i)`` at the first bad
+element; :func:`reject` then works out which argument was at fault and why. An argument whose
+leading shape is ``()`` is broadcast inside the kernel (stride 0), so one pose applied to a
+million points is never copied a million times.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidArgumentError, NonFiniteError, NotARotationError, NotUnitQuaternionError, ShapeError
+from ._kernels import UNIT_TOL, Rejected
+
+_F64 = np.dtype(np.float64)
+
+#: Largest accepted Frobenius norm of RᵀR − I for a rotation matrix.
+ROTATION_TOL = 1e-6
+
+__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "reject", "where"]
+
+
+def batch(x, trailing: tuple[int, ...], name: str) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Return ``x`` as a C-contiguous float64 array whose shape ends in ``trailing``, and its leading shape."""
+    a = x if type(x) is np.ndarray and x.dtype == _F64 else np.asarray(x, dtype=_F64)
+    nt = len(trailing)
+    lead = a.shape[: a.ndim - nt]
+    if a.ndim < nt or lead + trailing != a.shape:
+        want = "(..., " + ", ".join(map(str, trailing)) + ")" if trailing else "a number or array of numbers"
+        raise ShapeError(f"{name} must have shape {want}, got {a.shape}")
+    if not a.flags.c_contiguous:
+        a = np.ascontiguousarray(a)
+    return a, lead
+
+
+def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
+    """Bring several ``(value, trailing, name)`` arguments to a common leading shape.
+
+    Arguments whose leading shape equals the result's, or is ``()``, are returned as they are (the
+    kernels broadcast single elements with stride 0); others are copied to the broadcast shape.
+    """
+    arrays, leads = [], []
+    shape = ()
+    simple = True
+    for value, trailing, name in args:
+        a, lead = batch(value, trailing, name)
+        arrays.append(a)
+        leads.append(lead)
+        if lead and lead != shape:
+            if shape:
+                simple = False
+            shape = lead
+    if simple:
+        return arrays, shape
+    try:
+        shape = np.broadcast_shapes(*leads)
+    except ValueError:
+        names = ", ".join(f"{name} {lead}" for (_, _, name), lead in zip(args, leads))
+        raise ShapeError(f"leading shapes do not broadcast: {names}") from None
+    out = []
+    for a, lead, (_, trailing, _) in zip(arrays, leads, args):
+        if lead and lead != shape:
+            a = np.ascontiguousarray(np.broadcast_to(a, shape + trailing))
+        out.append(a)
+    return out, shape
+
+
+def where(index: int, lead: tuple[int, ...]) -> str:
+    """Format a flat element index as a subscript of the leading shape, e.g. ``[2, 0]``."""
+    if not lead:
+        return ""
+    return "[" + ", ".join(str(int(i)) for i in np.unravel_index(index, lead)) + "]"
+
+
+def reject(bad: int, lead: tuple[int, ...], *operands: tuple[np.ndarray, tuple[int, ...], str, str]):
+    """Raise the error explaining why a kernel rejected broadcast element ``bad``.
+
+    ``operands`` are ``(array, trailing, name, kind)`` in the order to blame them; ``kind`` is what
+    each element must be: ``"finite"``, ``"nonzero"``, ``"unit"`` (quaternion), ``"rotation"``
+    (3×3), ``"rotation2"`` (2×2), ``"rigid"`` (4×4) or ``"rigid2"`` (3×3 planar). The checks are
+    the kernels' own predicates, so the verdict agrees with the kernel's.
+    """
+    from . import _kernels as K
+
+    for array, trailing, name, kind in operands:
+        own = array.shape[: array.ndim - len(trailing)]
+        flat = array.reshape((-1,) + trailing)
+        i, sub = (bad, lead) if own else (0, ())
+        x = flat[i]
+        at = f"{name}{where(i, sub)}"
+        if not np.isfinite(x).all():
+            raise NonFiniteError(f"{at} = {_show(x)} is not finite")
+        if kind in ("nonzero", "unit") and not x.any():
+            if x.shape == (4,):
+                raise NotUnitQuaternionError(f"{at} is the zero quaternion, which is no rotation")
+            raise InvalidArgumentError(f"{at} is the zero vector")
+        if kind == "unit" and not K._unit_ok(flat, i):
+            raise NotUnitQuaternionError(
+                f"{at} = {_show(x)} has norm {np.sqrt(x @ x):.9g}, expected 1 (|‖q‖² − 1| ≤ {UNIT_TOL:g}); "
+                "call quat_normalize first if it is meant as a rotation"
+            )
+        if kind == "rotation" and not K._rotation_error_sq(flat, i) <= ROTATION_TOL**2:
+            _explain_rotation(x, at)
+        if kind == "rotation2" and not K._rot2_ok(flat, i):
+            _explain_rotation(x, at)
+        if kind == "rigid" and not K._rigid_ok(flat, i):
+            _explain_rigid(x, at)
+        if kind == "rigid2" and not K._rigid2_ok(flat, i):
+            _explain_rigid(x, at)
+    names = ", ".join(op[2] for op in operands)
+    raise InvalidArgumentError(f"element {where(bad, lead)} of {names} was rejected")
+
+
+def _explain_rigid(m: np.ndarray, at: str):
+    expect = np.zeros(m.shape[-1])
+    expect[-1] = 1.0
+    if np.abs(m[-1] - expect).max() > UNIT_TOL:
+        raise NotARotationError(f"{at} has last row {m[-1].tolist()}, expected {expect.tolist()} for a rigid transform")
+    _explain_rotation(m[:-1, :-1], at)
+
+
+def _explain_rotation(r: np.ndarray, at: str):
+    det = float(np.linalg.det(r))
+    if det <= 0:
+        raise NotARotationError(f"{at} has determinant {det:.9g}: a reflection or singular, not a rotation")
+    err = float(np.linalg.norm(r.T @ r - np.eye(r.shape[0])))
+    raise NotARotationError(
+        f"{at} is not orthonormal: ‖RᵀR − I‖ = {err:.3g} > {ROTATION_TOL:g} "
+        "(use nearest_rotation or from_matrix(..., project=True) to project it)"
+    )
+
+
+def _show(x: np.ndarray) -> str:
+    return np.array2string(x, precision=9, separator=", ")

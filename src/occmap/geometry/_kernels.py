@@ -1,0 +1,766 @@
+"""Numba kernels of the geometry core: plain float64 arrays in, arrays out.
+
+Conventions: quaternions are (w, x, y, z), Hamilton product; rotation matrices act on column
+vectors; transforms are homogeneous 4×4 (or 3×3 in 2D).
+
+Calling convention: inputs are C-contiguous arrays of any leading shape, viewed here as rows
+``(n, ...)``; an operand with a single row is broadcast with stride 0 (``i * step``, step 0 or
+1). The caller allocates ``out`` in its final shape (NumPy's allocator gives large outputs huge
+pages, which halves the cost of writing them) and the kernel fills it. Each kernel checks its
+input in the same pass and raises :class:`Rejected` with the index of the first bad element.
+Checks are written ``not (err <= tol)`` so NaN fails them; no fastmath, which would assume NaN
+away.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+class Rejected(Exception):
+    """Raised by a kernel with the flat index of the first element its checks rejected."""
+
+
+# Division by zero yields inf/NaN (caught by the checks) instead of raising inside the loop.
+kernel = njit(cache=True, error_model="numpy")
+
+UNIT_TOL = 1e-6
+ROT_TOL_SQ = 1e-12  # ROTATION_TOL², compared with ‖RᵀR − I‖²_F
+GIMBAL_EPS = 1e-12  # cos(pitch) below which yaw and roll are not separable
+
+
+# ---------------------------------------------------------------- checks
+
+
+@kernel
+def _rotation_error_sq(R, i):
+    """‖RᵀR − I‖²_F of the 3×3 block ``R[i]``, +inf when its determinant is ≤ 0, NaN if non-finite."""
+    a00, a01, a02 = R[i, 0, 0], R[i, 0, 1], R[i, 0, 2]
+    a10, a11, a12 = R[i, 1, 0], R[i, 1, 1], R[i, 1, 2]
+    a20, a21, a22 = R[i, 2, 0], R[i, 2, 1], R[i, 2, 2]
+    c00 = a00 * a00 + a10 * a10 + a20 * a20 - 1.0
+    c11 = a01 * a01 + a11 * a11 + a21 * a21 - 1.0
+    c22 = a02 * a02 + a12 * a12 + a22 * a22 - 1.0
+    c01 = a00 * a01 + a10 * a11 + a20 * a21
+    c02 = a00 * a02 + a10 * a12 + a20 * a22
+    c12 = a01 * a02 + a11 * a12 + a21 * a22
+    err = c00 * c00 + c11 * c11 + c22 * c22 + 2.0 * (c01 * c01 + c02 * c02 + c12 * c12)
+    det = a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20)
+    if det <= 0.0:
+        return np.inf
+    return err
+
+
+@kernel
+def _rigid_ok(T, i):
+    """True when ``T[i]`` (4×4) has a rotation block, a finite translation and last row (0, 0, 0, 1)."""
+    if not (_rotation_error_sq(T, i) <= ROT_TOL_SQ):
+        return False
+    last = abs(T[i, 3, 0]) + abs(T[i, 3, 1]) + abs(T[i, 3, 2]) + abs(T[i, 3, 3] - 1.0)
+    t = T[i, 0, 3] + T[i, 1, 3] + T[i, 2, 3]
+    return last <= UNIT_TOL and t - t == 0.0
+
+
+@kernel
+def _rot2_ok(R, i):
+    """True when the top-left 2×2 block of ``R[i]`` is a planar rotation [[c, −s], [s, c]]."""
+    c, s = R[i, 0, 0], R[i, 1, 0]
+    e = (R[i, 0, 1] + s) ** 2 + (R[i, 1, 1] - c) ** 2 + (c * c + s * s - 1.0) ** 2
+    return e <= ROT_TOL_SQ
+
+
+@kernel
+def _rigid2_ok(T, i):
+    last = abs(T[i, 2, 0]) + abs(T[i, 2, 1]) + abs(T[i, 2, 2] - 1.0)
+    t = T[i, 0, 2] + T[i, 1, 2]
+    return _rot2_ok(T, i) and last <= UNIT_TOL and t - t == 0.0
+
+
+@kernel
+def _unit_ok(q, i):
+    w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    return abs(w * w + x * x + y * y + z * z - 1.0) <= UNIT_TOL
+
+
+@kernel
+def _finite_row(a, i):
+    s = 0.0
+    for j in range(a.shape[1]):
+        s += a[i, j]
+    return s - s == 0.0
+
+
+@kernel
+def rotation_errors(R, out):
+    """‖RᵀR − I‖_F of each 3×3 matrix (+inf for det ≤ 0, NaN for non-finite) into ``out``."""
+    f = R.reshape((-1, 3, 3))
+    o = out.reshape(-1)
+    for i in range(f.shape[0]):
+        o[i] = math.sqrt(_rotation_error_sq(f, i))
+
+
+@kernel
+def first_nonfinite(a):
+    """Index of the first row of the 2-D array ``a`` holding NaN or ±inf, or -1."""
+    for i in range(a.shape[0]):
+        if not _finite_row(a, i):
+            return i
+    return -1
+
+
+@kernel
+def check_rigid(T):
+    """Raise :class:`Rejected` for the first 4×4 in ``T`` that is not a rigid transform."""
+    f = T.reshape((-1, 4, 4))
+    for i in range(f.shape[0]):
+        if not _rigid_ok(f, i):
+            raise Rejected(i)
+
+
+@kernel
+def check_rotation(R):
+    """Raise :class:`Rejected` for the first 3×3 in ``R`` that is not a rotation."""
+    f = R.reshape((-1, 3, 3))
+    for i in range(f.shape[0]):
+        if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
+            raise Rejected(i)
+
+
+# ---------------------------------------------------------------- SO(3) basics
+
+
+@kernel
+def hat(w, out):
+    f = w.reshape((-1, 3))
+    o = out.reshape((-1, 3, 3))
+    for i in range(f.shape[0]):
+        if not _finite_row(f, i):
+            raise Rejected(i)
+        x, y, z = f[i, 0], f[i, 1], f[i, 2]
+        o[i, 0, 0], o[i, 0, 1], o[i, 0, 2] = 0.0, -z, y
+        o[i, 1, 0], o[i, 1, 1], o[i, 1, 2] = z, 0.0, -x
+        o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = -y, x, 0.0
+
+
+@kernel
+def vee(W, out):
+    f = W.reshape((-1, 9))
+    o = out.reshape((-1, 3))
+    for i in range(f.shape[0]):
+        if not _finite_row(f, i):
+            raise Rejected(i)
+        o[i, 0] = 0.5 * (f[i, 7] - f[i, 5])
+        o[i, 1] = 0.5 * (f[i, 2] - f[i, 6])
+        o[i, 2] = 0.5 * (f[i, 3] - f[i, 1])
+
+
+@kernel
+def rot_axis(angle, axis, out):
+    """Elementary rotations about coordinate axis 0 (x), 1 (y) or 2 (z)."""
+    f = angle.reshape(-1)
+    o = out.reshape((-1, 3, 3))
+    j = (axis + 1) % 3
+    k = (axis + 2) % 3
+    for i in range(f.shape[0]):
+        a = f[i]
+        if not (a - a == 0.0):
+            raise Rejected(i)
+        c, s = math.cos(a), math.sin(a)
+        for r in range(3):
+            for q in range(3):
+                o[i, r, q] = 0.0
+        o[i, axis, axis] = 1.0
+        o[i, j, j] = c
+        o[i, j, k] = -s
+        o[i, k, j] = s
+        o[i, k, k] = c
+
+
+# ---------------------------------------------------------------- quaternions
+
+
+@kernel
+def _quat_to_rot(w, x, y, z, o, i):
+    """Write the rotation of (w, x, y, z) into ``o[i]``; the 2/‖q‖² factor makes it exact for any
+    non-zero q, so near-unit input still yields an orthonormal matrix to rounding."""
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz = w * xs, w * ys, w * zs
+    xx, xy, xz = x * xs, x * ys, x * zs
+    yy, yz, zz = y * ys, y * zs, z * zs
+    o[i, 0, 0] = 1.0 - (yy + zz)
+    o[i, 0, 1] = xy - wz
+    o[i, 0, 2] = xz + wy
+    o[i, 1, 0] = xy + wz
+    o[i, 1, 1] = 1.0 - (xx + zz)
+    o[i, 1, 2] = yz - wx
+    o[i, 2, 0] = xz - wy
+    o[i, 2, 1] = yz + wx
+    o[i, 2, 2] = 1.0 - (xx + yy)
+
+
+@kernel
+def quat_to_matrix(q, out):
+    f = q.reshape((-1, 4))
+    o = out.reshape((-1, 3, 3))
+    for i in range(f.shape[0]):
+        if not _unit_ok(f, i):
+            raise Rejected(i)
+        _quat_to_rot(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
+
+
+@kernel
+def _rot_to_quat(R, i, o, j):
+    """Shepperd's pivoted method on ``R[i]`` into ``o[j]``: take the square root of the largest of
+    1 + tr R and 1 + 2R_kk − tr R, so no division by a small number; exact for 180° turns.
+    Result has w ≥ 0 and unit norm."""
+    r00, r11, r22 = R[i, 0, 0], R[i, 1, 1], R[i, 2, 2]
+    tr = r00 + r11 + r22
+    if tr >= r00 and tr >= r11 and tr >= r22:
+        w = 0.5 * math.sqrt(1.0 + tr)
+        f = 0.25 / w
+        x = (R[i, 2, 1] - R[i, 1, 2]) * f
+        y = (R[i, 0, 2] - R[i, 2, 0]) * f
+        z = (R[i, 1, 0] - R[i, 0, 1]) * f
+    elif r00 >= r11 and r00 >= r22:
+        x = 0.5 * math.sqrt(1.0 + r00 - r11 - r22)
+        f = 0.25 / x
+        w = (R[i, 2, 1] - R[i, 1, 2]) * f
+        y = (R[i, 0, 1] + R[i, 1, 0]) * f
+        z = (R[i, 0, 2] + R[i, 2, 0]) * f
+    elif r11 >= r22:
+        y = 0.5 * math.sqrt(1.0 - r00 + r11 - r22)
+        f = 0.25 / y
+        w = (R[i, 0, 2] - R[i, 2, 0]) * f
+        x = (R[i, 0, 1] + R[i, 1, 0]) * f
+        z = (R[i, 1, 2] + R[i, 2, 1]) * f
+    else:
+        z = 0.5 * math.sqrt(1.0 - r00 - r11 + r22)
+        f = 0.25 / z
+        w = (R[i, 1, 0] - R[i, 0, 1]) * f
+        x = (R[i, 0, 2] + R[i, 2, 0]) * f
+        y = (R[i, 1, 2] + R[i, 2, 1]) * f
+    inv = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    if w < 0.0:
+        inv = -inv
+    o[j, 0] = w * inv
+    o[j, 1] = x * inv
+    o[j, 2] = y * inv
+    o[j, 3] = z * inv
+
+
+@kernel
+def matrix_to_quat(R, out):
+    f = R.reshape((-1, 3, 3))
+    o = out.reshape((-1, 4))
+    for i in range(f.shape[0]):
+        if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
+            raise Rejected(i)
+        _rot_to_quat(f, i, o, i)
+
+
+@kernel
+def quat_multiply(a, b, out):
+    fa = a.reshape((-1, 4))
+    fb = b.reshape((-1, 4))
+    o = out.reshape((-1, 4))
+    sa = 1 if fa.shape[0] > 1 else 0
+    sb = 1 if fb.shape[0] > 1 else 0
+    for i in range(o.shape[0]):
+        ia, ib = i * sa, i * sb
+        if not (_finite_row(fa, ia) and _finite_row(fb, ib)):
+            raise Rejected(i)
+        pw, px, py, pz = fa[ia, 0], fa[ia, 1], fa[ia, 2], fa[ia, 3]
+        qw, qx, qy, qz = fb[ib, 0], fb[ib, 1], fb[ib, 2], fb[ib, 3]
+        o[i, 0] = pw * qw - px * qx - py * qy - pz * qz
+        o[i, 1] = pw * qx + px * qw + py * qz - pz * qy
+        o[i, 2] = pw * qy - px * qz + py * qw + pz * qx
+        o[i, 3] = pw * qz + px * qy - py * qx + pz * qw
+
+
+@kernel
+def quat_scale(q, mode, out):
+    """mode 0: conjugate; 1: inverse (conjugate / ‖q‖²); 2: normalise. Rejects non-finite input,
+    and zero quaternions for modes 1 and 2."""
+    f = q.reshape((-1, 4))
+    o = out.reshape((-1, 4))
+    for i in range(f.shape[0]):
+        w, x, y, z = f[i, 0], f[i, 1], f[i, 2], f[i, 3]
+        nsq = w * w + x * x + y * y + z * z
+        if mode == 0:
+            a, b = 1.0, -1.0
+            ok = nsq - nsq == 0.0
+        else:
+            a = 1.0 / nsq if mode == 1 else 1.0 / math.sqrt(nsq)
+            b = -a if mode == 1 else a
+            ok = nsq > 0.0 and nsq - nsq == 0.0 and a - a == 0.0
+        if not ok:
+            raise Rejected(i)
+        o[i, 0], o[i, 1], o[i, 2], o[i, 3] = w * a, x * b, y * b, z * b
+
+
+@kernel
+def quat_rotate(q, v, out):
+    """v' = q (0, v) q*, as v + w t + u × t with t = 2 u × v and u the vector part."""
+    fq = q.reshape((-1, 4))
+    fv = v.reshape((-1, 3))
+    o = out.reshape((-1, 3))
+    sq = 1 if fq.shape[0] > 1 else 0
+    sv = 1 if fv.shape[0] > 1 else 0
+    if sq == 0 and not _unit_ok(fq, 0):
+        raise Rejected(0)
+    w, x, y, z = fq[0, 0], fq[0, 1], fq[0, 2], fq[0, 3]
+    for i in range(o.shape[0]):
+        if sq == 1:
+            if not _unit_ok(fq, i):
+                raise Rejected(i)
+            w, x, y, z = fq[i, 0], fq[i, 1], fq[i, 2], fq[i, 3]
+        j = i * sv
+        px, py, pz = fv[j, 0], fv[j, 1], fv[j, 2]
+        s = px + py + pz
+        if not (s - s == 0.0):
+            raise Rejected(i)
+        tx = 2.0 * (y * pz - z * py)
+        ty = 2.0 * (z * px - x * pz)
+        tz = 2.0 * (x * py - y * px)
+        o[i, 0] = px + w * tx + (y * tz - z * ty)
+        o[i, 1] = py + w * ty + (z * tx - x * tz)
+        o[i, 2] = pz + w * tz + (x * ty - y * tx)
+
+
+@kernel
+def _sinc_half(theta):
+    """sin(θ/2)/θ, by its series below 1e-3 where the quotient loses digits."""
+    if theta < 1e-3:
+        t2 = theta * theta
+        return 0.5 - t2 / 48.0 + t2 * t2 / 3840.0
+    return math.sin(0.5 * theta) / theta
+
+
+@kernel
+def axis_angle_to_quat(axis, angle, out):
+    fa = axis.reshape((-1, 3))
+    fg = angle.reshape(-1)
+    o = out.reshape((-1, 4))
+    sa = 1 if fa.shape[0] > 1 else 0
+    sg = 1 if fg.shape[0] > 1 else 0
+    for i in range(o.shape[0]):
+        x, y, z = fa[i * sa, 0], fa[i * sa, 1], fa[i * sa, 2]
+        a = fg[i * sg]
+        norm = math.sqrt(x * x + y * y + z * z)
+        inv = 1.0 / norm
+        if not (norm > 0.0 and inv - inv == 0.0 and a - a == 0.0):
+            raise Rejected(i)
+        s = math.sin(0.5 * a) * inv
+        o[i, 0] = math.cos(0.5 * a)
+        o[i, 1] = x * s
+        o[i, 2] = y * s
+        o[i, 3] = z * s
+
+
+@kernel
+def _quat_axis_angle(w, x, y, z, o, i):
+    """Write (axis, angle) of (w, x, y, z) into ``o[i, :4]``: angle = 2·atan2(‖v‖, |w|) ∈ [0, π],
+    accurate at both ends (no acos); axis (1, 0, 0) for the identity."""
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    vn = math.sqrt(x * x + y * y + z * z)
+    o[i, 3] = 2.0 * math.atan2(vn, w)
+    if vn > 0.0:
+        o[i, 0], o[i, 1], o[i, 2] = x / vn, y / vn, z / vn
+    else:
+        o[i, 0], o[i, 1], o[i, 2] = 1.0, 0.0, 0.0
+
+
+@kernel
+def quat_to_axis_angle(q, out):
+    f = q.reshape((-1, 4))
+    o = out.reshape((-1, 4))
+    for i in range(f.shape[0]):
+        if not _unit_ok(f, i):
+            raise Rejected(i)
+        _quat_axis_angle(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
+
+
+@kernel
+def matrix_to_axis_angle(R, out):
+    f = R.reshape((-1, 3, 3))
+    o = out.reshape((-1, 4))
+    q = np.empty((1, 4))
+    for i in range(f.shape[0]):
+        if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
+            raise Rejected(i)
+        _rot_to_quat(f, i, q, 0)
+        _quat_axis_angle(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o, i)
+
+
+@kernel
+def quat_slerp(q0, q1, t, out):
+    """Spherical linear interpolation along the shorter arc (q1 negated when q0·q1 < 0); the
+    half-angle comes from atan2(|a − b|, |a + b|), accurate for nearly equal quaternions, and
+    normalised lerp takes over below 1e-6 rad where sin(Ω) would divide rounding noise."""
+    fa = q0.reshape((-1, 4))
+    fb = q1.reshape((-1, 4))
+    ft = t.reshape(-1)
+    o = out.reshape((-1, 4))
+    s0 = 1 if fa.shape[0] > 1 else 0
+    s1 = 1 if fb.shape[0] > 1 else 0
+    st = 1 if ft.shape[0] > 1 else 0
+    for i in range(o.shape[0]):
+        ia, ib = i * s0, i * s1
+        u = ft[i * st]
+        if not (_unit_ok(fa, ia) and _unit_ok(fb, ib) and u - u == 0.0):
+            raise Rejected(i)
+        d = 0.0
+        for k in range(4):
+            d += fa[ia, k] * fb[ib, k]
+        sign = -1.0 if d < 0.0 else 1.0
+        dm = 0.0
+        dp = 0.0
+        for k in range(4):
+            e = fa[ia, k] - sign * fb[ib, k]
+            g = fa[ia, k] + sign * fb[ib, k]
+            dm += e * e
+            dp += g * g
+        omega = 2.0 * math.atan2(math.sqrt(dm), math.sqrt(dp))
+        if omega < 1e-6:
+            wa = 1.0 - u
+            wb = u
+        else:
+            so = math.sin(omega)
+            wa = math.sin((1.0 - u) * omega) / so
+            wb = math.sin(u * omega) / so
+        wb *= sign
+        nsq = 0.0
+        for k in range(4):
+            o[i, k] = wa * fa[ia, k] + wb * fb[ib, k]
+            nsq += o[i, k] * o[i, k]
+        inv = 1.0 / math.sqrt(nsq)
+        for k in range(4):
+            o[i, k] *= inv
+
+
+# ---------------------------------------------------------------- exp / log on SO(3)
+
+
+@kernel
+def exp_so3(rv, out):
+    f = rv.reshape((-1, 3))
+    o = out.reshape((-1, 3, 3))
+    for i in range(f.shape[0]):
+        x, y, z = f[i, 0], f[i, 1], f[i, 2]
+        theta = math.sqrt(x * x + y * y + z * z)
+        if not (theta - theta == 0.0):
+            raise Rejected(i)
+        s = _sinc_half(theta)
+        _quat_to_rot(math.cos(0.5 * theta), x * s, y * s, z * s, o, i)
+
+
+# ---------------------------------------------------------------- Euler Z-Y-X
+
+
+@kernel
+def _euler_zyx_entries(a, b, g, o, i):
+    """Write R = Rz(a) Ry(b) Rx(g) into ``o[i]``, entry by entry."""
+    cy, sy = math.cos(a), math.sin(a)
+    cp, sp = math.cos(b), math.sin(b)
+    cr, sr = math.cos(g), math.sin(g)
+    o[i, 0, 0] = cy * cp
+    o[i, 0, 1] = cy * sp * sr - sy * cr
+    o[i, 0, 2] = cy * sp * cr + sy * sr
+    o[i, 1, 0] = sy * cp
+    o[i, 1, 1] = sy * sp * sr + cy * cr
+    o[i, 1, 2] = sy * sp * cr - cy * sr
+    o[i, 2, 0] = -sp
+    o[i, 2, 1] = cp * sr
+    o[i, 2, 2] = cp * cr
+
+
+@kernel
+def euler_zyx_to_matrix(yaw, pitch, roll, out):
+    fy = yaw.reshape(-1)
+    fp = pitch.reshape(-1)
+    fr = roll.reshape(-1)
+    o = out.reshape((-1, 3, 3))
+    sy = 1 if fy.shape[0] > 1 else 0
+    sp = 1 if fp.shape[0] > 1 else 0
+    sr = 1 if fr.shape[0] > 1 else 0
+    for i in range(o.shape[0]):
+        a, b, g = fy[i * sy], fp[i * sp], fr[i * sr]
+        s = a + b + g
+        if not (s - s == 0.0):
+            raise Rejected(i)
+        _euler_zyx_entries(a, b, g, o, i)
+
+
+@kernel
+def euler_zyx_to_matrix_one(yaw, pitch, roll, out):
+    """Scalar form of :func:`euler_zyx_to_matrix` (Python floats pass without array conversion)."""
+    s = yaw + pitch + roll
+    if not (s - s == 0.0):
+        raise Rejected(0)
+    _euler_zyx_entries(yaw, pitch, roll, out.reshape((1, 3, 3)), 0)
+
+
+@kernel
+def matrix_to_euler_zyx(R, out):
+    """(yaw, pitch, roll) rows with pitch ∈ [−π/2, π/2]. Yaw comes from the first column; roll is
+    then solved from entries of size O(1) given that yaw (cos and sin of yaw are the normalised
+    first column), so the angles reproduce R to rounding even where cos(pitch) is tiny. At gimbal
+    lock (cos(pitch) < GIMBAL_EPS) roll is 0 by convention and yaw takes the whole angle."""
+    f = R.reshape((-1, 3, 3))
+    o = out.reshape((-1, 3))
+    for i in range(f.shape[0]):
+        if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
+            raise Rejected(i)
+        r00, r10 = f[i, 0, 0], f[i, 1, 0]
+        cp = math.hypot(r00, r10)
+        o[i, 1] = math.atan2(-f[i, 2, 0], cp)
+        if cp < GIMBAL_EPS:
+            o[i, 0] = math.atan2(-f[i, 0, 1], f[i, 1, 1])
+            o[i, 2] = 0.0
+        else:
+            cy, sy = r00 / cp, r10 / cp
+            o[i, 0] = math.atan2(r10, r00)
+            o[i, 2] = math.atan2(sy * f[i, 0, 2] - cy * f[i, 1, 2], cy * f[i, 1, 1] - sy * f[i, 0, 1])
+
+
+# ---------------------------------------------------------------- SE(3)
+
+
+@kernel
+def make_transform(R, t, out):
+    fr = R.reshape((-1, 3, 3))
+    ft = t.reshape((-1, 3))
+    o = out.reshape((-1, 4, 4))
+    sr = 1 if fr.shape[0] > 1 else 0
+    st = 1 if ft.shape[0] > 1 else 0
+    for i in range(o.shape[0]):
+        ir, it = i * sr, i * st
+        if not (_rotation_error_sq(fr, ir) <= ROT_TOL_SQ and _finite_row(ft, it)):
+            raise Rejected(i)
+        for r in range(3):
+            for c in range(3):
+                o[i, r, c] = fr[ir, r, c]
+            o[i, r, 3] = ft[it, r]
+        o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+
+
+@kernel
+def invert_transform(T, out):
+    f = T.reshape((-1, 4, 4))
+    o = out.reshape((-1, 4, 4))
+    for i in range(f.shape[0]):
+        if not _rigid_ok(f, i):
+            raise Rejected(i)
+        for r in range(3):
+            acc = 0.0
+            for c in range(3):
+                o[i, r, c] = f[i, c, r]
+                acc += f[i, c, r] * f[i, c, 3]
+            o[i, r, 3] = -acc
+        o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+
+
+@kernel
+def compose_transforms(A, B, out):
+    """A @ B for rigid 4×4 transforms, using their (0, 0, 0, 1) last rows."""
+    fa = A.reshape((-1, 4, 4))
+    fb = B.reshape((-1, 4, 4))
+    o = out.reshape((-1, 4, 4))
+    sa = 1 if fa.shape[0] > 1 else 0
+    sb = 1 if fb.shape[0] > 1 else 0
+    for i in range(o.shape[0]):
+        ia, ib = i * sa, i * sb
+        for r in range(3):
+            for c in range(4):
+                o[i, r, c] = fa[ia, r, 0] * fb[ib, 0, c] + fa[ia, r, 1] * fb[ib, 1, c] + fa[ia, r, 2] * fb[ib, 2, c]
+            o[i, r, 3] += fa[ia, r, 3]
+        o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+
+
+@kernel
+def transform_points(T, p, out):
+    """Apply rigid transforms (4×4) to points (3); a shared transform is validated once and its
+    entries held in registers for the whole point loop."""
+    ft = T.reshape((-1, 4, 4))
+    fp = p.reshape((-1, 3))
+    o = out.reshape((-1, 3))
+    st = 1 if ft.shape[0] > 1 else 0
+    sp = 1 if fp.shape[0] > 1 else 0
+    if st == 0 and not _rigid_ok(ft, 0):
+        raise Rejected(0)
+    m00, m01, m02, m03 = ft[0, 0, 0], ft[0, 0, 1], ft[0, 0, 2], ft[0, 0, 3]
+    m10, m11, m12, m13 = ft[0, 1, 0], ft[0, 1, 1], ft[0, 1, 2], ft[0, 1, 3]
+    m20, m21, m22, m23 = ft[0, 2, 0], ft[0, 2, 1], ft[0, 2, 2], ft[0, 2, 3]
+    for i in range(o.shape[0]):
+        if st == 1:
+            if not _rigid_ok(ft, i):
+                raise Rejected(i)
+            m00, m01, m02, m03 = ft[i, 0, 0], ft[i, 0, 1], ft[i, 0, 2], ft[i, 0, 3]
+            m10, m11, m12, m13 = ft[i, 1, 0], ft[i, 1, 1], ft[i, 1, 2], ft[i, 1, 3]
+            m20, m21, m22, m23 = ft[i, 2, 0], ft[i, 2, 1], ft[i, 2, 2], ft[i, 2, 3]
+        j = i * sp
+        x, y, z = fp[j, 0], fp[j, 1], fp[j, 2]
+        s = x + y + z
+        if not (s - s == 0.0):
+            raise Rejected(i)
+        o[i, 0] = m00 * x + m01 * y + m02 * z + m03
+        o[i, 1] = m10 * x + m11 * y + m12 * z + m13
+        o[i, 2] = m20 * x + m21 * y + m22 * z + m23
+
+
+@kernel
+def _se3_coeffs(theta):
+    """(b, c) = ((1 − cos θ)/θ², (θ − sin θ)/θ³), by their series below 0.1 where the quotients
+    cancel; the cancellation left above 0.1 is absorbed by the θ² of the φ^² they multiply."""
+    t2 = theta * theta
+    if theta < 0.1:
+        b = 0.5 * (1.0 - t2 / 12.0 * (1.0 - t2 / 30.0 * (1.0 - t2 / 56.0 * (1.0 - t2 / 90.0))))
+        c = (1.0 - t2 / 20.0 * (1.0 - t2 / 42.0 * (1.0 - t2 / 72.0 * (1.0 - t2 / 110.0)))) / 6.0
+    else:
+        h = math.sin(0.5 * theta)
+        b = 2.0 * h * h / t2
+        c = (theta - math.sin(theta)) / (t2 * theta)
+    return b, c
+
+
+@kernel
+def exp_se3(xi, out):
+    """Twist (ρ, φ) (translation part first, as Sophus and Barfoot) to a 4×4 transform:
+    R = exp(φ^), t = V ρ with V = I + b φ^ + c φ^²."""
+    f = xi.reshape((-1, 6))
+    o = out.reshape((-1, 4, 4))
+    for i in range(f.shape[0]):
+        if not _finite_row(f, i):
+            raise Rejected(i)
+        rx, ry, rz, x, y, z = f[i, 0], f[i, 1], f[i, 2], f[i, 3], f[i, 4], f[i, 5]
+        theta = math.sqrt(x * x + y * y + z * z)
+        sh = _sinc_half(theta)
+        _quat_to_rot(math.cos(0.5 * theta), x * sh, y * sh, z * sh, o, i)
+        b, c = _se3_coeffs(theta)
+        # φ × ρ and φ × (φ × ρ)
+        c1x, c1y, c1z = y * rz - z * ry, z * rx - x * rz, x * ry - y * rx
+        c2x, c2y, c2z = y * c1z - z * c1y, z * c1x - x * c1z, x * c1y - y * c1x
+        o[i, 0, 3] = rx + b * c1x + c * c2x
+        o[i, 1, 3] = ry + b * c1y + c * c2y
+        o[i, 2, 3] = rz + b * c1z + c * c2z
+        o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+
+
+@kernel
+def log_se3(T, out):
+    """Inverse of :func:`exp_se3`: φ = log R, ρ = V⁻¹ t with V⁻¹ = I − ½ φ^ + d φ^²,
+    d = (1 − (θ/2) cot(θ/2)) / θ², by its series below 0.1; finite up to and at θ = π."""
+    f = T.reshape((-1, 4, 4))
+    o = out.reshape((-1, 6))
+    q = np.empty((1, 4))
+    aa = np.empty((1, 4))
+    for i in range(f.shape[0]):
+        if not _rigid_ok(f, i):
+            raise Rejected(i)
+        _rot_to_quat(f, i, q, 0)
+        _quat_axis_angle(q[0, 0], q[0, 1], q[0, 2], q[0, 3], aa, 0)
+        theta = aa[0, 3]
+        x, y, z = aa[0, 0] * theta, aa[0, 1] * theta, aa[0, 2] * theta
+        t2 = theta * theta
+        if theta < 0.1:
+            d = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 * t2 * t2 / 1209600.0
+        else:
+            h = 0.5 * theta
+            d = (1.0 - h * math.cos(h) / math.sin(h)) / t2
+        tx, ty, tz = f[i, 0, 3], f[i, 1, 3], f[i, 2, 3]
+        c1x, c1y, c1z = y * tz - z * ty, z * tx - x * tz, x * ty - y * tx
+        c2x, c2y, c2z = y * c1z - z * c1y, z * c1x - x * c1z, x * c1y - y * c1x
+        o[i, 0] = tx - 0.5 * c1x + d * c2x
+        o[i, 1] = ty - 0.5 * c1y + d * c2y
+        o[i, 2] = tz - 0.5 * c1z + d * c2z
+        o[i, 3], o[i, 4], o[i, 5] = x, y, z
+
+
+# ---------------------------------------------------------------- SE(2)
+
+
+@kernel
+def _se2_entries(x, y, t, o, i):
+    c, s = math.cos(t), math.sin(t)
+    o[i, 0, 0], o[i, 0, 1], o[i, 0, 2] = c, -s, x
+    o[i, 1, 0], o[i, 1, 1], o[i, 1, 2] = s, c, y
+    o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = 0.0, 0.0, 1.0
+
+
+@kernel
+def se2_matrix(x, y, theta, out):
+    fx = x.reshape(-1)
+    fy = y.reshape(-1)
+    ft = theta.reshape(-1)
+    o = out.reshape((-1, 3, 3))
+    sx = 1 if fx.shape[0] > 1 else 0
+    sy = 1 if fy.shape[0] > 1 else 0
+    st = 1 if ft.shape[0] > 1 else 0
+    for i in range(o.shape[0]):
+        a, b, t = fx[i * sx], fy[i * sy], ft[i * st]
+        s = a + b + t
+        if not (s - s == 0.0):
+            raise Rejected(i)
+        _se2_entries(a, b, t, o, i)
+
+
+@kernel
+def se2_matrix_one(x, y, theta, out):
+    """Scalar form of :func:`se2_matrix`."""
+    s = x + y + theta
+    if not (s - s == 0.0):
+        raise Rejected(0)
+    _se2_entries(x, y, theta, out.reshape((1, 3, 3)), 0)
+
+
+@kernel
+def se2_from_matrix(T, out):
+    f = T.reshape((-1, 3, 3))
+    o = out.reshape((-1, 3))
+    for i in range(f.shape[0]):
+        if not _rigid2_ok(f, i):
+            raise Rejected(i)
+        o[i, 0] = f[i, 0, 2]
+        o[i, 1] = f[i, 1, 2]
+        o[i, 2] = math.atan2(f[i, 1, 0], f[i, 0, 0])
+
+
+@kernel
+def transform_points2(T, p, out):
+    """2D counterpart of :func:`transform_points`: 3×3 transforms, 2-vectors."""
+    ft = T.reshape((-1, 3, 3))
+    fp = p.reshape((-1, 2))
+    o = out.reshape((-1, 2))
+    st = 1 if ft.shape[0] > 1 else 0
+    sp = 1 if fp.shape[0] > 1 else 0
+    if st == 0 and not _rigid2_ok(ft, 0):
+        raise Rejected(0)
+    for i in range(o.shape[0]):
+        k = i * st
+        if st == 1 and not _rigid2_ok(ft, k):
+            raise Rejected(i)
+        j = i * sp
+        x, y = fp[j, 0], fp[j, 1]
+        s = x + y
+        if not (s - s == 0.0):
+            raise Rejected(i)
+        o[i, 0] = ft[k, 0, 0] * x + ft[k, 0, 1] * y + ft[k, 0, 2]
+        o[i, 1] = ft[k, 1, 0] * x + ft[k, 1, 1] * y + ft[k, 1, 2]
+
+
+@kernel
+def invert_transform2(T, out):
+    f = T.reshape((-1, 3, 3))
+    o = out.reshape((-1, 3, 3))
+    for i in range(f.shape[0]):
+        if not _rigid2_ok(f, i):
+            raise Rejected(i)
+        for r in range(2):
+            o[i, r, 0] = f[i, 0, r]
+            o[i, r, 1] = f[i, 1, r]
+            o[i, r, 2] = -(f[i, 0, r] * f[i, 0, 2] + f[i, 1, r] * f[i, 1, 2])
+        o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = 0.0, 0.0, 1.0

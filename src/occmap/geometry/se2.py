@@ -1,0 +1,153 @@
+"""SE(2): planar poses ``(x, y, theta)``, their 3×3 homogeneous matrices, and the :class:`SE2` wrapper.
+
+``T = [[cos θ, −sin θ, x], [sin θ, cos θ, y], [0, 0, 1]]`` maps body coordinates to world
+coordinates; θ in radians, counter-clockwise, returned in (−π, π].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ShapeError
+from . import _kernels as K
+from ._arrays import Rejected, batch, broadcast, reject
+from .so2 import SO2, wrap_angle
+
+
+def se2_matrix(x, y, theta):
+    """Homogeneous matrices (..., 3, 3) of poses; ``x``, ``y``, ``theta`` broadcast."""
+    if type(x) is float and type(y) is float and type(theta) is float:
+        out = np.empty((3, 3))
+        try:
+            K.se2_matrix_one(x, y, theta, out)
+        except Rejected:
+            pass  # fall through to the array path, which names the bad argument
+        else:
+            return out
+    (a, b, t), lead = broadcast((x, (), "x"), (y, (), "y"), (theta, (), "theta"))
+    out = np.empty(lead + (3, 3))
+    try:
+        K.se2_matrix(a, b, t, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (), "x", "finite"), (b, (), "y", "finite"), (t, (), "theta", "finite"))
+    return out
+
+
+def se2_from_matrix(T):
+    """``(x, y, theta)`` arrays (...) of planar rigid transforms (..., 3, 3), θ ∈ (−π, π]."""
+    a, lead = batch(T, (3, 3), "T")
+    out = np.empty(lead + (3,))
+    try:
+        K.se2_from_matrix(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (3, 3), "T", "rigid2"))
+    return out[..., 0], out[..., 1], out[..., 2]
+
+
+class SE2:
+    """Batched planar poses of shape ``self.shape``, held as a read-only (..., 3) ``(x, y, θ)`` array.
+
+    Immutable. ``a @ b`` composes (``T_a_c = T_a_b @ T_b_c``), ``.inv()`` inverts,
+    ``.apply(points)`` maps (..., 2) points from the body frame to the world frame.
+    """
+
+    __slots__ = ("_p",)
+
+    def __init__(self, xytheta):
+        p = np.array(xytheta, dtype=np.float64)
+        if p.shape[-1:] != (3,):
+            raise ShapeError(f"xytheta must have shape (..., 3), got {p.shape}")
+        row = K.first_nonfinite(p.reshape(-1, 3))
+        if row >= 0:
+            reject(row, p.shape[:-1], (p, (3,), "xytheta", "finite"))
+        p[..., 2] = wrap_angle(p[..., 2])
+        p.flags.writeable = False
+        self._p = p
+
+    @classmethod
+    def from_xytheta(cls, x, y, theta) -> SE2:
+        x, y, theta = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (x, y, theta)))
+        return cls(np.stack([x, y, theta], -1))
+
+    @classmethod
+    def from_matrix(cls, matrix, project: bool = False) -> SE2:
+        """From (..., 3, 3) planar rigid transforms; raises NotARotationError for a bad rotation
+        block unless ``project`` is true (then θ = atan2 of the nearest rotation)."""
+        m = np.asarray(matrix, dtype=np.float64)
+        if project:
+            if m.shape[-2:] != (3, 3):
+                raise ShapeError(f"matrix must have shape (..., 3, 3), got {m.shape}")
+            theta = SO2.from_matrix(m[..., :2, :2], project=True).angle
+            return cls.from_xytheta(m[..., 0, 2], m[..., 1, 2], theta)
+        x, y, theta = se2_from_matrix(m)
+        return cls(np.stack([x, y, theta], -1))
+
+    @classmethod
+    def identity(cls, shape: tuple[int, ...] | int = ()) -> SE2:
+        shape = (shape,) if isinstance(shape, int) else tuple(shape)
+        return cls(np.zeros(shape + (3,)))
+
+    @property
+    def xytheta(self) -> np.ndarray:
+        return self._p
+
+    @property
+    def translation(self) -> np.ndarray:
+        return self._p[..., :2]
+
+    @property
+    def rotation(self) -> SO2:
+        return SO2(self._p[..., 2])
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return se2_matrix(self._p[..., 0], self._p[..., 1], self._p[..., 2])
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self._p.shape[:-1]
+
+    def __len__(self) -> int:
+        if not self.shape:
+            raise TypeError("a single SE2 has no len()")
+        return self.shape[0]
+
+    def __getitem__(self, index) -> SE2:
+        return SE2(self._p[..., :][index])
+
+    def __matmul__(self, other: SE2) -> SE2:
+        if not isinstance(other, SE2):
+            return NotImplemented
+        a, b = self._p, other._p
+        c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+        x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+        y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+        return SE2(np.stack(np.broadcast_arrays(x, y, a[..., 2] + b[..., 2]), -1))
+
+    def inv(self) -> SE2:
+        p = self._p
+        c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
+        return SE2(np.stack([-c * p[..., 0] - s * p[..., 1], s * p[..., 0] - c * p[..., 1], -p[..., 2]], -1))
+
+    def apply(self, points) -> np.ndarray:
+        """Map (..., 2) body-frame points to the world frame (leading shapes broadcast)."""
+        (a, b), lead = broadcast((self.matrix, (3, 3), "pose"), (points, (2,), "points"))
+        out = np.empty(lead + (2,))
+        try:
+            K.transform_points2(a, b, out)
+        except Rejected as e:
+            reject(e.args[0], lead, (b, (2,), "points", "finite"))
+        return out
+
+    def interpolate(self, other: SE2, t) -> SE2:
+        """Translation linearly, heading the short way round (``t = 0`` gives ``self``)."""
+        t = np.asarray(t, dtype=np.float64)[..., None]
+        d = other._p - self._p
+        d[..., 2] = wrap_angle(d[..., 2])
+        return SE2(self._p + t * d)
+
+    def __repr__(self) -> str:
+        if not self.shape:
+            x, y, th = self._p
+            return f"SE2(x={x:.6g}, y={y:.6g}, theta={th:.6g})"
+        return f"SE2(shape={self.shape})"

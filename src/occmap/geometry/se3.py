@@ -1,0 +1,222 @@
+"""SE(3): rigid transforms as homogeneous 4×4 matrices, their exp/log, and the :class:`SE3` wrapper.
+
+``T_a_b`` maps coordinates in frame b to frame a: ``p_a = T_a_b @ p_b``, and
+``T_a_c = T_a_b @ T_b_c``. Twists are ``ξ = (ρ, φ)``, translation part first (as Sophus and
+Barfoot's *State Estimation for Robotics*): ``exp_se3(ξ) = [[exp(φ^), V ρ], [0, 1]]``.
+Functions that take a transform check that its top-left block is a rotation and its last row is
+(0, 0, 0, 1), and raise :class:`~occmap.errors.NotARotationError` naming the element. The
+functions here also accept 2D transforms (..., 3, 3) with (..., 2) points where noted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ShapeError
+from . import _kernels as K
+from ._arrays import Rejected, batch, broadcast, reject
+from .euler import euler_zyx_to_matrix
+from .se2 import se2_matrix
+from .so2 import so2_angle
+from .quaternion import quat_slerp, quat_to_matrix
+from .so3 import SO3, nearest_rotation
+
+
+def make_transform(R, t):
+    """Homogeneous transforms (..., 4, 4) from rotations (..., 3, 3) and translations (..., 3);
+    2D: rotations (..., 2, 2) and translations (..., 2) give (..., 3, 3)."""
+    r = np.asarray(R, dtype=np.float64)
+    if r.shape[-2:] == (2, 2):
+        tt = np.asarray(t, dtype=np.float64)
+        if tt.shape[-1:] != (2,):
+            raise ShapeError(f"t must have shape (..., 2) to go with 2×2 rotations, got {tt.shape}")
+        return se2_matrix(tt[..., 0], tt[..., 1], so2_angle(r))
+    (a, b), lead = broadcast((r, (3, 3), "R"), (t, (3,), "t"))
+    out = np.empty(lead + (4, 4))
+    try:
+        K.make_transform(a, b, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (3, 3), "R", "rotation"), (b, (3,), "t", "finite"))
+    return out
+
+
+def invert_transform(T):
+    """Inverses ``[[Rᵀ, −Rᵀt], [0, 1]]`` of rigid transforms (..., 4, 4) or 2D (..., 3, 3)."""
+    m = np.asarray(T, dtype=np.float64)
+    planar = m.shape[-2:] == (3, 3)
+    d = (3, 3) if planar else (4, 4)
+    a, lead = batch(m, d, "T")
+    out = np.empty(a.shape)
+    try:
+        (K.invert_transform2 if planar else K.invert_transform)(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, d, "T", "rigid2" if planar else "rigid"))
+    return out
+
+
+def transform_points(T, points):
+    """Apply rigid transforms to points: (..., 4, 4) with (..., 3), or 2D (..., 3, 3) with (..., 2).
+
+    Leading shapes broadcast; one transform applied to N points is validated once and not copied.
+    """
+    m = np.asarray(T, dtype=np.float64)
+    planar = m.shape[-2:] == (3, 3)
+    d, k = ((3, 3), 2) if planar else ((4, 4), 3)
+    (a, b), lead = broadcast((m, d, "T"), (points, (k,), "points"))
+    out = np.empty(lead + (k,))
+    try:
+        (K.transform_points2 if planar else K.transform_points)(a, b, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, d, "T", "rigid2" if planar else "rigid"), (b, (k,), "points", "finite"))
+    return out
+
+
+def compose_transforms(A, B):
+    """``A @ B`` for rigid transforms (..., 4, 4), broadcasting; faster than ``np.matmul`` on batches.
+    The inputs are assumed rigid (only their top three rows are read)."""
+    (a, b), lead = broadcast((A, (4, 4), "A"), (B, (4, 4), "B"))
+    out = np.empty(lead + (4, 4))
+    K.compose_transforms(a, b, out)
+    return out
+
+
+def exp_se3(twist):
+    """Transforms (..., 4, 4) of twists ``(ρ, φ)`` (..., 6): rotation ``exp(φ^)``, translation ``V ρ``."""
+    a, lead = batch(twist, (6,), "twist")
+    out = np.empty(lead + (4, 4))
+    try:
+        K.exp_se3(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (6,), "twist", "finite"))
+    return out
+
+
+def log_se3(T):
+    """Twists ``(ρ, φ)`` (..., 6) of rigid transforms, with ‖φ‖ ∈ [0, π]; inverse of :func:`exp_se3`."""
+    a, lead = batch(T, (4, 4), "T")
+    out = np.empty(lead + (6,))
+    try:
+        K.log_se3(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (4, 4), "T", "rigid"))
+    return out
+
+
+class SE3:
+    """Batched rigid transforms of shape ``self.shape``, held as read-only (..., 4, 4) matrices.
+
+    Immutable. ``T_a_b @ T_b_c`` composes, ``.inv()`` inverts, ``.apply(points)`` maps (..., 3)
+    points. ``.rotation`` is an :class:`SO3`, ``.translation`` a (..., 3) array.
+    """
+
+    __slots__ = ("_m",)
+
+    def __init__(self, matrix, *, _trusted: bool = False):
+        if _trusted:
+            m = np.asarray(matrix)
+        else:
+            m, lead = batch(np.array(matrix, dtype=np.float64), (4, 4), "matrix")
+            try:
+                K.check_rigid(m)
+            except Rejected as e:
+                reject(e.args[0], lead, (m, (4, 4), "matrix", "rigid"))
+        m.flags.writeable = False
+        self._m = m
+
+    @classmethod
+    def from_matrix(cls, matrix, project: bool = False) -> SE3:
+        """From (..., 4, 4) rigid transforms; a bad rotation block raises NotARotationError unless
+        ``project`` is true, which replaces it by its nearest rotation."""
+        if project:
+            m = np.array(matrix, dtype=np.float64)
+            if m.shape[-2:] != (4, 4):
+                raise ShapeError(f"matrix must have shape (..., 4, 4), got {m.shape}")
+            m[..., :3, :3] = nearest_rotation(m[..., :3, :3])
+            return cls(m)
+        return cls(matrix)
+
+    @classmethod
+    def from_rt(cls, rotation, translation) -> SE3:
+        """From rotation matrices (..., 3, 3) or an :class:`SO3`, and translations (..., 3)."""
+        r = rotation.matrix if isinstance(rotation, SO3) else rotation
+        return cls(make_transform(r, translation), _trusted=True)
+
+    @classmethod
+    def from_quat(cls, q, translation=(0.0, 0.0, 0.0)) -> SE3:
+        """From unit quaternions (w, x, y, z) (..., 4) and translations (..., 3)."""
+        return cls(make_transform(quat_to_matrix(q), translation), _trusted=True)
+
+    @classmethod
+    def from_euler_zyx(cls, yaw, pitch, roll, translation=(0.0, 0.0, 0.0)) -> SE3:
+        return cls(make_transform(euler_zyx_to_matrix(yaw, pitch, roll), translation), _trusted=True)
+
+    @classmethod
+    def from_rotvec(cls, rotvec, translation=(0.0, 0.0, 0.0)) -> SE3:
+        return cls.from_rt(SO3.from_rotvec(rotvec), translation)
+
+    @classmethod
+    def exp(cls, twist) -> SE3:
+        """From twists ``(ρ, φ)`` (..., 6), see :func:`exp_se3`."""
+        return cls(exp_se3(twist), _trusted=True)
+
+    @classmethod
+    def identity(cls, shape: tuple[int, ...] | int = ()) -> SE3:
+        shape = (shape,) if isinstance(shape, int) else tuple(shape)
+        return cls(np.broadcast_to(np.eye(4), shape + (4, 4)), _trusted=True)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return self._m
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self._m.shape[:-2]
+
+    @property
+    def rotation(self) -> SO3:
+        return SO3(self._m[..., :3, :3], _trusted=True)
+
+    @property
+    def translation(self) -> np.ndarray:
+        return self._m[..., :3, 3]
+
+    def log(self) -> np.ndarray:
+        """Twists ``(ρ, φ)`` (..., 6), see :func:`log_se3`."""
+        return log_se3(self._m)
+
+    def __len__(self) -> int:
+        if not self.shape:
+            raise TypeError("a single SE3 has no len()")
+        return self.shape[0]
+
+    def __getitem__(self, index) -> SE3:
+        m = self._m[index]
+        if m.shape[-2:] != (4, 4):
+            raise IndexError("index the batch dimensions only")
+        return SE3(m, _trusted=True)
+
+    def __matmul__(self, other: SE3) -> SE3:
+        if not isinstance(other, SE3):
+            return NotImplemented
+        return SE3(compose_transforms(self._m, other._m), _trusted=True)
+
+    def inv(self) -> SE3:
+        return SE3(invert_transform(self._m), _trusted=True)
+
+    def apply(self, points) -> np.ndarray:
+        """Map (..., 3) points through the transforms (leading shapes broadcast)."""
+        return transform_points(self._m, points)
+
+    def interpolate(self, other: SE3, t) -> SE3:
+        """Interpolate as tf2 does: translation linearly, rotation by slerp (``t = 0`` gives ``self``)."""
+        t = np.asarray(t, dtype=np.float64)
+        q = quat_slerp(self.rotation.as_quat(), other.rotation.as_quat(), t)
+        p = self.translation + t[..., None] * (other.translation - self.translation)
+        return SE3(make_transform(quat_to_matrix(q), p), _trusted=True)
+
+    def __repr__(self) -> str:
+        if not self.shape:
+            t = np.array2string(self.translation, precision=6)
+            r = np.array2string(self.rotation.as_rotvec(), precision=6)
+            return f"SE3(translation={t}, rotvec={r})"
+        return f"SE3(shape={self.shape})"

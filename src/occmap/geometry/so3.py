@@ -1,0 +1,287 @@
+"""SO(3): rotation matrices, the hat/vee maps, Rodrigues' exp/log, and the :class:`SO3` wrapper.
+
+Rotation matrices act on column vectors (``p' = R @ p``) and are right-handed. Rotation vectors
+(axis · angle, radians) are the so(3) coordinates: ``exp_so3(w) = exp(hat(w))``. Functions that
+take a rotation check it (‖RᵀR − I‖_F ≤ 1e-6 and det R > 0) and raise
+:class:`~occmap.errors.NotARotationError` naming the element; :func:`nearest_rotation` projects
+noisy matrices. All functions broadcast over leading dimensions and return float64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ShapeError
+from . import _kernels as K
+from ._arrays import Rejected, batch, reject
+from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
+from .quaternion import axis_angle_to_quat, matrix_to_quat, quat_slerp, quat_to_matrix
+
+
+def hat(w):
+    """Skew-symmetric matrices (..., 3, 3) with ``hat(w) @ v == cross(w, v)``."""
+    a, lead = batch(w, (3,), "w")
+    out = np.empty(lead + (3, 3))
+    try:
+        K.hat(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (3,), "w", "finite"))
+    return out
+
+
+def vee(W):
+    """Inverse of :func:`hat`; takes the skew-symmetric part ``(W − Wᵀ)/2`` of any 3×3 matrix."""
+    a, lead = batch(W, (3, 3), "W")
+    out = np.empty(lead + (3,))
+    try:
+        K.vee(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (3, 3), "W", "finite"))
+    return out
+
+
+def _rot(angle, axis: int):
+    a, lead = batch(angle, (), "angle")
+    out = np.empty(lead + (3, 3))
+    try:
+        K.rot_axis(a, axis, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (), "angle", "finite"))
+    return out
+
+
+def rot_x(angle):
+    """Rotations (..., 3, 3) by ``angle`` radians about x (counter-clockwise seen from +x)."""
+    return _rot(angle, 0)
+
+
+def rot_y(angle):
+    """Rotations (..., 3, 3) by ``angle`` radians about y."""
+    return _rot(angle, 1)
+
+
+def rot_z(angle):
+    """Rotations (..., 3, 3) by ``angle`` radians about z."""
+    return _rot(angle, 2)
+
+
+def exp_so3(rotvec):
+    """Rodrigues' formula: rotation matrices of rotation vectors (..., 3), any angle.
+
+    Computed through the unit quaternion ``(cos θ/2, sin(θ/2)/θ · w)`` with a series for
+    sin(θ/2)/θ at small θ, so it is accurate to rounding from θ = 0 upward.
+    """
+    a, lead = batch(rotvec, (3,), "rotvec")
+    out = np.empty(lead + (3, 3))
+    try:
+        K.exp_so3(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (3,), "rotvec", "finite"))
+    return out
+
+
+def matrix_to_axis_angle(R):
+    """``(axis, angle)``: unit axes (..., 3) and angles (...) in [0, π] of rotation matrices.
+
+    Goes through Shepperd's quaternion and ``angle = 2·atan2(‖v‖, w)``, which stays accurate to
+    ~1e-15 at angles near 0 and near π, where ``acos((tr R − 1)/2)`` loses half the digits.
+    The identity gets axis (1, 0, 0); at exactly π, ``axis`` and ``−axis`` are equally valid.
+    """
+    a, lead = batch(R, (3, 3), "R")
+    out = np.empty(lead + (4,))
+    try:
+        K.matrix_to_axis_angle(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (3, 3), "R", "rotation"))
+    return out[..., :3], out[..., 3]
+
+
+def log_so3(R):
+    """Rotation vectors (..., 3) (axis · angle, angle ∈ [0, π]) of rotation matrices."""
+    axis, angle = matrix_to_axis_angle(R)
+    return axis * angle[..., None]
+
+
+def axis_angle_to_matrix(axis, angle):
+    """Rotation matrices of rotations by ``angle`` radians about ``axis`` (non-zero, any length)."""
+    return quat_to_matrix(axis_angle_to_quat(axis, angle))
+
+
+def nearest_rotation(M):
+    """The rotation closest to each (..., 3, 3) or (..., 2, 2) matrix in the Frobenius norm.
+
+    ``U · diag(1, …, 1, det(U Vᵀ)) · Vᵀ`` from the SVD ``M = U S Vᵀ``; raises
+    NonFiniteError for NaN/inf entries.
+    """
+    a = np.asarray(M, dtype=np.float64)
+    if a.ndim < 2 or a.shape[-1] != a.shape[-2] or a.shape[-1] not in (2, 3):
+        raise ShapeError(f"M must have shape (..., 3, 3) or (..., 2, 2), got {a.shape}")
+    d = a.shape[-1]
+    a, lead = batch(a, (d, d), "M")
+    row = K.first_nonfinite(a.reshape(-1, d * d))
+    if row >= 0:
+        reject(row, lead, (a, (d, d), "M", "finite"))
+    u, _, vt = np.linalg.svd(a)
+    # flip the last singular direction where U Vᵀ is a reflection
+    u[..., :, -1] *= np.where(np.linalg.det(u @ vt) < 0, -1.0, 1.0)[..., None]
+    return u @ vt
+
+
+def is_rotation(M, tol: float = 1e-6):
+    """Boolean array (...): ``‖RᵀR − I‖_F ≤ tol`` and ``det R > 0``; False for NaN/inf, never raises
+    for values (only for a shape other than (..., 3, 3))."""
+    a, lead = batch(M, (3, 3), "M")
+    err = np.empty(lead)
+    K.rotation_errors(a, err)
+    return err <= tol
+
+
+def random_rotations(n: int | None = None, rng=None):
+    """Rotations drawn uniformly (Haar measure) from SO(3): ``(n, 3, 3)``, or ``(3, 3)`` for n None.
+
+    Normalised 4-D Gaussian samples are uniform unit quaternions (Shoemake / Muller).
+    ``rng`` is a ``numpy.random.Generator`` or anything ``numpy.random.default_rng`` accepts.
+    """
+    g = np.random.default_rng(rng)
+    q = g.standard_normal((1 if n is None else int(n), 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    R = quat_to_matrix(q)
+    return R[0] if n is None else R
+
+
+class SO3:
+    """Batched 3D rotations of shape ``self.shape``, held as read-only (..., 3, 3) matrices.
+
+    Immutable. ``a @ b`` composes (apply ``b`` first); ``.apply(points)`` rotates (..., 3)
+    points; construct with ``from_matrix``, ``from_quat`` (w, x, y, z), ``from_rotvec``,
+    ``from_euler_zyx`` or ``identity``. Indexing and ``len`` act on the batch.
+    """
+
+    __slots__ = ("_m",)
+
+    def __init__(self, matrix, *, _trusted: bool = False):
+        if _trusted:
+            m = np.asarray(matrix)
+        else:
+            m, lead = batch(np.array(matrix, dtype=np.float64), (3, 3), "matrix")
+            try:
+                K.check_rotation(m)
+            except Rejected as e:
+                reject(e.args[0], lead, (m, (3, 3), "matrix", "rotation"))
+        m.flags.writeable = False
+        self._m = m
+
+    @classmethod
+    def from_matrix(cls, matrix, project: bool = False) -> SO3:
+        """From (..., 3, 3) rotation matrices; a non-rotation raises NotARotationError unless
+        ``project`` is true, which replaces each matrix by its nearest rotation."""
+        if project:
+            return cls(nearest_rotation(matrix), _trusted=True)
+        return cls(matrix)
+
+    @classmethod
+    def from_quat(cls, q) -> SO3:
+        """From unit quaternions (..., 4), scalar first (w, x, y, z)."""
+        return cls(quat_to_matrix(q), _trusted=True)
+
+    @classmethod
+    def from_rotvec(cls, rotvec) -> SO3:
+        """From rotation vectors (..., 3): axis times angle in radians."""
+        return cls(exp_so3(rotvec), _trusted=True)
+
+    @classmethod
+    def from_axis_angle(cls, axis, angle) -> SO3:
+        return cls(axis_angle_to_matrix(axis, angle), _trusted=True)
+
+    @classmethod
+    def from_euler_zyx(cls, yaw, pitch, roll) -> SO3:
+        """From Z-Y-X Euler angles: ``Rz(yaw) Ry(pitch) Rx(roll)`` (see :mod:`occmap.geometry.euler`)."""
+        return cls(euler_zyx_to_matrix(yaw, pitch, roll), _trusted=True)
+
+    @classmethod
+    def identity(cls, shape: tuple[int, ...] | int = ()) -> SO3:
+        shape = (shape,) if isinstance(shape, int) else tuple(shape)
+        return cls(np.broadcast_to(np.eye(3), shape + (3, 3)), _trusted=True)
+
+    @classmethod
+    def random(cls, n: int | None = None, rng=None) -> SO3:
+        """Uniformly distributed rotations (see :func:`random_rotations`)."""
+        return cls(random_rotations(n, rng), _trusted=True)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return self._m
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self._m.shape[:-2]
+
+    def as_quat(self) -> np.ndarray:
+        """Unit quaternions (..., 4), (w, x, y, z) with w ≥ 0."""
+        return matrix_to_quat(self._m)
+
+    def as_rotvec(self) -> np.ndarray:
+        return log_so3(self._m)
+
+    def as_euler_zyx(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(yaw, pitch, roll); roll = 0 at gimbal lock."""
+        return matrix_to_euler_zyx(self._m)
+
+    def __len__(self) -> int:
+        if not self.shape:
+            raise TypeError("a single SO3 has no len()")
+        return self.shape[0]
+
+    def __getitem__(self, index) -> SO3:
+        m = self._m[..., :, :][index]
+        if m.shape[-2:] != (3, 3):
+            raise IndexError("index the batch dimensions only")
+        return SO3(m, _trusted=True)
+
+    def __matmul__(self, other: SO3) -> SO3:
+        if not isinstance(other, SO3):
+            return NotImplemented
+        return SO3(self._m @ other._m, _trusted=True)
+
+    def inv(self) -> SO3:
+        return SO3(np.swapaxes(self._m, -1, -2), _trusted=True)
+
+    def apply(self, points) -> np.ndarray:
+        """Rotate (..., 3) points; their leading shape broadcasts with ``self.shape``."""
+        p = np.asarray(points, dtype=np.float64)
+        if p.shape[-1:] != (3,):
+            raise ShapeError(f"points must have shape (..., 3), got {p.shape}")
+        if not self.shape:
+            return p @ self._m.T
+        return np.einsum("...ij,...j->...i", self._m, p)
+
+    def magnitude(self) -> np.ndarray:
+        """Rotation angles in [0, π] (radians)."""
+        return matrix_to_axis_angle(self._m)[1]
+
+    def interpolate(self, other: SO3, t) -> SO3:
+        """Geodesic (slerp) interpolation: ``t = 0`` gives ``self``, ``t = 1`` gives ``other``."""
+        q = quat_slerp(self.as_quat(), other.as_quat(), t)
+        return SO3(quat_to_matrix(q), _trusted=True)
+
+    def __repr__(self) -> str:
+        if not self.shape:
+            return f"SO3(rotvec={np.array2string(self.as_rotvec(), precision=6)})"
+        return f"SO3(shape={self.shape})"
+
+
+__all__ = [
+    "SO3",
+    "axis_angle_to_matrix",
+    "exp_so3",
+    "hat",
+    "is_rotation",
+    "log_so3",
+    "matrix_to_axis_angle",
+    "nearest_rotation",
+    "random_rotations",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "vee",
+]
