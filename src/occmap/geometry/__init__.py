@@ -12,6 +12,15 @@ Conventions (shared by every function; each module's docstring gives the details
 """
 
 from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
+from .frames import FrameTree
+from .motion import (
+    OdometryMotionModel,
+    apply_odometry,
+    bicycle_step,
+    diff_drive_step,
+    odometry_delta,
+    unicycle_step,
+)
 from .quaternion import (
     axis_angle_to_quat,
     matrix_to_quat,
@@ -46,6 +55,13 @@ from .so3 import (
 )
 
 __all__ = [
+    "FrameTree",
+    "OdometryMotionModel",
+    "apply_odometry",
+    "bicycle_step",
+    "diff_drive_step",
+    "odometry_delta",
+    "unicycle_step",
     "SE2",
     "SE3",
     "SO2",

@@ -36,6 +36,7 @@ from ..errors import (
     ConnectivityError,
     ExtrapolationError,
     FrameLoopError,
+    InvalidArgumentError,
     NonFiniteError,
     ShapeError,
     TransformError,
@@ -216,9 +217,9 @@ class FrameTree:
     def __init__(self, cache_time: float = 10.0, max_history: int | None = None):
         cache_time = float(cache_time)
         if not (np.isfinite(cache_time) and cache_time > 0):
-            raise TransformError(f"cache_time must be a positive number of seconds, got {cache_time!r}")
+            raise InvalidArgumentError(f"cache_time must be a positive number of seconds, got {cache_time!r}")
         if max_history is not None and (int(max_history) != max_history or max_history < 1):
-            raise TransformError(f"max_history must be a positive integer or None, got {max_history!r}")
+            raise InvalidArgumentError(f"max_history must be a positive integer or None, got {max_history!r}")
         self.cache_time = cache_time
         self.max_history = None if max_history is None else int(max_history)
         self._links: dict[str, _Link] = {}  # keyed by child frame
@@ -282,12 +283,12 @@ class FrameTree:
         NotARotationError, NonFiniteError, ShapeError
             ``T`` is not a rigid transform of a valid shape, or the stamps are not finite or
             do not match the batch.
-        TransformError
+        InvalidArgumentError
             A frame name is not a non-empty string, or a dynamic link has no stamp.
         """
         for name in (parent, child):
             if not isinstance(name, str) or not name:
-                raise TransformError(f"frame names must be non-empty strings, got {name!r}")
+                raise InvalidArgumentError(f"frame names must be non-empty strings, got {name!r}")
         if parent == child:
             raise FrameLoopError(f"cannot link frame {child!r} to itself")
         ancestor: str | None = parent
@@ -316,7 +317,7 @@ class FrameTree:
             trans, quats = trans.reshape(1, 3), quats.reshape(1, 4)
         else:
             if stamp is None:
-                raise TransformError(f"link {parent!r} -> {child!r} is dynamic and needs a stamp (or pass static=True)")
+                raise InvalidArgumentError(f"link {parent!r} -> {child!r} is dynamic and needs a stamp (or pass static=True)")
             stamps = np.asarray(stamp, dtype=np.float64)
             want = trans.shape[:-1]
             if stamps.shape != want:

@@ -1,0 +1,59 @@
+"""Shared helpers for the benchmark scripts: robust timing, machine facts, and BENCHMARKS.md sections."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import re
+import statistics
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+BENCHMARKS_MD = ROOT / "BENCHMARKS.md"
+
+
+def median_time(fn, number: int, repeat: int = 7) -> float:
+    """Median over ``repeat`` runs of the mean seconds per call of ``fn`` over ``number`` calls."""
+    fn()  # warm-up: JIT compilation and first-touch allocation stay out of the figures
+    runs = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        runs.append((time.perf_counter() - t0) / number)
+    return statistics.median(runs)
+
+
+def machine() -> str:
+    """One line naming the CPU, cores, Python and the numeric libraries in this run."""
+    import numba
+    import numpy
+    import scipy
+
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+        cpu = re.search(r"model name\s*:\s*(.+)", text).group(1).strip()
+    except (OSError, AttributeError):
+        pass
+    return (
+        f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, NumPy {numpy.__version__}, "
+        f"Numba {numba.__version__}, SciPy {scipy.__version__}"
+    )
+
+
+def write_section(name: str, body: str) -> None:
+    """Replace (or append) the section of BENCHMARKS.md between the markers for ``name``."""
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    stamp = datetime.date.today().isoformat()
+    block = f"{start}\n{body.rstrip()}\n\n_Measured {stamp} on {machine()}._\n{end}"
+    text = BENCHMARKS_MD.read_text() if BENCHMARKS_MD.exists() else "# Benchmarks\n\nRun with `make bench`; each script rewrites its own section.\n"
+    if start in text and end in text:
+        text = text[: text.index(start)] + block + text[text.index(end) + len(end):]
+    else:
+        text = text.rstrip() + "\n\n" + block + "\n"
+    tmp = BENCHMARKS_MD.with_suffix(".md.tmp")
+    tmp.write_text(text)
+    tmp.replace(BENCHMARKS_MD)
