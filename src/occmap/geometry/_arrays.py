@@ -21,20 +21,20 @@ _F64 = np.dtype(np.float64)
 #: Largest accepted Frobenius norm of RᵀR − I for a rotation matrix.
 ROTATION_TOL = 1e-6
 
-__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "reject", "where"]
+__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "index_batch", "reject", "unstack", "where"]
 
 
 def batch(x, trailing: tuple[int, ...], name: str) -> tuple[np.ndarray, tuple[int, ...]]:
     """Return ``x`` as a C-contiguous float64 array whose shape ends in ``trailing``, and its leading shape."""
-    a = x if type(x) is np.ndarray and x.dtype == _F64 else np.asarray(x, dtype=_F64)
-    nt = len(trailing)
-    lead = a.shape[: a.ndim - nt]
-    if a.ndim < nt or lead + trailing != a.shape:
+    a = np.asarray(x, dtype=_F64, order="C")
+    shape = a.shape
+    if shape == trailing:  # one element: the common single call, kept to one comparison
+        return a, ()
+    cut = len(shape) - len(trailing)
+    if cut < 0 or shape[cut:] != trailing:
         want = "(..., " + ", ".join(map(str, trailing)) + ")" if trailing else "a number or array of numbers"
-        raise ShapeError(f"{name} must have shape {want}, got {a.shape}")
-    if not a.flags.c_contiguous:
-        a = np.ascontiguousarray(a)
-    return a, lead
+        raise ShapeError(f"{name} must have shape {want}, got {shape}")
+    return a, shape[:cut]
 
 
 def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
@@ -43,18 +43,17 @@ def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
     Arguments whose leading shape equals the result's, or is ``()``, are returned as they are (the
     kernels broadcast single elements with stride 0); others are copied to the broadcast shape.
     """
-    arrays, leads = [], []
-    shape = ()
-    simple = True
-    for value, trailing, name in args:
-        a, lead = batch(value, trailing, name)
+    arrays = []
+    single = True
+    for value, trailing, _ in args:
+        a = np.asarray(value, dtype=_F64, order="C")
         arrays.append(a)
-        leads.append(lead)
-        if lead and lead != shape:
-            if shape:
-                simple = False
-            shape = lead
-    if simple:
+        single = single and a.shape == trailing
+    if single:
+        return arrays, ()
+    leads = [batch(a, trailing, name)[1] for a, (_, trailing, name) in zip(arrays, args)]
+    shape = max(leads, key=len)
+    if all(lead == shape or not lead for lead in leads):
         return arrays, shape
     try:
         shape = np.broadcast_shapes(*leads)
@@ -67,6 +66,21 @@ def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
             a = np.ascontiguousarray(np.broadcast_to(a, shape + trailing))
         out.append(a)
     return out, shape
+
+
+def index_batch(m: np.ndarray, trailing: int, index) -> np.ndarray:
+    """``m[index]`` with ``index`` addressing only the leading (batch) axes of ``m``, never the
+    ``trailing`` axes that hold one element; any NumPy index works (ints, slices, masks, arrays)."""
+    lead = m.shape[: m.ndim - trailing]
+    if not lead:
+        raise IndexError("a single element cannot be indexed")
+    rows = np.arange(m.size // max(1, int(np.prod(m.shape[len(lead):])))).reshape(lead)[index]
+    return m.reshape((-1,) + m.shape[len(lead):])[rows]
+
+
+def unstack(out: np.ndarray) -> tuple:
+    """Split the last axis of ``out`` into a tuple of arrays (numbers for a 1-D ``out``)."""
+    return tuple(out.T) if out.ndim <= 2 else tuple(np.moveaxis(out, -1, 0))
 
 
 def where(index: int, lead: tuple[int, ...]) -> str:
@@ -112,7 +126,7 @@ def reject(bad: int, lead: tuple[int, ...], *operands: tuple[np.ndarray, tuple[i
         if kind == "rigid2" and not K._rigid2_ok(flat, i):
             _explain_rigid(x, at)
     names = ", ".join(op[2] for op in operands)
-    raise InvalidArgumentError(f"element {where(bad, lead)} of {names} was rejected")
+    raise InvalidArgumentError(f"{names}: element {bad} was rejected")
 
 
 def _explain_rigid(m: np.ndarray, at: str):

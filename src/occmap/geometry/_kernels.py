@@ -128,6 +128,13 @@ def check_rotation(R):
             raise Rejected(i)
 
 
+@kernel
+def _atan2(y, x):
+    """atan2 in (−π, π]: the −π that atan2 returns for a sine of −0.0 becomes π."""
+    a = math.atan2(y, x)
+    return math.pi if a == -math.pi else a
+
+
 # ---------------------------------------------------------------- SO(3) basics
 
 
@@ -281,23 +288,33 @@ def quat_multiply(a, b, out):
 
 
 @kernel
+def _max_abs4(w, x, y, z):
+    return max(max(abs(w), abs(x)), max(abs(y), abs(z)))
+
+
+@kernel
 def quat_scale(q, mode, out):
     """mode 0: conjugate; 1: inverse (conjugate / ‖q‖²); 2: normalise. Rejects non-finite input,
-    and zero quaternions for modes 1 and 2."""
+    and zero quaternions for modes 1 and 2. Norms are taken of q / max|q_k|, so they neither
+    underflow nor overflow for any finite non-zero q."""
     f = q.reshape((-1, 4))
     o = out.reshape((-1, 4))
     for i in range(f.shape[0]):
         w, x, y, z = f[i, 0], f[i, 1], f[i, 2], f[i, 3]
-        nsq = w * w + x * x + y * y + z * z
+        m = _max_abs4(w, x, y, z)
+        if not (m - m == 0.0) or (mode != 0 and m == 0.0):
+            raise Rejected(i)
         if mode == 0:
             a, b = 1.0, -1.0
-            ok = nsq - nsq == 0.0
         else:
-            a = 1.0 / nsq if mode == 1 else 1.0 / math.sqrt(nsq)
-            b = -a if mode == 1 else a
-            ok = nsq > 0.0 and nsq - nsq == 0.0 and a - a == 0.0
-        if not ok:
-            raise Rejected(i)
+            ws, xs, ys, zs = w / m, x / m, y / m, z / m
+            n = math.sqrt(ws * ws + xs * xs + ys * ys + zs * zs)
+            if mode == 1:  # q* / ‖q‖² = (q / m)* / (n² m)
+                a = 1.0 / (n * n * m)
+                b = -a
+            else:
+                a = b = 1.0 / n
+            w, x, y, z = ws, xs, ys, zs
         o[i, 0], o[i, 1], o[i, 2], o[i, 3] = w * a, x * b, y * b, z * b
 
 
@@ -307,6 +324,8 @@ def quat_rotate(q, v, out):
     fq = q.reshape((-1, 4))
     fv = v.reshape((-1, 3))
     o = out.reshape((-1, 3))
+    if o.shape[0] == 0:
+        return
     sq = 1 if fq.shape[0] > 1 else 0
     sv = 1 if fv.shape[0] > 1 else 0
     if sq == 0 and not _unit_ok(fq, 0):
@@ -361,17 +380,50 @@ def axis_angle_to_quat(axis, angle, out):
 
 
 @kernel
+def _vector_norm(x, y, z):
+    """‖(x, y, z)‖ without underflow or overflow of the squares."""
+    m = max(max(abs(x), abs(y)), abs(z))
+    if m == 0.0:
+        return 0.0
+    xs, ys, zs = x / m, y / m, z / m
+    return m * math.sqrt(xs * xs + ys * ys + zs * zs)
+
+
+@kernel
 def _quat_axis_angle(w, x, y, z, o, i):
     """Write (axis, angle) of (w, x, y, z) into ``o[i, :4]``: angle = 2·atan2(‖v‖, |w|) ∈ [0, π],
     accurate at both ends (no acos); axis (1, 0, 0) for the identity."""
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
-    vn = math.sqrt(x * x + y * y + z * z)
+    vn = _vector_norm(x, y, z)
     o[i, 3] = 2.0 * math.atan2(vn, w)
     if vn > 0.0:
         o[i, 0], o[i, 1], o[i, 2] = x / vn, y / vn, z / vn
     else:
         o[i, 0], o[i, 1], o[i, 2] = 1.0, 0.0, 0.0
+
+
+@kernel
+def _quat_rotvec(w, x, y, z, o, i):
+    """Write the rotation vector of (w, x, y, z) into ``o[i, :3]``: v · 2·atan2(‖v‖, |w|)/‖v‖,
+    whose factor tends to 2/w as ‖v‖ → 0, so tiny angles keep full relative precision."""
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    vn = _vector_norm(x, y, z)
+    f = 2.0 * math.atan2(vn, w) / vn if vn > 0.0 else 2.0 / w
+    o[i, 0], o[i, 1], o[i, 2] = x * f, y * f, z * f
+
+
+@kernel
+def matrix_to_rotvec(R, out):
+    f = R.reshape((-1, 3, 3))
+    o = out.reshape((-1, 3))
+    q = np.empty((1, 4))
+    for i in range(f.shape[0]):
+        if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
+            raise Rejected(i)
+        _rot_to_quat(f, i, q, 0)
+        _quat_rotvec(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o, i)
 
 
 @kernel
@@ -519,12 +571,12 @@ def matrix_to_euler_zyx(R, out):
         cp = math.hypot(r00, r10)
         o[i, 1] = math.atan2(-f[i, 2, 0], cp)
         if cp < GIMBAL_EPS:
-            o[i, 0] = math.atan2(-f[i, 0, 1], f[i, 1, 1])
+            o[i, 0] = _atan2(-f[i, 0, 1], f[i, 1, 1])
             o[i, 2] = 0.0
         else:
             cy, sy = r00 / cp, r10 / cp
-            o[i, 0] = math.atan2(r10, r00)
-            o[i, 2] = math.atan2(sy * f[i, 0, 2] - cy * f[i, 1, 2], cy * f[i, 1, 1] - sy * f[i, 0, 1])
+            o[i, 0] = _atan2(r10, r00)
+            o[i, 2] = _atan2(sy * f[i, 0, 2] - cy * f[i, 1, 2], cy * f[i, 1, 1] - sy * f[i, 0, 1])
 
 
 # ---------------------------------------------------------------- SE(3)
@@ -588,6 +640,8 @@ def transform_points(T, p, out):
     ft = T.reshape((-1, 4, 4))
     fp = p.reshape((-1, 3))
     o = out.reshape((-1, 3))
+    if o.shape[0] == 0:
+        return
     st = 1 if ft.shape[0] > 1 else 0
     sp = 1 if fp.shape[0] > 1 else 0
     if st == 0 and not _rigid_ok(ft, 0):
@@ -610,6 +664,32 @@ def transform_points(T, p, out):
         o[i, 0] = m00 * x + m01 * y + m02 * z + m03
         o[i, 1] = m10 * x + m11 * y + m12 * z + m13
         o[i, 2] = m20 * x + m21 * y + m22 * z + m23
+
+
+@kernel
+def rotate_points(R, p, out):
+    """Apply rotations (3×3) to points (3); a shared rotation is validated once."""
+    fr = R.reshape((-1, 3, 3))
+    fp = p.reshape((-1, 3))
+    o = out.reshape((-1, 3))
+    if o.shape[0] == 0:
+        return
+    sr = 1 if fr.shape[0] > 1 else 0
+    sp = 1 if fp.shape[0] > 1 else 0
+    if sr == 0 and not (_rotation_error_sq(fr, 0) <= ROT_TOL_SQ):
+        raise Rejected(0)
+    for i in range(o.shape[0]):
+        k = i * sr
+        if sr == 1 and not (_rotation_error_sq(fr, k) <= ROT_TOL_SQ):
+            raise Rejected(i)
+        j = i * sp
+        x, y, z = fp[j, 0], fp[j, 1], fp[j, 2]
+        s = x + y + z
+        if not (s - s == 0.0):
+            raise Rejected(i)
+        o[i, 0] = fr[k, 0, 0] * x + fr[k, 0, 1] * y + fr[k, 0, 2] * z
+        o[i, 1] = fr[k, 1, 0] * x + fr[k, 1, 1] * y + fr[k, 1, 2] * z
+        o[i, 2] = fr[k, 2, 0] * x + fr[k, 2, 1] * y + fr[k, 2, 2] * z
 
 
 @kernel
@@ -657,14 +737,13 @@ def log_se3(T, out):
     f = T.reshape((-1, 4, 4))
     o = out.reshape((-1, 6))
     q = np.empty((1, 4))
-    aa = np.empty((1, 4))
     for i in range(f.shape[0]):
         if not _rigid_ok(f, i):
             raise Rejected(i)
         _rot_to_quat(f, i, q, 0)
-        _quat_axis_angle(q[0, 0], q[0, 1], q[0, 2], q[0, 3], aa, 0)
-        theta = aa[0, 3]
-        x, y, z = aa[0, 0] * theta, aa[0, 1] * theta, aa[0, 2] * theta
+        _quat_rotvec(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o[:, 3:], i)
+        x, y, z = o[i, 3], o[i, 4], o[i, 5]
+        theta = math.sqrt(x * x + y * y + z * z)
         t2 = theta * theta
         if theta < 0.1:
             d = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 * t2 * t2 / 1209600.0
@@ -677,7 +756,6 @@ def log_se3(T, out):
         o[i, 0] = tx - 0.5 * c1x + d * c2x
         o[i, 1] = ty - 0.5 * c1y + d * c2y
         o[i, 2] = tz - 0.5 * c1z + d * c2z
-        o[i, 3], o[i, 4], o[i, 5] = x, y, z
 
 
 # ---------------------------------------------------------------- SE(2)
@@ -726,7 +804,7 @@ def se2_from_matrix(T, out):
             raise Rejected(i)
         o[i, 0] = f[i, 0, 2]
         o[i, 1] = f[i, 1, 2]
-        o[i, 2] = math.atan2(f[i, 1, 0], f[i, 0, 0])
+        o[i, 2] = _atan2(f[i, 1, 0], f[i, 0, 0])
 
 
 @kernel
@@ -735,6 +813,8 @@ def transform_points2(T, p, out):
     ft = T.reshape((-1, 3, 3))
     fp = p.reshape((-1, 2))
     o = out.reshape((-1, 2))
+    if o.shape[0] == 0:
+        return
     st = 1 if ft.shape[0] > 1 else 0
     sp = 1 if fp.shape[0] > 1 else 0
     if st == 0 and not _rigid2_ok(ft, 0):

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernels as K
-from ._arrays import Rejected, batch, broadcast, reject
+from ._arrays import Rejected, batch, broadcast, reject, unstack
 
 
 def euler_zyx_to_matrix(yaw, pitch, roll):
@@ -45,4 +45,4 @@ def matrix_to_euler_zyx(R):
         K.matrix_to_euler_zyx(a, out)
     except Rejected as e:
         reject(e.args[0], lead, (a, (3, 3), "R", "rotation"))
-    return out[..., 0], out[..., 1], out[..., 2]
+    return unstack(out)

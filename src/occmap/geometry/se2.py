@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, broadcast, reject
+from ._arrays import Rejected, batch, broadcast, index_batch, reject, unstack
 from .so2 import SO2, wrap_angle
 
 
@@ -41,7 +41,7 @@ def se2_from_matrix(T):
         K.se2_from_matrix(a, out)
     except Rejected as e:
         reject(e.args[0], lead, (a, (3, 3), "T", "rigid2"))
-    return out[..., 0], out[..., 1], out[..., 2]
+    return unstack(out)
 
 
 class SE2:
@@ -113,7 +113,7 @@ class SE2:
         return self.shape[0]
 
     def __getitem__(self, index) -> SE2:
-        return SE2(self._p[..., :][index])
+        return SE2(index_batch(self._p, 1, index))
 
     def __matmul__(self, other: SE2) -> SE2:
         if not isinstance(other, SE2):

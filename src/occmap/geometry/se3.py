@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, broadcast, reject
+from ._arrays import Rejected, batch, broadcast, index_batch, reject
 from .euler import euler_zyx_to_matrix
 from .se2 import se2_matrix
 from .so2 import so2_angle
@@ -42,8 +42,8 @@ def make_transform(R, t):
 
 def invert_transform(T):
     """Inverses ``[[Rᵀ, −Rᵀt], [0, 1]]`` of rigid transforms (..., 4, 4) or 2D (..., 3, 3)."""
-    m = np.asarray(T, dtype=np.float64)
-    planar = m.shape[-2:] == (3, 3)
+    m = np.asarray(T, dtype=np.float64, order="C")
+    planar = m.ndim >= 2 and m.shape[-1] == 3
     d = (3, 3) if planar else (4, 4)
     a, lead = batch(m, d, "T")
     out = np.empty(a.shape)
@@ -59,8 +59,8 @@ def transform_points(T, points):
 
     Leading shapes broadcast; one transform applied to N points is validated once and not copied.
     """
-    m = np.asarray(T, dtype=np.float64)
-    planar = m.shape[-2:] == (3, 3)
+    m = np.asarray(T, dtype=np.float64, order="C")
+    planar = m.ndim >= 2 and m.shape[-1] == 3
     d, k = ((3, 3), 2) if planar else ((4, 4), 3)
     (a, b), lead = broadcast((m, d, "T"), (points, (k,), "points"))
     out = np.empty(lead + (k,))
@@ -190,10 +190,7 @@ class SE3:
         return self.shape[0]
 
     def __getitem__(self, index) -> SE3:
-        m = self._m[index]
-        if m.shape[-2:] != (4, 4):
-            raise IndexError("index the batch dimensions only")
-        return SE3(m, _trusted=True)
+        return SE3(index_batch(self._m, 2, index), _trusted=True)
 
     def __matmul__(self, other: SE3) -> SE3:
         if not isinstance(other, SE3):

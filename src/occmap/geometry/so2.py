@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ShapeError
+from . import _kernels as K
 from ._arrays import ROTATION_TOL, batch, reject
 
 _TWO_PI = 2.0 * np.pi
@@ -17,7 +17,10 @@ _TWO_PI = 2.0 * np.pi
 def wrap_angle(angle):
     """Wrap angles (radians) to (−π, π]; angles already in range are returned unchanged."""
     a = np.asarray(angle, dtype=np.float64)
-    return a - _TWO_PI * np.ceil((a - np.pi) / _TWO_PI)
+    w = a - _TWO_PI * np.round(a / _TWO_PI)
+    # the rounded multiple can land one period off near odd multiples of π; fold back exactly
+    w = np.where(w <= -np.pi, w + _TWO_PI, w)
+    return np.where(w > np.pi, w - _TWO_PI, w)
 
 
 def rot2(theta):
@@ -31,7 +34,7 @@ def so2_angle(R):
     """Angle in (−π, π] of rotation matrices (..., 2, 2), validated like :meth:`SO2.from_matrix`."""
     a, lead = batch(R, (2, 2), "R")
     _check_so2(a, lead, "R")
-    return np.arctan2(a[..., 1, 0], a[..., 0, 0])
+    return wrap_angle(np.arctan2(a[..., 1, 0], a[..., 0, 0]))
 
 
 def _check_so2(a: np.ndarray, lead: tuple[int, ...], name: str) -> None:
@@ -107,9 +110,10 @@ class SO2:
 
     def apply(self, points) -> np.ndarray:
         """Rotate (..., 2) points; leading shapes broadcast with ``self.shape``."""
-        p = np.asarray(points, dtype=np.float64)
-        if p.shape[-1:] != (2,):
-            raise ShapeError(f"points must have shape (..., 2), got {p.shape}")
+        p, lead = batch(points, (2,), "points")
+        row = K.first_nonfinite(p.reshape(-1, 2))
+        if row >= 0:
+            reject(row, lead, (p, (2,), "points", "finite"))
         c, s = np.cos(self._angle)[..., None], np.sin(self._angle)[..., None]
         x, y = p[..., :1], p[..., 1:]
         return np.concatenate([c * x - s * y, s * x + c * y], -1)

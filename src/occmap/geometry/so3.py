@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, reject
+from ._arrays import Rejected, batch, broadcast, index_batch, reject
 from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
 from .quaternion import axis_angle_to_quat, matrix_to_quat, quat_slerp, quat_to_matrix
 
@@ -97,9 +97,15 @@ def matrix_to_axis_angle(R):
 
 
 def log_so3(R):
-    """Rotation vectors (..., 3) (axis · angle, angle ∈ [0, π]) of rotation matrices."""
-    axis, angle = matrix_to_axis_angle(R)
-    return axis * angle[..., None]
+    """Rotation vectors (..., 3) (axis · angle, angle ∈ [0, π]) of rotation matrices; accurate to
+    rounding relative to the angle from 0 up to π (see :func:`matrix_to_axis_angle`)."""
+    a, lead = batch(R, (3, 3), "R")
+    out = np.empty(lead + (3,))
+    try:
+        K.matrix_to_rotvec(a, out)
+    except Rejected as e:
+        reject(e.args[0], lead, (a, (3, 3), "R", "rotation"))
+    return out
 
 
 def axis_angle_to_matrix(axis, angle):
@@ -176,7 +182,8 @@ class SO3:
         """From (..., 3, 3) rotation matrices; a non-rotation raises NotARotationError unless
         ``project`` is true, which replaces each matrix by its nearest rotation."""
         if project:
-            return cls(nearest_rotation(matrix), _trusted=True)
+            m, _ = batch(matrix, (3, 3), "matrix")
+            return cls(nearest_rotation(m), _trusted=True)
         return cls(matrix)
 
     @classmethod
@@ -233,10 +240,7 @@ class SO3:
         return self.shape[0]
 
     def __getitem__(self, index) -> SO3:
-        m = self._m[..., :, :][index]
-        if m.shape[-2:] != (3, 3):
-            raise IndexError("index the batch dimensions only")
-        return SO3(m, _trusted=True)
+        return SO3(index_batch(self._m, 2, index), _trusted=True)
 
     def __matmul__(self, other: SO3) -> SO3:
         if not isinstance(other, SO3):
@@ -248,12 +252,13 @@ class SO3:
 
     def apply(self, points) -> np.ndarray:
         """Rotate (..., 3) points; their leading shape broadcasts with ``self.shape``."""
-        p = np.asarray(points, dtype=np.float64)
-        if p.shape[-1:] != (3,):
-            raise ShapeError(f"points must have shape (..., 3), got {p.shape}")
-        if not self.shape:
-            return p @ self._m.T
-        return np.einsum("...ij,...j->...i", self._m, p)
+        (a, b), lead = broadcast((self._m, (3, 3), "rotation"), (points, (3,), "points"))
+        out = np.empty(lead + (3,))
+        try:
+            K.rotate_points(a, b, out)
+        except Rejected as e:
+            reject(e.args[0], lead, (b, (3,), "points", "finite"))
+        return out
 
     def magnitude(self) -> np.ndarray:
         """Rotation angles in [0, π] (radians)."""
