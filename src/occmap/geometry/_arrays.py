@@ -21,7 +21,7 @@ _F64 = np.dtype(np.float64)
 #: Largest accepted Frobenius norm of RᵀR − I for a rotation matrix.
 ROTATION_TOL = 1e-6
 
-__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "index_batch", "reject", "unstack", "where"]
+__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "index_batch", "reject", "run", "unstack", "where"]
 
 
 def batch(x, trailing: tuple[int, ...], name: str) -> tuple[np.ndarray, tuple[int, ...]]:
@@ -38,32 +38,32 @@ def batch(x, trailing: tuple[int, ...], name: str) -> tuple[np.ndarray, tuple[in
 
 
 def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
-    """Bring several ``(value, trailing, name)`` arguments to a common leading shape.
+    """Bring several ``(value, trailing, name, ...)`` arguments to a common leading shape.
 
     Arguments whose leading shape equals the result's, or is ``()``, are returned as they are (the
     kernels broadcast single elements with stride 0); others are copied to the broadcast shape.
     """
     arrays = []
     single = True
-    for value, trailing, _ in args:
+    for value, trailing, *_ in args:
         a = np.asarray(value, dtype=_F64, order="C")
         arrays.append(a)
         single = single and a.shape == trailing
     if single:
         return arrays, ()
-    leads = [batch(a, trailing, name)[1] for a, (_, trailing, name) in zip(arrays, args)]
+    leads = [batch(a, arg[1], arg[2])[1] for a, arg in zip(arrays, args)]
     shape = max(leads, key=len)
     if all(lead == shape or not lead for lead in leads):
         return arrays, shape
     try:
         shape = np.broadcast_shapes(*leads)
     except ValueError:
-        names = ", ".join(f"{name} {lead}" for (_, _, name), lead in zip(args, leads))
+        names = ", ".join(f"{arg[2]} {lead}" for arg, lead in zip(args, leads))
         raise ShapeError(f"leading shapes do not broadcast: {names}") from None
     out = []
-    for a, lead, (_, trailing, _) in zip(arrays, leads, args):
+    for a, lead, arg in zip(arrays, leads, args):
         if lead and lead != shape:
-            a = np.ascontiguousarray(np.broadcast_to(a, shape + trailing))
+            a = np.ascontiguousarray(np.broadcast_to(a, shape + arg[1]))
         out.append(a)
     return out, shape
 
@@ -81,6 +81,25 @@ def index_batch(m: np.ndarray, trailing: int, index) -> np.ndarray:
 def unstack(out: np.ndarray) -> tuple:
     """Split the last axis of ``out`` into a tuple of arrays (numbers for a 1-D ``out``)."""
     return tuple(out.T) if out.ndim <= 2 else tuple(np.moveaxis(out, -1, 0))
+
+
+def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = ()) -> np.ndarray:
+    """The whole calling convention in one place: broadcast ``operands`` — each
+    ``(value, trailing, name, kind)`` with ``kind`` as in :func:`reject` — allocate the output
+    (leading shape + ``out_trailing``), call ``kernel(*arrays, *args, out)`` and turn a
+    ``Rejected`` into the error that names the bad argument and element."""
+    if len(operands) == 1:
+        value, trailing, name, kind = operands[0]
+        a, lead = batch(value, trailing, name)
+        arrays = [a]
+    else:
+        arrays, lead = broadcast(*operands)
+    out = np.empty(lead + out_trailing)
+    try:
+        kernel(*arrays, *args, out)
+    except Rejected as e:
+        reject(e.args[0], lead, *[(a, op[1], op[2], op[3]) for a, op in zip(arrays, operands)])
+    return out
 
 
 def where(index: int, lead: tuple[int, ...]) -> str:

@@ -28,7 +28,9 @@ kernel = njit(cache=True, error_model="numpy")
 
 UNIT_TOL = 1e-6
 ROT_TOL_SQ = 1e-12  # ROTATION_TOL², compared with ‖RᵀR − I‖²_F
-GIMBAL_EPS = 1e-12  # cos(pitch) below which yaw and roll are not separable
+# cos(pitch) at or below which a matrix is at gimbal lock up to rounding (4 ulp of 1): the
+# roll = 0 convention then changes the matrix by at most 2·GIMBAL_EPS
+GIMBAL_EPS = 4.0 * 2.220446049250313e-16
 
 
 # ---------------------------------------------------------------- checks
@@ -380,38 +382,28 @@ def axis_angle_to_quat(axis, angle, out):
 
 
 @kernel
-def _vector_norm(x, y, z):
-    """‖(x, y, z)‖ without underflow or overflow of the squares."""
-    m = max(max(abs(x), abs(y)), abs(z))
-    if m == 0.0:
-        return 0.0
-    xs, ys, zs = x / m, y / m, z / m
-    return m * math.sqrt(xs * xs + ys * ys + zs * zs)
-
-
-@kernel
 def _quat_axis_angle(w, x, y, z, o, i):
     """Write (axis, angle) of (w, x, y, z) into ``o[i, :4]``: angle = 2·atan2(‖v‖, |w|) ∈ [0, π],
-    accurate at both ends (no acos); axis (1, 0, 0) for the identity."""
+    accurate at both ends (no acos); axis (1, 0, 0) for the identity. The vector part is scaled
+    by its largest component first, so neither tiny (even subnormal) nor huge parts lose digits."""
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
-    vn = _vector_norm(x, y, z)
-    o[i, 3] = 2.0 * math.atan2(vn, w)
-    if vn > 0.0:
-        o[i, 0], o[i, 1], o[i, 2] = x / vn, y / vn, z / vn
-    else:
-        o[i, 0], o[i, 1], o[i, 2] = 1.0, 0.0, 0.0
+    m = max(max(abs(x), abs(y)), abs(z))
+    if m == 0.0:
+        o[i, 0], o[i, 1], o[i, 2], o[i, 3] = 1.0, 0.0, 0.0, 0.0
+        return
+    xs, ys, zs = x / m, y / m, z / m
+    ns = math.sqrt(xs * xs + ys * ys + zs * zs)
+    o[i, 0], o[i, 1], o[i, 2] = xs / ns, ys / ns, zs / ns
+    o[i, 3] = 2.0 * math.atan2(m * ns, w)
 
 
 @kernel
 def _quat_rotvec(w, x, y, z, o, i):
-    """Write the rotation vector of (w, x, y, z) into ``o[i, :3]``: v · 2·atan2(‖v‖, |w|)/‖v‖,
-    whose factor tends to 2/w as ‖v‖ → 0, so tiny angles keep full relative precision."""
-    if w < 0.0:
-        w, x, y, z = -w, -x, -y, -z
-    vn = _vector_norm(x, y, z)
-    f = 2.0 * math.atan2(vn, w) / vn if vn > 0.0 else 2.0 / w
-    o[i, 0], o[i, 1], o[i, 2] = x * f, y * f, z * f
+    """Write the rotation vector (axis · angle) of (w, x, y, z) into ``o[i, :3]``."""
+    aa = np.empty((1, 4))
+    _quat_axis_angle(w, x, y, z, aa, 0)
+    o[i, 0], o[i, 1], o[i, 2] = aa[0, 0] * aa[0, 3], aa[0, 1] * aa[0, 3], aa[0, 2] * aa[0, 3]
 
 
 @kernel
@@ -561,7 +553,7 @@ def matrix_to_euler_zyx(R, out):
     """(yaw, pitch, roll) rows with pitch ∈ [−π/2, π/2]. Yaw comes from the first column; roll is
     then solved from entries of size O(1) given that yaw (cos and sin of yaw are the normalised
     first column), so the angles reproduce R to rounding even where cos(pitch) is tiny. At gimbal
-    lock (cos(pitch) < GIMBAL_EPS) roll is 0 by convention and yaw takes the whole angle."""
+    lock (cos(pitch) ≤ GIMBAL_EPS) roll is 0 by convention and yaw takes the whole angle."""
     f = R.reshape((-1, 3, 3))
     o = out.reshape((-1, 3))
     for i in range(f.shape[0]):
@@ -570,7 +562,7 @@ def matrix_to_euler_zyx(R, out):
         r00, r10 = f[i, 0, 0], f[i, 1, 0]
         cp = math.hypot(r00, r10)
         o[i, 1] = math.atan2(-f[i, 2, 0], cp)
-        if cp < GIMBAL_EPS:
+        if cp <= GIMBAL_EPS:
             o[i, 0] = _atan2(-f[i, 0, 1], f[i, 1, 1])
             o[i, 2] = 0.0
         else:

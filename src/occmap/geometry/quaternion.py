@@ -9,70 +9,41 @@ ROS messages store ``(x, y, z, w)``: convert with :func:`quat_from_xyzw` / :func
 
 from __future__ import annotations
 
-import numpy as np
-
 from . import _kernels as K
-from ._arrays import Rejected, batch, broadcast, reject
+from ._arrays import batch, run
 
 _Q = (4,)
 
 
 def quat_multiply(q1, q2):
     """Hamilton product ``q1 ⊗ q2`` (rotation by ``q2`` then ``q1``) of any finite quaternions."""
-    (a, b), lead = broadcast((q1, _Q, "q1"), (q2, _Q, "q2"))
-    out = np.empty(lead + _Q)
-    try:
-        K.quat_multiply(a, b, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, _Q, "q1", "finite"), (b, _Q, "q2", "finite"))
-    return out
-
-
-def _scaled(q, mode: int, kind: str):
-    a, lead = batch(q, _Q, "q")
-    out = np.empty(a.shape)
-    try:
-        K.quat_scale(a, mode, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, _Q, "q", kind))
-    return out
+    return run(K.quat_multiply, _Q, (q1, _Q, "q1", "finite"), (q2, _Q, "q2", "finite"))
 
 
 def quat_conjugate(q):
     """``(w, −x, −y, −z)``: the inverse rotation of a unit quaternion."""
-    return _scaled(q, 0, "finite")
+    return run(K.quat_scale, _Q, (q, _Q, "q", "finite"), args=(0,))
 
 
 def quat_inverse(q):
-    """Multiplicative inverse ``q* / ‖q‖²`` of any non-zero quaternion."""
-    return _scaled(q, 1, "nonzero")
+    """Multiplicative inverse ``q* / ‖q‖²`` of any non-zero finite quaternion."""
+    return run(K.quat_scale, _Q, (q, _Q, "q", "nonzero"), args=(1,))
 
 
 def quat_normalize(q):
-    """``q / ‖q‖``; raises NotUnitQuaternionError for a zero quaternion, NonFiniteError for NaN."""
-    return _scaled(q, 2, "nonzero")
+    """``q / ‖q‖`` for any non-zero finite quaternion (exact also for tiny or huge ones);
+    raises NotUnitQuaternionError for a zero quaternion, NonFiniteError for NaN/inf."""
+    return run(K.quat_scale, _Q, (q, _Q, "q", "nonzero"), args=(2,))
 
 
 def quat_rotate(q, v):
     """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4): ``q ⊗ (0, v) ⊗ q*``."""
-    (a, b), lead = broadcast((q, _Q, "q"), (v, (3,), "v"))
-    out = np.empty(lead + (3,))
-    try:
-        K.quat_rotate(a, b, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, _Q, "q", "unit"), (b, (3,), "v", "finite"))
-    return out
+    return run(K.quat_rotate, (3,), (q, _Q, "q", "unit"), (v, (3,), "v", "finite"))
 
 
 def quat_to_matrix(q):
     """Rotation matrices (..., 3, 3) of unit quaternions (..., 4)."""
-    a, lead = batch(q, _Q, "q")
-    out = np.empty(lead + (3, 3))
-    try:
-        K.quat_to_matrix(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, _Q, "q", "unit"))
-    return out
+    return run(K.quat_to_matrix, (3, 3), (q, _Q, "q", "unit"))
 
 
 def matrix_to_quat(R):
@@ -82,24 +53,12 @@ def matrix_to_quat(R):
     rotations to within ‖RᵀR − I‖ ≤ 1e-6 (else NotARotationError); project noisy ones first with
     :func:`~occmap.geometry.so3.nearest_rotation`.
     """
-    a, lead = batch(R, (3, 3), "R")
-    out = np.empty(lead + _Q)
-    try:
-        K.matrix_to_quat(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3, 3), "R", "rotation"))
-    return out
+    return run(K.matrix_to_quat, _Q, (R, (3, 3), "R", "rotation"))
 
 
 def axis_angle_to_quat(axis, angle):
     """Quaternions of rotations by ``angle`` (radians, right-handed) about ``axis`` (non-zero, any length)."""
-    (a, g), lead = broadcast((axis, (3,), "axis"), (angle, (), "angle"))
-    out = np.empty(lead + _Q)
-    try:
-        K.axis_angle_to_quat(a, g, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (g, (), "angle", "finite"), (a, (3,), "axis", "nonzero"))
-    return out
+    return run(K.axis_angle_to_quat, _Q, (axis, (3,), "axis", "nonzero"), (angle, (), "angle", "finite"))
 
 
 def quat_to_axis_angle(q):
@@ -107,12 +66,7 @@ def quat_to_axis_angle(q):
 
     The angle is ``2·atan2(‖v‖, |w|)``, accurate near 0 and π; the identity gets axis (1, 0, 0).
     """
-    a, lead = batch(q, _Q, "q")
-    out = np.empty(lead + _Q)
-    try:
-        K.quat_to_axis_angle(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, _Q, "q", "unit"))
+    out = run(K.quat_to_axis_angle, _Q, (q, _Q, "q", "unit"))
     return out[..., :3], out[..., 3]
 
 
@@ -122,13 +76,7 @@ def quat_slerp(q0, q1, t):
     ``q0``, ``q1`` (..., 4) and ``t`` (...) broadcast; ``t`` outside [0, 1] extrapolates along the
     same great circle. The result has unit norm.
     """
-    (a, b, u), lead = broadcast((q0, _Q, "q0"), (q1, _Q, "q1"), (t, (), "t"))
-    out = np.empty(lead + _Q)
-    try:
-        K.quat_slerp(a, b, u, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, _Q, "q0", "unit"), (b, _Q, "q1", "unit"), (u, (), "t", "finite"))
-    return out
+    return run(K.quat_slerp, _Q, (q0, _Q, "q0", "unit"), (q1, _Q, "q1", "unit"), (t, (), "t", "finite"))
 
 
 def quat_from_xyzw(q):

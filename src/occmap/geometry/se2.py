@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, broadcast, index_batch, reject, unstack
+from ._arrays import Rejected, index_batch, reject, run, unstack
 from .so2 import SO2, wrap_angle
 
 
@@ -24,24 +24,12 @@ def se2_matrix(x, y, theta):
             pass  # fall through to the array path, which names the bad argument
         else:
             return out
-    (a, b, t), lead = broadcast((x, (), "x"), (y, (), "y"), (theta, (), "theta"))
-    out = np.empty(lead + (3, 3))
-    try:
-        K.se2_matrix(a, b, t, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (), "x", "finite"), (b, (), "y", "finite"), (t, (), "theta", "finite"))
-    return out
+    return run(K.se2_matrix, (3, 3), (x, (), "x", "finite"), (y, (), "y", "finite"), (theta, (), "theta", "finite"))
 
 
 def se2_from_matrix(T):
     """``(x, y, theta)`` arrays (...) of planar rigid transforms (..., 3, 3), θ ∈ (−π, π]."""
-    a, lead = batch(T, (3, 3), "T")
-    out = np.empty(lead + (3,))
-    try:
-        K.se2_from_matrix(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3, 3), "T", "rigid2"))
-    return unstack(out)
+    return unstack(run(K.se2_from_matrix, (3,), (T, (3, 3), "T", "rigid2")))
 
 
 class SE2:
@@ -131,13 +119,7 @@ class SE2:
 
     def apply(self, points) -> np.ndarray:
         """Map (..., 2) body-frame points to the world frame (leading shapes broadcast)."""
-        (a, b), lead = broadcast((self.matrix, (3, 3), "pose"), (points, (2,), "points"))
-        out = np.empty(lead + (2,))
-        try:
-            K.transform_points2(a, b, out)
-        except Rejected as e:
-            reject(e.args[0], lead, (b, (2,), "points", "finite"))
-        return out
+        return run(K.transform_points2, (2,), (self.matrix, (3, 3), "pose", "rigid2"), (points, (2,), "points", "finite"))
 
     def interpolate(self, other: SE2, t) -> SE2:
         """Translation linearly, heading the short way round (``t = 0`` gives ``self``)."""

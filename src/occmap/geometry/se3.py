@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, broadcast, index_batch, reject
+from ._arrays import Rejected, batch, index_batch, reject, run
 from .euler import euler_zyx_to_matrix
 from .se2 import se2_matrix
 from .so2 import so2_angle
@@ -31,27 +31,16 @@ def make_transform(R, t):
         if tt.shape[-1:] != (2,):
             raise ShapeError(f"t must have shape (..., 2) to go with 2×2 rotations, got {tt.shape}")
         return se2_matrix(tt[..., 0], tt[..., 1], so2_angle(r))
-    (a, b), lead = broadcast((r, (3, 3), "R"), (t, (3,), "t"))
-    out = np.empty(lead + (4, 4))
-    try:
-        K.make_transform(a, b, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3, 3), "R", "rotation"), (b, (3,), "t", "finite"))
-    return out
+    return run(K.make_transform, (4, 4), (r, (3, 3), "R", "rotation"), (t, (3,), "t", "finite"))
 
 
 def invert_transform(T):
     """Inverses ``[[Rᵀ, −Rᵀt], [0, 1]]`` of rigid transforms (..., 4, 4) or 2D (..., 3, 3)."""
     m = np.asarray(T, dtype=np.float64, order="C")
     planar = m.ndim >= 2 and m.shape[-1] == 3
-    d = (3, 3) if planar else (4, 4)
-    a, lead = batch(m, d, "T")
-    out = np.empty(a.shape)
-    try:
-        (K.invert_transform2 if planar else K.invert_transform)(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, d, "T", "rigid2" if planar else "rigid"))
-    return out
+    if planar:
+        return run(K.invert_transform2, (3, 3), (m, (3, 3), "T", "rigid2"))
+    return run(K.invert_transform, (4, 4), (m, (4, 4), "T", "rigid"))
 
 
 def transform_points(T, points):
@@ -61,45 +50,25 @@ def transform_points(T, points):
     """
     m = np.asarray(T, dtype=np.float64, order="C")
     planar = m.ndim >= 2 and m.shape[-1] == 3
-    d, k = ((3, 3), 2) if planar else ((4, 4), 3)
-    (a, b), lead = broadcast((m, d, "T"), (points, (k,), "points"))
-    out = np.empty(lead + (k,))
-    try:
-        (K.transform_points2 if planar else K.transform_points)(a, b, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, d, "T", "rigid2" if planar else "rigid"), (b, (k,), "points", "finite"))
-    return out
+    if planar:
+        return run(K.transform_points2, (2,), (m, (3, 3), "T", "rigid2"), (points, (2,), "points", "finite"))
+    return run(K.transform_points, (3,), (m, (4, 4), "T", "rigid"), (points, (3,), "points", "finite"))
 
 
 def compose_transforms(A, B):
     """``A @ B`` for rigid transforms (..., 4, 4), broadcasting; faster than ``np.matmul`` on batches.
     The inputs are assumed rigid (only their top three rows are read)."""
-    (a, b), lead = broadcast((A, (4, 4), "A"), (B, (4, 4), "B"))
-    out = np.empty(lead + (4, 4))
-    K.compose_transforms(a, b, out)
-    return out
+    return run(K.compose_transforms, (4, 4), (A, (4, 4), "A", "finite"), (B, (4, 4), "B", "finite"))
 
 
 def exp_se3(twist):
     """Transforms (..., 4, 4) of twists ``(ρ, φ)`` (..., 6): rotation ``exp(φ^)``, translation ``V ρ``."""
-    a, lead = batch(twist, (6,), "twist")
-    out = np.empty(lead + (4, 4))
-    try:
-        K.exp_se3(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (6,), "twist", "finite"))
-    return out
+    return run(K.exp_se3, (4, 4), (twist, (6,), "twist", "finite"))
 
 
 def log_se3(T):
     """Twists ``(ρ, φ)`` (..., 6) of rigid transforms, with ‖φ‖ ∈ [0, π]; inverse of :func:`exp_se3`."""
-    a, lead = batch(T, (4, 4), "T")
-    out = np.empty(lead + (6,))
-    try:
-        K.log_se3(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (4, 4), "T", "rigid"))
-    return out
+    return run(K.log_se3, (6,), (T, (4, 4), "T", "rigid"))
 
 
 class SE3:

@@ -13,41 +13,23 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, broadcast, index_batch, reject
+from ._arrays import Rejected, batch, index_batch, reject, run
 from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
 from .quaternion import axis_angle_to_quat, matrix_to_quat, quat_slerp, quat_to_matrix
 
 
 def hat(w):
     """Skew-symmetric matrices (..., 3, 3) with ``hat(w) @ v == cross(w, v)``."""
-    a, lead = batch(w, (3,), "w")
-    out = np.empty(lead + (3, 3))
-    try:
-        K.hat(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3,), "w", "finite"))
-    return out
+    return run(K.hat, (3, 3), (w, (3,), "w", "finite"))
 
 
 def vee(W):
     """Inverse of :func:`hat`; takes the skew-symmetric part ``(W − Wᵀ)/2`` of any 3×3 matrix."""
-    a, lead = batch(W, (3, 3), "W")
-    out = np.empty(lead + (3,))
-    try:
-        K.vee(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3, 3), "W", "finite"))
-    return out
+    return run(K.vee, (3,), (W, (3, 3), "W", "finite"))
 
 
 def _rot(angle, axis: int):
-    a, lead = batch(angle, (), "angle")
-    out = np.empty(lead + (3, 3))
-    try:
-        K.rot_axis(a, axis, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (), "angle", "finite"))
-    return out
+    return run(K.rot_axis, (3, 3), (angle, (), "angle", "finite"), args=(axis,))
 
 
 def rot_x(angle):
@@ -71,13 +53,7 @@ def exp_so3(rotvec):
     Computed through the unit quaternion ``(cos θ/2, sin(θ/2)/θ · w)`` with a series for
     sin(θ/2)/θ at small θ, so it is accurate to rounding from θ = 0 upward.
     """
-    a, lead = batch(rotvec, (3,), "rotvec")
-    out = np.empty(lead + (3, 3))
-    try:
-        K.exp_so3(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3,), "rotvec", "finite"))
-    return out
+    return run(K.exp_so3, (3, 3), (rotvec, (3,), "rotvec", "finite"))
 
 
 def matrix_to_axis_angle(R):
@@ -87,25 +63,14 @@ def matrix_to_axis_angle(R):
     ~1e-15 at angles near 0 and near π, where ``acos((tr R − 1)/2)`` loses half the digits.
     The identity gets axis (1, 0, 0); at exactly π, ``axis`` and ``−axis`` are equally valid.
     """
-    a, lead = batch(R, (3, 3), "R")
-    out = np.empty(lead + (4,))
-    try:
-        K.matrix_to_axis_angle(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3, 3), "R", "rotation"))
+    out = run(K.matrix_to_axis_angle, (4,), (R, (3, 3), "R", "rotation"))
     return out[..., :3], out[..., 3]
 
 
 def log_so3(R):
     """Rotation vectors (..., 3) (axis · angle, angle ∈ [0, π]) of rotation matrices; accurate to
     rounding relative to the angle from 0 up to π (see :func:`matrix_to_axis_angle`)."""
-    a, lead = batch(R, (3, 3), "R")
-    out = np.empty(lead + (3,))
-    try:
-        K.matrix_to_rotvec(a, out)
-    except Rejected as e:
-        reject(e.args[0], lead, (a, (3, 3), "R", "rotation"))
-    return out
+    return run(K.matrix_to_rotvec, (3,), (R, (3, 3), "R", "rotation"))
 
 
 def axis_angle_to_matrix(axis, angle):
@@ -252,13 +217,7 @@ class SO3:
 
     def apply(self, points) -> np.ndarray:
         """Rotate (..., 3) points; their leading shape broadcasts with ``self.shape``."""
-        (a, b), lead = broadcast((self._m, (3, 3), "rotation"), (points, (3,), "points"))
-        out = np.empty(lead + (3,))
-        try:
-            K.rotate_points(a, b, out)
-        except Rejected as e:
-            reject(e.args[0], lead, (b, (3,), "points", "finite"))
-        return out
+        return run(K.rotate_points, (3,), (self._m, (3, 3), "rotation", "rotation"), (points, (3,), "points", "finite"))
 
     def magnitude(self) -> np.ndarray:
         """Rotation angles in [0, π] (radians)."""
