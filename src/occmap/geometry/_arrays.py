@@ -85,21 +85,22 @@ def unstack(out: np.ndarray) -> tuple:
 
 def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = ()) -> np.ndarray:
     """The whole calling convention in one place: broadcast ``operands`` — each
-    ``(value, trailing, name, kind)`` with ``kind`` as in :func:`reject` — allocate the output
-    (leading shape + ``out_trailing``), call ``kernel(*arrays, *args, out)`` and turn a
-    ``Rejected`` into the error that names the bad argument and element."""
+    ``(value, trailing, name, kind)`` with ``kind`` as in :func:`reject` — call
+    ``kernel(*arrays, *args, out)`` and turn a ``Rejected`` into the error that names the bad
+    argument and element. Batches get an output allocated here (leading shape + ``out_trailing``);
+    a single element lets the kernel allocate (``out=None``) and returns its only row."""
     if len(operands) == 1:
-        value, trailing, name, kind = operands[0]
+        value, trailing, name, _ = operands[0]
         a, lead = batch(value, trailing, name)
-        arrays = [a]
+        arrays = (a,)
     else:
         arrays, lead = broadcast(*operands)
-    out = np.empty(lead + out_trailing)
+    out = np.empty(lead + out_trailing) if lead else None
     try:
-        kernel(*arrays, *args, out)
+        rows = kernel(*arrays, *args, out)
     except Rejected as e:
         reject(e.args[0], lead, *[(a, op[1], op[2], op[3]) for a, op in zip(arrays, operands)])
-    return out
+    return out if lead else rows[0]
 
 
 def where(index: int, lead: tuple[int, ...]) -> str:

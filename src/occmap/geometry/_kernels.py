@@ -5,8 +5,10 @@ vectors; transforms are homogeneous 4×4 (or 3×3 in 2D).
 
 Calling convention: inputs are C-contiguous arrays of any leading shape, viewed here as rows
 ``(n, ...)``; an operand with a single row is broadcast with stride 0 (``i * step``, step 0 or
-1). The caller allocates ``out`` in its final shape (NumPy's allocator gives large outputs huge
-pages, which halves the cost of writing them) and the kernel fills it. Each kernel checks its
+1). For batches the caller allocates ``out`` in its final shape (NumPy's allocator gives large
+outputs huge pages, which halves the cost of writing them) and the kernel fills it; for a single
+element the caller passes ``out=None`` and the kernel allocates. Either way the kernel returns
+the rows it wrote. Each kernel checks its
 input in the same pass and raises :class:`Rejected` with the index of the first bad element.
 Checks are written ``not (err <= tol)`` so NaN fails them; no fastmath, which would assume NaN
 away.
@@ -31,6 +33,15 @@ ROT_TOL_SQ = 1e-12  # ROTATION_TOL², compared with ‖RᵀR − I‖²_F
 # cos(pitch) at or below which a matrix is at gimbal lock up to rounding (4 ulp of 1): the
 # roll = 0 convention then changes the matrix by at most 2·GIMBAL_EPS
 GIMBAL_EPS = 4.0 * 2.220446049250313e-16
+
+
+@kernel
+def _view(out, n, shape):
+    """The rows ``(n, *shape)`` a kernel writes: a view of the caller's ``out``, or, when ``out`` is
+    None (one element: skipping NumPy's allocation saves a third of a single call), a new array."""
+    if out is None:
+        return np.empty((n,) + shape)
+    return out.reshape((-1,) + shape)
 
 
 # ---------------------------------------------------------------- checks
@@ -143,7 +154,7 @@ def _atan2(y, x):
 @kernel
 def hat(w, out):
     f = w.reshape((-1, 3))
-    o = out.reshape((-1, 3, 3))
+    o = _view(out, f.shape[0], (3, 3))
     for i in range(f.shape[0]):
         if not _finite_row(f, i):
             raise Rejected(i)
@@ -151,25 +162,27 @@ def hat(w, out):
         o[i, 0, 0], o[i, 0, 1], o[i, 0, 2] = 0.0, -z, y
         o[i, 1, 0], o[i, 1, 1], o[i, 1, 2] = z, 0.0, -x
         o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = -y, x, 0.0
+    return o
 
 
 @kernel
 def vee(W, out):
     f = W.reshape((-1, 9))
-    o = out.reshape((-1, 3))
+    o = _view(out, f.shape[0], (3,))
     for i in range(f.shape[0]):
         if not _finite_row(f, i):
             raise Rejected(i)
         o[i, 0] = 0.5 * (f[i, 7] - f[i, 5])
         o[i, 1] = 0.5 * (f[i, 2] - f[i, 6])
         o[i, 2] = 0.5 * (f[i, 3] - f[i, 1])
+    return o
 
 
 @kernel
 def rot_axis(angle, axis, out):
     """Elementary rotations about coordinate axis 0 (x), 1 (y) or 2 (z)."""
     f = angle.reshape(-1)
-    o = out.reshape((-1, 3, 3))
+    o = _view(out, f.shape[0], (3, 3))
     j = (axis + 1) % 3
     k = (axis + 2) % 3
     for i in range(f.shape[0]):
@@ -188,6 +201,7 @@ def rot_axis(angle, axis, out):
 
 
 # ---------------------------------------------------------------- quaternions
+    return o
 
 
 @kernel
@@ -213,11 +227,12 @@ def _quat_to_rot(w, x, y, z, o, i):
 @kernel
 def quat_to_matrix(q, out):
     f = q.reshape((-1, 4))
-    o = out.reshape((-1, 3, 3))
+    o = _view(out, f.shape[0], (3, 3))
     for i in range(f.shape[0]):
         if not _unit_ok(f, i):
             raise Rejected(i)
         _quat_to_rot(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
+    return o
 
 
 @kernel
@@ -263,18 +278,19 @@ def _rot_to_quat(R, i, o, j):
 @kernel
 def matrix_to_quat(R, out):
     f = R.reshape((-1, 3, 3))
-    o = out.reshape((-1, 4))
+    o = _view(out, f.shape[0], (4,))
     for i in range(f.shape[0]):
         if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
             raise Rejected(i)
         _rot_to_quat(f, i, o, i)
+    return o
 
 
 @kernel
 def quat_multiply(a, b, out):
     fa = a.reshape((-1, 4))
     fb = b.reshape((-1, 4))
-    o = out.reshape((-1, 4))
+    o = _view(out, max(fa.shape[0], fb.shape[0]), (4,))
     sa = 1 if fa.shape[0] > 1 else 0
     sb = 1 if fb.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -287,6 +303,7 @@ def quat_multiply(a, b, out):
         o[i, 1] = pw * qx + px * qw + py * qz - pz * qy
         o[i, 2] = pw * qy - px * qz + py * qw + pz * qx
         o[i, 3] = pw * qz + px * qy - py * qx + pz * qw
+    return o
 
 
 @kernel
@@ -300,7 +317,7 @@ def quat_scale(q, mode, out):
     and zero quaternions for modes 1 and 2. Norms are taken of q / max|q_k|, so they neither
     underflow nor overflow for any finite non-zero q."""
     f = q.reshape((-1, 4))
-    o = out.reshape((-1, 4))
+    o = _view(out, f.shape[0], (4,))
     for i in range(f.shape[0]):
         w, x, y, z = f[i, 0], f[i, 1], f[i, 2], f[i, 3]
         m = _max_abs4(w, x, y, z)
@@ -318,6 +335,7 @@ def quat_scale(q, mode, out):
                 a = b = 1.0 / n
             w, x, y, z = ws, xs, ys, zs
         o[i, 0], o[i, 1], o[i, 2], o[i, 3] = w * a, x * b, y * b, z * b
+    return o
 
 
 @kernel
@@ -325,9 +343,9 @@ def quat_rotate(q, v, out):
     """v' = q (0, v) q*, as v + w t + u × t with t = 2 u × v and u the vector part."""
     fq = q.reshape((-1, 4))
     fv = v.reshape((-1, 3))
-    o = out.reshape((-1, 3))
+    o = _view(out, max(fq.shape[0], fv.shape[0]), (3,))
     if o.shape[0] == 0:
-        return
+        return o
     sq = 1 if fq.shape[0] > 1 else 0
     sv = 1 if fv.shape[0] > 1 else 0
     if sq == 0 and not _unit_ok(fq, 0):
@@ -349,6 +367,7 @@ def quat_rotate(q, v, out):
         o[i, 0] = px + w * tx + (y * tz - z * ty)
         o[i, 1] = py + w * ty + (z * tx - x * tz)
         o[i, 2] = pz + w * tz + (x * ty - y * tx)
+    return o
 
 
 @kernel
@@ -364,7 +383,7 @@ def _sinc_half(theta):
 def axis_angle_to_quat(axis, angle, out):
     fa = axis.reshape((-1, 3))
     fg = angle.reshape(-1)
-    o = out.reshape((-1, 4))
+    o = _view(out, max(fa.shape[0], fg.shape[0]), (4,))
     sa = 1 if fa.shape[0] > 1 else 0
     sg = 1 if fg.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -379,6 +398,7 @@ def axis_angle_to_quat(axis, angle, out):
         o[i, 1] = x * s
         o[i, 2] = y * s
         o[i, 3] = z * s
+    return o
 
 
 @kernel
@@ -409,35 +429,38 @@ def _quat_rotvec(w, x, y, z, o, i):
 @kernel
 def matrix_to_rotvec(R, out):
     f = R.reshape((-1, 3, 3))
-    o = out.reshape((-1, 3))
+    o = _view(out, f.shape[0], (3,))
     q = np.empty((1, 4))
     for i in range(f.shape[0]):
         if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
             raise Rejected(i)
         _rot_to_quat(f, i, q, 0)
         _quat_rotvec(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o, i)
+    return o
 
 
 @kernel
 def quat_to_axis_angle(q, out):
     f = q.reshape((-1, 4))
-    o = out.reshape((-1, 4))
+    o = _view(out, f.shape[0], (4,))
     for i in range(f.shape[0]):
         if not _unit_ok(f, i):
             raise Rejected(i)
         _quat_axis_angle(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
+    return o
 
 
 @kernel
 def matrix_to_axis_angle(R, out):
     f = R.reshape((-1, 3, 3))
-    o = out.reshape((-1, 4))
+    o = _view(out, f.shape[0], (4,))
     q = np.empty((1, 4))
     for i in range(f.shape[0]):
         if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
             raise Rejected(i)
         _rot_to_quat(f, i, q, 0)
         _quat_axis_angle(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o, i)
+    return o
 
 
 @kernel
@@ -448,7 +471,7 @@ def quat_slerp(q0, q1, t, out):
     fa = q0.reshape((-1, 4))
     fb = q1.reshape((-1, 4))
     ft = t.reshape(-1)
-    o = out.reshape((-1, 4))
+    o = _view(out, max(fa.shape[0], fb.shape[0], ft.shape[0]), (4,))
     s0 = 1 if fa.shape[0] > 1 else 0
     s1 = 1 if fb.shape[0] > 1 else 0
     st = 1 if ft.shape[0] > 1 else 0
@@ -487,12 +510,13 @@ def quat_slerp(q0, q1, t, out):
 
 
 # ---------------------------------------------------------------- exp / log on SO(3)
+    return o
 
 
 @kernel
 def exp_so3(rv, out):
     f = rv.reshape((-1, 3))
-    o = out.reshape((-1, 3, 3))
+    o = _view(out, f.shape[0], (3, 3))
     for i in range(f.shape[0]):
         x, y, z = f[i, 0], f[i, 1], f[i, 2]
         theta = math.sqrt(x * x + y * y + z * z)
@@ -503,6 +527,7 @@ def exp_so3(rv, out):
 
 
 # ---------------------------------------------------------------- Euler Z-Y-X
+    return o
 
 
 @kernel
@@ -527,7 +552,7 @@ def euler_zyx_to_matrix(yaw, pitch, roll, out):
     fy = yaw.reshape(-1)
     fp = pitch.reshape(-1)
     fr = roll.reshape(-1)
-    o = out.reshape((-1, 3, 3))
+    o = _view(out, max(fy.shape[0], fp.shape[0], fr.shape[0]), (3, 3))
     sy = 1 if fy.shape[0] > 1 else 0
     sp = 1 if fp.shape[0] > 1 else 0
     sr = 1 if fr.shape[0] > 1 else 0
@@ -537,6 +562,7 @@ def euler_zyx_to_matrix(yaw, pitch, roll, out):
         if not (s - s == 0.0):
             raise Rejected(i)
         _euler_zyx_entries(a, b, g, o, i)
+    return o
 
 
 @kernel
@@ -555,7 +581,7 @@ def matrix_to_euler_zyx(R, out):
     first column), so the angles reproduce R to rounding even where cos(pitch) is tiny. At gimbal
     lock (cos(pitch) ≤ GIMBAL_EPS) roll is 0 by convention and yaw takes the whole angle."""
     f = R.reshape((-1, 3, 3))
-    o = out.reshape((-1, 3))
+    o = _view(out, f.shape[0], (3,))
     for i in range(f.shape[0]):
         if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
             raise Rejected(i)
@@ -572,13 +598,14 @@ def matrix_to_euler_zyx(R, out):
 
 
 # ---------------------------------------------------------------- SE(3)
+    return o
 
 
 @kernel
 def make_transform(R, t, out):
     fr = R.reshape((-1, 3, 3))
     ft = t.reshape((-1, 3))
-    o = out.reshape((-1, 4, 4))
+    o = _view(out, max(fr.shape[0], ft.shape[0]), (4, 4))
     sr = 1 if fr.shape[0] > 1 else 0
     st = 1 if ft.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -590,12 +617,13 @@ def make_transform(R, t, out):
                 o[i, r, c] = fr[ir, r, c]
             o[i, r, 3] = ft[it, r]
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+    return o
 
 
 @kernel
 def invert_transform(T, out):
     f = T.reshape((-1, 4, 4))
-    o = out.reshape((-1, 4, 4))
+    o = _view(out, f.shape[0], (4, 4))
     for i in range(f.shape[0]):
         if not _rigid_ok(f, i):
             raise Rejected(i)
@@ -606,6 +634,7 @@ def invert_transform(T, out):
                 acc += f[i, c, r] * f[i, c, 3]
             o[i, r, 3] = -acc
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+    return o
 
 
 @kernel
@@ -613,7 +642,7 @@ def compose_transforms(A, B, out):
     """A @ B for rigid 4×4 transforms, using their (0, 0, 0, 1) last rows."""
     fa = A.reshape((-1, 4, 4))
     fb = B.reshape((-1, 4, 4))
-    o = out.reshape((-1, 4, 4))
+    o = _view(out, max(fa.shape[0], fb.shape[0]), (4, 4))
     sa = 1 if fa.shape[0] > 1 else 0
     sb = 1 if fb.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -623,6 +652,7 @@ def compose_transforms(A, B, out):
                 o[i, r, c] = fa[ia, r, 0] * fb[ib, 0, c] + fa[ia, r, 1] * fb[ib, 1, c] + fa[ia, r, 2] * fb[ib, 2, c]
             o[i, r, 3] += fa[ia, r, 3]
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+    return o
 
 
 @kernel
@@ -631,9 +661,9 @@ def transform_points(T, p, out):
     entries held in registers for the whole point loop."""
     ft = T.reshape((-1, 4, 4))
     fp = p.reshape((-1, 3))
-    o = out.reshape((-1, 3))
+    o = _view(out, max(ft.shape[0], fp.shape[0]), (3,))
     if o.shape[0] == 0:
-        return
+        return o
     st = 1 if ft.shape[0] > 1 else 0
     sp = 1 if fp.shape[0] > 1 else 0
     if st == 0 and not _rigid_ok(ft, 0):
@@ -656,6 +686,7 @@ def transform_points(T, p, out):
         o[i, 0] = m00 * x + m01 * y + m02 * z + m03
         o[i, 1] = m10 * x + m11 * y + m12 * z + m13
         o[i, 2] = m20 * x + m21 * y + m22 * z + m23
+    return o
 
 
 @kernel
@@ -663,9 +694,9 @@ def rotate_points(R, p, out):
     """Apply rotations (3×3) to points (3); a shared rotation is validated once."""
     fr = R.reshape((-1, 3, 3))
     fp = p.reshape((-1, 3))
-    o = out.reshape((-1, 3))
+    o = _view(out, max(fr.shape[0], fp.shape[0]), (3,))
     if o.shape[0] == 0:
-        return
+        return o
     sr = 1 if fr.shape[0] > 1 else 0
     sp = 1 if fp.shape[0] > 1 else 0
     if sr == 0 and not (_rotation_error_sq(fr, 0) <= ROT_TOL_SQ):
@@ -682,6 +713,7 @@ def rotate_points(R, p, out):
         o[i, 0] = fr[k, 0, 0] * x + fr[k, 0, 1] * y + fr[k, 0, 2] * z
         o[i, 1] = fr[k, 1, 0] * x + fr[k, 1, 1] * y + fr[k, 1, 2] * z
         o[i, 2] = fr[k, 2, 0] * x + fr[k, 2, 1] * y + fr[k, 2, 2] * z
+    return o
 
 
 @kernel
@@ -704,7 +736,7 @@ def exp_se3(xi, out):
     """Twist (ρ, φ) (translation part first, as Sophus and Barfoot) to a 4×4 transform:
     R = exp(φ^), t = V ρ with V = I + b φ^ + c φ^²."""
     f = xi.reshape((-1, 6))
-    o = out.reshape((-1, 4, 4))
+    o = _view(out, f.shape[0], (4, 4))
     for i in range(f.shape[0]):
         if not _finite_row(f, i):
             raise Rejected(i)
@@ -720,6 +752,7 @@ def exp_se3(xi, out):
         o[i, 1, 3] = ry + b * c1y + c * c2y
         o[i, 2, 3] = rz + b * c1z + c * c2z
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+    return o
 
 
 @kernel
@@ -727,7 +760,7 @@ def log_se3(T, out):
     """Inverse of :func:`exp_se3`: φ = log R, ρ = V⁻¹ t with V⁻¹ = I − ½ φ^ + d φ^²,
     d = (1 − (θ/2) cot(θ/2)) / θ², by its series below 0.1; finite up to and at θ = π."""
     f = T.reshape((-1, 4, 4))
-    o = out.reshape((-1, 6))
+    o = _view(out, f.shape[0], (6,))
     q = np.empty((1, 4))
     for i in range(f.shape[0]):
         if not _rigid_ok(f, i):
@@ -751,6 +784,7 @@ def log_se3(T, out):
 
 
 # ---------------------------------------------------------------- SE(2)
+    return o
 
 
 @kernel
@@ -766,7 +800,7 @@ def se2_matrix(x, y, theta, out):
     fx = x.reshape(-1)
     fy = y.reshape(-1)
     ft = theta.reshape(-1)
-    o = out.reshape((-1, 3, 3))
+    o = _view(out, max(fx.shape[0], fy.shape[0], ft.shape[0]), (3, 3))
     sx = 1 if fx.shape[0] > 1 else 0
     sy = 1 if fy.shape[0] > 1 else 0
     st = 1 if ft.shape[0] > 1 else 0
@@ -776,6 +810,7 @@ def se2_matrix(x, y, theta, out):
         if not (s - s == 0.0):
             raise Rejected(i)
         _se2_entries(a, b, t, o, i)
+    return o
 
 
 @kernel
@@ -790,13 +825,14 @@ def se2_matrix_one(x, y, theta, out):
 @kernel
 def se2_from_matrix(T, out):
     f = T.reshape((-1, 3, 3))
-    o = out.reshape((-1, 3))
+    o = _view(out, f.shape[0], (3,))
     for i in range(f.shape[0]):
         if not _rigid2_ok(f, i):
             raise Rejected(i)
         o[i, 0] = f[i, 0, 2]
         o[i, 1] = f[i, 1, 2]
         o[i, 2] = _atan2(f[i, 1, 0], f[i, 0, 0])
+    return o
 
 
 @kernel
@@ -804,9 +840,9 @@ def transform_points2(T, p, out):
     """2D counterpart of :func:`transform_points`: 3×3 transforms, 2-vectors."""
     ft = T.reshape((-1, 3, 3))
     fp = p.reshape((-1, 2))
-    o = out.reshape((-1, 2))
+    o = _view(out, max(ft.shape[0], fp.shape[0]), (2,))
     if o.shape[0] == 0:
-        return
+        return o
     st = 1 if ft.shape[0] > 1 else 0
     sp = 1 if fp.shape[0] > 1 else 0
     if st == 0 and not _rigid2_ok(ft, 0):
@@ -822,12 +858,13 @@ def transform_points2(T, p, out):
             raise Rejected(i)
         o[i, 0] = ft[k, 0, 0] * x + ft[k, 0, 1] * y + ft[k, 0, 2]
         o[i, 1] = ft[k, 1, 0] * x + ft[k, 1, 1] * y + ft[k, 1, 2]
+    return o
 
 
 @kernel
 def invert_transform2(T, out):
     f = T.reshape((-1, 3, 3))
-    o = out.reshape((-1, 3, 3))
+    o = _view(out, f.shape[0], (3, 3))
     for i in range(f.shape[0]):
         if not _rigid2_ok(f, i):
             raise Rejected(i)
@@ -836,3 +873,6 @@ def invert_transform2(T, out):
             o[i, r, 1] = f[i, 1, r]
             o[i, r, 2] = -(f[i, 0, r] * f[i, 0, 2] + f[i, 1, r] * f[i, 1, 2])
         o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = 0.0, 0.0, 1.0
+    return o
+
+

@@ -21,7 +21,7 @@ from ._arrays import Rejected, run, unstack
 
 def euler_zyx_to_matrix(yaw, pitch, roll):
     """Rotation matrices (..., 3, 3) from yaw, pitch, roll (radians; broadcast against each other)."""
-    if type(yaw) is float and type(pitch) is float and type(roll) is float:
+    if isinstance(yaw, float) and isinstance(pitch, float) and isinstance(roll, float):
         out = np.empty((3, 3))
         try:
             K.euler_zyx_to_matrix_one(yaw, pitch, roll, out)

@@ -16,7 +16,7 @@ from .so2 import SO2, wrap_angle
 
 def se2_matrix(x, y, theta):
     """Homogeneous matrices (..., 3, 3) of poses; ``x``, ``y``, ``theta`` broadcast."""
-    if type(x) is float and type(y) is float and type(theta) is float:
+    if isinstance(x, float) and isinstance(y, float) and isinstance(theta, float):
         out = np.empty((3, 3))
         try:
             K.se2_matrix_one(x, y, theta, out)
