@@ -79,12 +79,13 @@ def test_so3_composition_order_and_inverse(qa, qb, p):
     A, B = SO3.from_quat(qa), SO3.from_quat(qb)
     np.testing.assert_allclose((A @ B).matrix, A.matrix @ B.matrix, rtol=0, atol=0)
     # A @ B applies B first
-    np.testing.assert_allclose((A @ B).apply(p), A.apply(B.apply(p)), rtol=0, atol=1e-12)
+    e = 16 * EPS * (1 + np.abs(p).max())
+    np.testing.assert_allclose((A @ B).apply(p), A.apply(B.apply(p)), rtol=0, atol=e)
     np.testing.assert_allclose((A @ A.inv()).matrix, np.eye(3), rtol=0, atol=8 * EPS)
     np.testing.assert_allclose(A.inv().matrix, np.linalg.inv(A.matrix), rtol=0, atol=8 * EPS)
     ref = Rotation.from_quat(qa, scalar_first=True) * Rotation.from_quat(qb, scalar_first=True)
     np.testing.assert_allclose((A @ B).matrix, ref.as_matrix(), rtol=0, atol=8 * EPS)
-    np.testing.assert_allclose(A.apply(p), Rotation.from_quat(qa, scalar_first=True).apply(p), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(A.apply(p), Rotation.from_quat(qa, scalar_first=True).apply(p), rtol=0, atol=e)
 
 
 def test_so3_apply_broadcasting(rots, rng):
@@ -217,13 +218,14 @@ def test_se3_composition_order(qa, ta, qb, tb, p_c):
     """T_a_c = T_a_b @ T_b_c, and T_a_c.apply(p_c) = T_a_b.apply(T_b_c.apply(p_c))."""
     T_a_b, T_b_c = SE3.from_quat(qa, ta), SE3.from_quat(qb, tb)
     T_a_c = T_a_b @ T_b_c
-    np.testing.assert_allclose(T_a_c.matrix, T_a_b.matrix @ T_b_c.matrix, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(T_a_c.apply(p_c), T_a_b.apply(T_b_c.apply(p_c)), rtol=0, atol=1e-11)
+    e = 32 * EPS * (1 + np.abs(ta).max() + np.abs(tb).max() + np.abs(p_c).max())  # a few ulp of the magnitudes
+    np.testing.assert_allclose(T_a_c.matrix, T_a_b.matrix @ T_b_c.matrix, rtol=0, atol=e)
+    np.testing.assert_allclose(T_a_c.apply(p_c), T_a_b.apply(T_b_c.apply(p_c)), rtol=0, atol=e)
     Ra = Rotation.from_quat(qa, scalar_first=True)
-    np.testing.assert_allclose(T_a_b.apply(p_c), Ra.apply(p_c) + ta, rtol=0, atol=1e-12)
-    np.testing.assert_allclose((T_a_b @ T_a_b.inv()).matrix, np.eye(4), rtol=0, atol=1e-12)
-    np.testing.assert_allclose((T_a_b.inv() @ T_a_b).matrix, np.eye(4), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(T_a_b.inv().apply(T_a_b.apply(p_c)), p_c, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(T_a_b.apply(p_c), Ra.apply(p_c) + ta, rtol=0, atol=e)
+    np.testing.assert_allclose((T_a_b @ T_a_b.inv()).matrix, np.eye(4), rtol=0, atol=e)
+    np.testing.assert_allclose((T_a_b.inv() @ T_a_b).matrix, np.eye(4), rtol=0, atol=e)
+    np.testing.assert_allclose(T_a_b.inv().apply(T_a_b.apply(p_c)), p_c, rtol=0, atol=e)
 
 
 def test_se3_apply_broadcasting(rots, rng):

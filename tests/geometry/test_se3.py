@@ -59,6 +59,12 @@ def to_scipy_exp_coords(xi):
     return np.concatenate([xi[..., 3:], xi[..., :3]], -1)
 
 
+def tol(*arrays):
+    """Rounding allowance for transform arithmetic: a few ulp of the largest magnitude involved
+    (translations up to 100 m make 1e-13 too tight: hypothesis found 1.1e-13 at |t| = 160)."""
+    return 16 * EPS * (1 + sum(np.abs(a).max() for a in arrays))
+
+
 def random_transforms(rng, n):
     q = rng.standard_normal((n, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
@@ -95,34 +101,37 @@ def test_make_transform_layout():
 def test_inverse_laws(T):
     I = np.eye(4)
     Ti = invert_transform(T)
-    np.testing.assert_allclose(T @ Ti, I, rtol=0, atol=1e-13)
-    np.testing.assert_allclose(Ti @ T, I, rtol=0, atol=1e-13)
-    np.testing.assert_allclose(compose_transforms(T, Ti), I, rtol=0, atol=1e-13)
-    np.testing.assert_allclose(Ti, np.linalg.inv(T), rtol=0, atol=1e-13)
-    np.testing.assert_allclose(invert_transform(Ti), T, rtol=0, atol=1e-13)
+    e = tol(T)
+    np.testing.assert_allclose(T @ Ti, I, rtol=0, atol=e)
+    np.testing.assert_allclose(Ti @ T, I, rtol=0, atol=e)
+    np.testing.assert_allclose(compose_transforms(T, Ti), I, rtol=0, atol=e)
+    np.testing.assert_allclose(Ti, np.linalg.inv(T), rtol=0, atol=e)
+    np.testing.assert_allclose(invert_transform(Ti), T, rtol=0, atol=e)
 
 
 @PROP
 @given(transforms, transforms, transforms)
 def test_composition_matches_matmul_and_is_associative(A, B, C):
-    np.testing.assert_allclose(compose_transforms(A, B), A @ B, rtol=0, atol=1e-13)
+    e = tol(A, B, C)
+    np.testing.assert_allclose(compose_transforms(A, B), A @ B, rtol=0, atol=e)
     np.testing.assert_allclose(
-        compose_transforms(compose_transforms(A, B), C), compose_transforms(A, compose_transforms(B, C)), rtol=0, atol=1e-12
+        compose_transforms(compose_transforms(A, B), C), compose_transforms(A, compose_transforms(B, C)), rtol=0, atol=2 * e
     )
     # (AB)⁻¹ = B⁻¹A⁻¹
     np.testing.assert_allclose(
-        invert_transform(compose_transforms(A, B)), compose_transforms(invert_transform(B), invert_transform(A)), rtol=0, atol=1e-12
+        invert_transform(compose_transforms(A, B)), compose_transforms(invert_transform(B), invert_transform(A)), rtol=0, atol=2 * e
     )
 
 
 @PROP
 @given(transforms, transforms, hnp.arrays(np.float64, (5, 3), elements=st.floats(-100, 100)))
 def test_transform_points(A, B, p):
-    np.testing.assert_allclose(transform_points(A, p), p @ A[:3, :3].T + A[:3, 3], rtol=0, atol=1e-12)
+    e = tol(A, B, p)
+    np.testing.assert_allclose(transform_points(A, p), p @ A[:3, :3].T + A[:3, 3], rtol=0, atol=e)
     np.testing.assert_allclose(
-        transform_points(compose_transforms(A, B), p), transform_points(A, transform_points(B, p)), rtol=0, atol=1e-11
+        transform_points(compose_transforms(A, B), p), transform_points(A, transform_points(B, p)), rtol=0, atol=2 * e
     )
-    np.testing.assert_allclose(transform_points(invert_transform(A), transform_points(A, p)), p, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(transform_points(invert_transform(A), transform_points(A, p)), p, rtol=0, atol=2 * e)
 
 
 # ---------------------------------------------------------------- exp / log
@@ -149,7 +158,7 @@ def test_log_exp_round_trip(xi):
 def test_exp_log_round_trip(T):
     xi = log_se3(T)
     assert np.linalg.norm(xi[3:]) <= np.pi + 4 * EPS
-    np.testing.assert_allclose(exp_se3(xi), T, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(exp_se3(xi), T, rtol=0, atol=4 * tol(T))
 
 
 def test_pure_translation_twist():
