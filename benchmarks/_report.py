@@ -14,16 +14,22 @@ ROOT = Path(__file__).resolve().parent.parent
 BENCHMARKS_MD = ROOT / "BENCHMARKS.md"
 
 
-def median_time(fn, number: int, repeat: int = 7) -> float:
-    """Median over ``repeat`` runs of the mean seconds per call of ``fn`` over ``number`` calls."""
-    fn()  # warm-up: JIT compilation and first-touch allocation stay out of the figures
-    runs = []
+def median_times(fns, number: int, repeat: int = 9) -> list[float]:
+    """Median seconds per call of each function in ``fns``, timed in alternating rounds.
+
+    Each round times every function once (``number`` calls each), so a noisy stretch of a shared
+    machine hits all of them alike and their ratios stay meaningful.
+    """
+    for fn in fns:
+        fn()  # warm-up: JIT compilation and first-touch allocation stay out of the figures
+    runs = [[] for _ in fns]
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        for _ in range(number):
-            fn()
-        runs.append((time.perf_counter() - t0) / number)
-    return statistics.median(runs)
+        for fn, out in zip(fns, runs):
+            t0 = time.perf_counter()
+            for _ in range(number):
+                fn()
+            out.append((time.perf_counter() - t0) / number)
+    return [statistics.median(r) for r in runs]
 
 
 def machine() -> str:

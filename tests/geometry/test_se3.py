@@ -12,13 +12,16 @@ from hypothesis.extra import numpy as hnp
 from scipy.linalg import expm
 from scipy.spatial.transform import RigidTransform, Rotation
 
+from occmap.errors import NonFiniteError
 from occmap.geometry import (
+    SO3,
     compose_transforms,
     exp_se3,
     exp_so3,
     invert_transform,
     log_se3,
     make_transform,
+    quat_rotate,
     quat_to_matrix,
     transform_points,
 )
@@ -308,3 +311,22 @@ def test_empty_transform_batch():
     assert transform_points(np.zeros((0, 4, 4)), np.zeros(3)).shape == (0, 3)
     assert transform_points(np.zeros((0, 4, 4)), np.zeros((0, 3))).shape == (0, 3)
     assert transform_points(np.zeros((0, 3, 3)), np.zeros(2)).shape == (0, 2)
+
+
+def test_large_clouds_take_the_parallel_path_and_still_name_the_bad_point():
+    """Clouds of ≥ 65,536 points are mapped on all cores; results must equal NumPy's, and a NaN
+    anywhere must still be reported at its own index (the parallel reduction only detects it)."""
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(70_000, 3)) * 10
+    q = np.array([0.6, 0.0, 0.8, 0.0])
+    R = quat_to_matrix(q)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, [1.0, -2.0, 3.0]
+    expected = pts @ R.T
+    np.testing.assert_allclose(transform_points(T, pts), expected + T[:3, 3], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quat_rotate(q, pts), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(SO3.from_matrix(R).apply(pts), expected, rtol=0, atol=1e-12)
+    pts[69_123, 2] = np.nan
+    for call in (lambda: transform_points(T, pts), lambda: quat_rotate(q, pts), lambda: SO3.from_matrix(R).apply(pts)):
+        with pytest.raises(NonFiniteError, match=r"\[69123\]"):
+            call()

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 class Rejected(Exception):
     """Raised by a kernel with the flat index of the first element its checks rejected."""
@@ -27,6 +27,11 @@ class Rejected(Exception):
 
 # Division by zero yields inf/NaN (caught by the checks) instead of raising inside the loop.
 kernel = njit(cache=True, error_model="numpy")
+kernel_parallel = njit(cache=True, error_model="numpy", parallel=True)
+
+# Point loops this long or longer run on all cores; shorter ones stay serial, where the thread
+# pool's dispatch would cost more than it saves.
+PARALLEL_MIN = 1 << 16
 
 UNIT_TOL = 1e-6
 ROT_TOL_SQ = 1e-12  # ROTATION_TOL², compared with ‖RᵀR − I‖²_F
@@ -339,23 +344,63 @@ def quat_scale(q, mode, out):
 
 
 @kernel
+def _map_row(M, p, o, i):
+    """o[i] = M[:, :3] @ p[i] + M[:, 3] for a 3×4 affine map ``M``; returns the sum of p[i]
+    (non-finite exactly when p[i] is, so one reduction checks a whole cloud)."""
+    x, y, z = p[i, 0], p[i, 1], p[i, 2]
+    o[i, 0] = M[0, 0] * x + M[0, 1] * y + M[0, 2] * z + M[0, 3]
+    o[i, 1] = M[1, 0] * x + M[1, 1] * y + M[1, 2] * z + M[1, 3]
+    o[i, 2] = M[2, 0] * x + M[2, 1] * y + M[2, 2] * z + M[2, 3]
+    return x + y + z
+
+
+@kernel_parallel
+def _map_rows_parallel(M, p, o):
+    total = 0.0
+    for i in prange(p.shape[0]):
+        total += _map_row(M, p, o, i)
+    return total
+
+
+@kernel
+def _map_points(M, p, o):
+    """Apply one 3×4 map to every row of ``p`` (n, 3) into ``o``, on all cores for long inputs;
+    raises :class:`Rejected` at the first non-finite point."""
+    n = p.shape[0]
+    if n >= PARALLEL_MIN:
+        total = _map_rows_parallel(M, p, o)
+    else:
+        total = 0.0
+        for i in range(n):
+            total += _map_row(M, p, o, i)
+    if not (total - total == 0.0):  # some point is NaN/inf (or the sum overflowed): find it
+        for i in range(n):
+            s = p[i, 0] + p[i, 1] + p[i, 2]
+            if not (s - s == 0.0):
+                raise Rejected(i)
+
+
+@kernel
 def quat_rotate(q, v, out):
-    """v' = q (0, v) q*, as v + w t + u × t with t = 2 u × v and u the vector part."""
+    """v' = q (0, v) q*, as v + w t + u × t with t = 2 u × v and u the vector part; one quaternion
+    applied to many vectors goes through its matrix and :func:`_map_points`."""
     fq = q.reshape((-1, 4))
     fv = v.reshape((-1, 3))
     o = _view(out, max(fq.shape[0], fv.shape[0]), (3,))
     if o.shape[0] == 0:
         return o
-    sq = 1 if fq.shape[0] > 1 else 0
+    if fq.shape[0] == 1:
+        if not _unit_ok(fq, 0):
+            raise Rejected(0)
+        M = np.zeros((1, 3, 4))
+        _quat_to_rot(fq[0, 0], fq[0, 1], fq[0, 2], fq[0, 3], M, 0)
+        _map_points(M[0], fv, o)
+        return o
     sv = 1 if fv.shape[0] > 1 else 0
-    if sq == 0 and not _unit_ok(fq, 0):
-        raise Rejected(0)
-    w, x, y, z = fq[0, 0], fq[0, 1], fq[0, 2], fq[0, 3]
     for i in range(o.shape[0]):
-        if sq == 1:
-            if not _unit_ok(fq, i):
-                raise Rejected(i)
-            w, x, y, z = fq[i, 0], fq[i, 1], fq[i, 2], fq[i, 3]
+        if not _unit_ok(fq, i):
+            raise Rejected(i)
+        w, x, y, z = fq[i, 0], fq[i, 1], fq[i, 2], fq[i, 3]
         j = i * sv
         px, py, pz = fv[j, 0], fv[j, 1], fv[j, 2]
         s = px + py + pz
@@ -657,62 +702,59 @@ def compose_transforms(A, B, out):
 
 @kernel
 def transform_points(T, p, out):
-    """Apply rigid transforms (4×4) to points (3); a shared transform is validated once and its
-    entries held in registers for the whole point loop."""
+    """Apply rigid transforms (4×4) to points (3); a shared transform is validated once and goes
+    through :func:`_map_points`."""
     ft = T.reshape((-1, 4, 4))
     fp = p.reshape((-1, 3))
     o = _view(out, max(ft.shape[0], fp.shape[0]), (3,))
     if o.shape[0] == 0:
         return o
-    st = 1 if ft.shape[0] > 1 else 0
+    if ft.shape[0] == 1:
+        if not _rigid_ok(ft, 0):
+            raise Rejected(0)
+        _map_points(ft[0], fp, o)
+        return o
     sp = 1 if fp.shape[0] > 1 else 0
-    if st == 0 and not _rigid_ok(ft, 0):
-        raise Rejected(0)
-    m00, m01, m02, m03 = ft[0, 0, 0], ft[0, 0, 1], ft[0, 0, 2], ft[0, 0, 3]
-    m10, m11, m12, m13 = ft[0, 1, 0], ft[0, 1, 1], ft[0, 1, 2], ft[0, 1, 3]
-    m20, m21, m22, m23 = ft[0, 2, 0], ft[0, 2, 1], ft[0, 2, 2], ft[0, 2, 3]
     for i in range(o.shape[0]):
-        if st == 1:
-            if not _rigid_ok(ft, i):
-                raise Rejected(i)
-            m00, m01, m02, m03 = ft[i, 0, 0], ft[i, 0, 1], ft[i, 0, 2], ft[i, 0, 3]
-            m10, m11, m12, m13 = ft[i, 1, 0], ft[i, 1, 1], ft[i, 1, 2], ft[i, 1, 3]
-            m20, m21, m22, m23 = ft[i, 2, 0], ft[i, 2, 1], ft[i, 2, 2], ft[i, 2, 3]
+        if not _rigid_ok(ft, i):
+            raise Rejected(i)
         j = i * sp
         x, y, z = fp[j, 0], fp[j, 1], fp[j, 2]
         s = x + y + z
         if not (s - s == 0.0):
             raise Rejected(i)
-        o[i, 0] = m00 * x + m01 * y + m02 * z + m03
-        o[i, 1] = m10 * x + m11 * y + m12 * z + m13
-        o[i, 2] = m20 * x + m21 * y + m22 * z + m23
+        for r in range(3):
+            o[i, r] = ft[i, r, 0] * x + ft[i, r, 1] * y + ft[i, r, 2] * z + ft[i, r, 3]
     return o
 
 
 @kernel
 def rotate_points(R, p, out):
-    """Apply rotations (3×3) to points (3); a shared rotation is validated once."""
+    """Apply rotations (3×3) to points (3); a shared rotation is validated once and goes through
+    :func:`_map_points`."""
     fr = R.reshape((-1, 3, 3))
     fp = p.reshape((-1, 3))
     o = _view(out, max(fr.shape[0], fp.shape[0]), (3,))
     if o.shape[0] == 0:
         return o
-    sr = 1 if fr.shape[0] > 1 else 0
+    if fr.shape[0] == 1:
+        if not (_rotation_error_sq(fr, 0) <= ROT_TOL_SQ):
+            raise Rejected(0)
+        M = np.zeros((3, 4))
+        M[:, :3] = fr[0]
+        _map_points(M, fp, o)
+        return o
     sp = 1 if fp.shape[0] > 1 else 0
-    if sr == 0 and not (_rotation_error_sq(fr, 0) <= ROT_TOL_SQ):
-        raise Rejected(0)
     for i in range(o.shape[0]):
-        k = i * sr
-        if sr == 1 and not (_rotation_error_sq(fr, k) <= ROT_TOL_SQ):
+        if not (_rotation_error_sq(fr, i) <= ROT_TOL_SQ):
             raise Rejected(i)
         j = i * sp
         x, y, z = fp[j, 0], fp[j, 1], fp[j, 2]
         s = x + y + z
         if not (s - s == 0.0):
             raise Rejected(i)
-        o[i, 0] = fr[k, 0, 0] * x + fr[k, 0, 1] * y + fr[k, 0, 2] * z
-        o[i, 1] = fr[k, 1, 0] * x + fr[k, 1, 1] * y + fr[k, 1, 2] * z
-        o[i, 2] = fr[k, 2, 0] * x + fr[k, 2, 1] * y + fr[k, 2, 2] * z
+        for r in range(3):
+            o[i, r] = fr[i, r, 0] * x + fr[i, r, 1] * y + fr[i, r, 2] * z
     return o
 
 
