@@ -79,8 +79,10 @@ def index_batch(m: np.ndarray, trailing: int, index) -> np.ndarray:
 
 
 def unstack(out: np.ndarray) -> tuple:
-    """Split the last axis of ``out`` into a tuple of arrays (numbers for a 1-D ``out``)."""
-    return tuple(out.T) if out.ndim <= 2 else tuple(np.moveaxis(out, -1, 0))
+    """Split the last axis of ``out`` into a tuple of arrays (Python floats for a 1-D ``out``)."""
+    if out.ndim == 1:
+        return tuple(out.tolist())
+    return tuple(out.T) if out.ndim == 2 else tuple(np.moveaxis(out, -1, 0))
 
 
 def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = ()) -> np.ndarray:
