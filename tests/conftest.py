@@ -24,3 +24,17 @@ def scipy_rotations():
 def rng():
     """A fresh, seeded NumPy generator per test."""
     return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="session")
+def data_dir():
+    """The shared real-robot data: ``$OCCMAP_DATA`` or ``../shared/data`` beside the project.
+    Tests that need it are skipped, saying why, when neither exists."""
+    import os
+    from pathlib import Path
+
+    candidates = [os.environ.get("OCCMAP_DATA"), Path(__file__).resolve().parents[1].parent / "shared" / "data"]
+    for c in candidates:
+        if c and Path(c, "README.md").is_file():
+            return Path(c)
+    pytest.skip("real robot data not found: set OCCMAP_DATA or place it at ../shared/data")
