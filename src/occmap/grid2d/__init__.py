@@ -1,0 +1,6 @@
+"""2D occupancy grids: the log-odds Bayes filter per cell, lidar inverse sensor models."""
+
+from .grid import OccupancyGrid2D
+from .sensor_models import LidarModel, logit
+
+__all__ = ["LidarModel", "OccupancyGrid2D", "logit"]

@@ -1,0 +1,221 @@
+"""The 2D occupancy grid: per-cell log-odds under the static-state binary Bayes filter.
+
+Conventions (see ``DESIGN.md``): cell ``(iy, ix)`` is row ``iy``, column ``ix``; ``origin`` is the
+world position of the outer corner of cell (0, 0); the centre of cell (iy, ix) is
+``origin + ((ix + 0.5)·res, (iy + 0.5)·res)``. Each cell holds ``l = log(p / (1 − p))``, updated
+``l ← clamp(l + l_sensor − l_prior)``; a cell no reading ever touched is *unknown*.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
+from . import _kernels as K
+from .sensor_models import LidarModel, logit
+
+#: Cells added on each side when a growing map must grow, at least (amortises the copies).
+_GROW_MARGIN_CELLS = 64
+
+
+class OccupancyGrid2D:
+    """A 2D occupancy grid in log-odds.
+
+    Parameters
+    ----------
+    resolution : float
+        Cell side in metres.
+    size : (width, height) in metres, optional
+        Fixed extent. ``None`` (default) makes a map that grows to fit what it is given, keeping
+        its content and cell alignment; a fixed map ignores the parts of rays outside it.
+    origin : (x, y), optional
+        World position of the outer corner of cell (0, 0); default (0, 0) for a fixed map, the
+        first scan's surroundings for a growing one.
+    prior : float
+        Prior occupancy probability of every cell (0.5: no prior knowledge).
+    clamp : (p_min, p_max)
+        Clamping bounds in probability (OctoMap's defaults), keeping cells able to change.
+    """
+
+    def __init__(self, resolution: float, size=None, origin=None, prior: float = 0.5, clamp=(0.1192, 0.971)):
+        if not (isinstance(resolution, (int, float)) and math.isfinite(resolution) and resolution > 0):
+            raise InvalidArgumentError(f"resolution must be a positive number of metres, got {resolution!r}")
+        self.resolution = float(resolution)
+        self.l_prior = logit(prior)
+        self.l_min, self.l_max = logit(clamp[0]), logit(clamp[1])
+        if not self.l_min < self.l_prior < self.l_max:
+            raise InvalidArgumentError(f"prior {prior!r} must lie strictly between the clamping bounds {clamp!r}")
+        self.growing = size is None
+        self._scans = 0
+        self.stats = {"scans": 0, "beams": 0, "dropped": 0, "max_range": 0}
+        if size is None:
+            self.origin = None if origin is None else np.array(origin, dtype=np.float64)
+            shape = (0, 0)
+        else:
+            w, h = (float(v) for v in size)
+            if not (w > 0 and h > 0):
+                raise InvalidArgumentError(f"size must be positive (width, height) in metres, got {size!r}")
+            self.origin = np.zeros(2) if origin is None else np.array(origin, dtype=np.float64)
+            shape = (int(math.ceil(h / self.resolution - 1e-9)), int(math.ceil(w / self.resolution - 1e-9)))
+        self._L = np.full(shape, self.l_prior, dtype=np.float32)
+        self._stamp = np.zeros(shape, dtype=np.int32)
+
+    # ------------------------------------------------------------------ geometry
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(height, width) in cells."""
+        return self._L.shape
+
+    def world_to_cell(self, points) -> np.ndarray:
+        """Integer cells ``(iy, ix)`` (..., 2) of world points (..., 2); not clipped to the map."""
+        p = np.asarray(points, dtype=np.float64)
+        if p.shape[-1:] != (2,):
+            raise ShapeError(f"points must have shape (..., 2), got {p.shape}")
+        o = self._origin_or_zero()
+        cell = np.floor((p - o) * (1.0 / self.resolution)).astype(np.int64)
+        return cell[..., ::-1]
+
+    def cell_to_world(self, cells) -> np.ndarray:
+        """World centres (..., 2) of cells ``(iy, ix)`` (..., 2)."""
+        c = np.asarray(cells)
+        if c.shape[-1:] != (2,):
+            raise ShapeError(f"cells must have shape (..., 2), got {c.shape}")
+        return self._origin_or_zero() + (c[..., ::-1] + 0.5) * self.resolution
+
+    def _origin_or_zero(self) -> np.ndarray:
+        return np.zeros(2) if self.origin is None else self.origin
+
+    # ------------------------------------------------------------------ read-outs
+
+    @property
+    def log_odds(self) -> np.ndarray:
+        """Log-odds per cell (read-only view, float32, (H, W))."""
+        v = self._L.view()
+        v.flags.writeable = False
+        return v
+
+    @property
+    def observed(self) -> np.ndarray:
+        """True for cells some reading has touched."""
+        return self._stamp != 0
+
+    def probability(self) -> np.ndarray:
+        """Occupancy probability per cell (float64); unobserved cells hold the prior."""
+        return 1.0 / (1.0 + np.exp(-self._L.astype(np.float64)))
+
+    def occupancy(self) -> np.ndarray:
+        """nav_msgs/OccupancyGrid values (int8, (H, W), row 0 at the origin): −1 unknown, else
+        round(100·p)."""
+        occ = np.rint(100.0 * self.probability()).astype(np.int8)
+        occ[~self.observed] = -1
+        return occ
+
+    def maximum_likelihood(self) -> np.ndarray:
+        """int8 map: 1 occupied (l > 0), 0 free (observed, l ≤ 0), −1 never observed."""
+        ml = np.where(self._L > 0, 1, 0).astype(np.int8)
+        ml[~self.observed] = -1
+        return ml
+
+    def value_at(self, points) -> np.ndarray:
+        """Log-odds at world points (..., 2); NaN outside the map or where unobserved."""
+        cells = self.world_to_cell(points)
+        iy, ix = cells[..., 0], cells[..., 1]
+        H, W = self.shape
+        inside = (iy >= 0) & (iy < H) & (ix >= 0) & (ix < W)
+        out = np.full(iy.shape, np.nan)
+        jy, jx = iy[inside], ix[inside]
+        seen = self._stamp[jy, jx] != 0
+        vals = np.where(seen, self._L[jy, jx], np.nan)
+        out[inside] = vals
+        return out
+
+    # ------------------------------------------------------------------ integration
+
+    def integrate_scan(self, pose, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
+        """Integrate one scan from sensor pose ``(x, y, theta)``; see :meth:`integrate_scans`."""
+        r = np.asarray(ranges, dtype=np.float64)
+        return self.integrate_scans(np.asarray(pose, dtype=np.float64)[None], r[None], angles, max_range, model)
+
+    def integrate_scans(self, poses, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
+        """Integrate N scans in one call.
+
+        ``poses`` (N, 3) are sensor poses ``(x, y, theta)``; ``ranges`` (N, n) in metres;
+        ``angles`` (n,) or (N, n) beam angles relative to the sensor heading. A reading at or
+        beyond ``max_range``, or infinite, frees the cells up to ``max_range`` and marks nothing;
+        NaN, zero and negative readings are dropped and counted. Without ``max_range`` every
+        finite reading is a return and infinite ones are dropped too. Within one scan a cell is updated at most once and a hit wins over a miss.
+        Returns the counts of this call: beams used, readings dropped, max-range readings.
+        """
+        model = LidarModel() if model is None else model
+        P = np.ascontiguousarray(poses, dtype=np.float64)
+        R = np.ascontiguousarray(ranges, dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] != 3:
+            raise ShapeError(f"poses must have shape (N, 3), got {P.shape}")
+        if R.ndim != 2 or R.shape[0] != P.shape[0]:
+            raise ShapeError(f"ranges must have shape (N, n) with N = {P.shape[0]} poses, got {R.shape}")
+        A = np.asarray(angles, dtype=np.float64)
+        if A.shape == (R.shape[1],):
+            A = np.broadcast_to(A, R.shape)
+        if A.shape != R.shape:
+            raise ShapeError(f"angles must have shape (n,) or (N, n) matching ranges {R.shape}, got {A.shape}")
+        A = np.ascontiguousarray(A)
+        good_pose = np.isfinite(P).all(axis=1)
+        if not good_pose.all():
+            raise NonFiniteError(f"poses[{int(np.argmin(good_pose))}] = {P[np.argmin(good_pose)].tolist()} is not finite")
+        if max_range is None:
+            # no sensor limit given: every finite reading is a return, an infinite one says
+            # nothing definite and is dropped like NaN
+            finite = R[np.isfinite(R) & (R > 0)]
+            max_range = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
+            if np.isinf(R).any():
+                R = np.where(np.isinf(R), np.nan, R)
+        if not (math.isfinite(max_range) and max_range > 0):
+            raise InvalidArgumentError(f"max_range must be a positive finite number of metres, got {max_range!r}")
+        if self.growing and len(P):
+            self._grow_to(P[:, 0].min() - max_range, P[:, 1].min() - max_range,
+                          P[:, 0].max() + max_range, P[:, 1].max() + max_range)
+        used, dropped, maxed = K.integrate_lidar(
+            self._L, self._stamp, self._scans + 1, P, R, A, float(max_range), float(self.origin[0]),
+            float(self.origin[1]), 1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior,
+            self.l_min, self.l_max,
+        )
+        self._scans += len(P)
+        counts = {"scans": len(P), "beams": int(used), "dropped": int(dropped), "max_range": int(maxed)}
+        for key, value in counts.items():
+            self.stats[key] += value
+        return counts
+
+    def _grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float) -> None:
+        """Grow (never shrink) so the world box is inside, keeping cell alignment; amortised by
+        a margin proportional to the current size."""
+        res = self.resolution
+        if self.origin is None:
+            self.origin = np.array([math.floor(xmin / res) * res, math.floor(ymin / res) * res])
+        H, W = self.shape
+        lo_x = math.floor((xmin - self.origin[0]) / res)
+        lo_y = math.floor((ymin - self.origin[1]) / res)
+        hi_x = math.ceil((xmax - self.origin[0]) / res)
+        hi_y = math.ceil((ymax - self.origin[1]) / res)
+        if lo_x >= 0 and lo_y >= 0 and hi_x <= W and hi_y <= H:
+            return
+        margin_x = max(_GROW_MARGIN_CELLS, W // 2)
+        margin_y = max(_GROW_MARGIN_CELLS, H // 2)
+        add_left = margin_x - lo_x if lo_x < 0 else 0
+        add_bottom = margin_y - lo_y if lo_y < 0 else 0
+        add_right = hi_x - W + margin_x if hi_x > W else 0
+        add_top = hi_y - H + margin_y if hi_y > H else 0
+        shape = (H + add_bottom + add_top, W + add_left + add_right)
+        L = np.full(shape, self.l_prior, dtype=np.float32)
+        S = np.zeros(shape, dtype=np.int32)
+        L[add_bottom:add_bottom + H, add_left:add_left + W] = self._L
+        S[add_bottom:add_bottom + H, add_left:add_left + W] = self._stamp
+        self._L, self._stamp = L, S
+        self.origin = self.origin - np.array([add_left, add_bottom]) * res
+
+    def __repr__(self) -> str:
+        H, W = self.shape
+        o = "unset" if self.origin is None else f"({self.origin[0]:.3f}, {self.origin[1]:.3f})"
+        return f"OccupancyGrid2D({W}×{H} cells at {self.resolution} m, origin {o}, {self._scans} scans)"

@@ -1,0 +1,135 @@
+"""OccupancyGrid2D: the log-odds Bayes filter, per-scan update rules, growth and read-outs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from occmap.errors import InvalidArgumentError, NonFiniteError, ShapeError
+from occmap.grid2d import LidarModel, OccupancyGrid2D, logit
+
+L_HIT, L_MISS, L_MAX, L_MIN = logit(0.7), logit(0.4), logit(0.971), logit(0.1192)
+
+
+def single_beam(grid, r, max_range=None, pose=(0.05, 0.05, 0.0)):
+    return grid.integrate_scan(pose, [r], [0.0], max_range=max_range)
+
+
+def test_one_beam_frees_the_cells_before_its_end_and_hits_the_end_cell():
+    g = OccupancyGrid2D(0.1, size=(2.0, 1.0))
+    single_beam(g, 1.0)  # from the centre of cell (0, 0) to the centre of cell (0, 10)
+    row = g.log_odds[0]
+    np.testing.assert_allclose(row[:10], L_MISS, rtol=1e-6)
+    assert row[10] == pytest.approx(L_HIT, rel=1e-6)
+    assert (g.occupancy()[0, 11:] == -1).all() and (g.occupancy()[1:] == -1).all()
+
+
+def test_hit_wins_over_miss_and_each_cell_is_updated_once_per_scan():
+    g = OccupancyGrid2D(0.1, size=(3.0, 3.0))
+    # beam 0 ends in cell (0, 10); beam 1, on the same line, passes through it to (0, 20);
+    # 50 beams all cross the sensor's neighbouring cells
+    angles = np.concatenate([[0.0, 0.0], np.linspace(-0.01, 0.01, 50)])
+    ranges = np.concatenate([[1.0, 2.0], np.full(50, 1.5)])
+    g.integrate_scan((0.05, 0.05, 0.0), ranges, angles, max_range=5.0)
+    assert g.log_odds[0, 10] == pytest.approx(L_HIT, rel=1e-6)
+    assert g.log_odds[0, 1] == pytest.approx(L_MISS, rel=1e-6)  # crossed by 52 beams, updated once
+
+
+def test_max_range_and_infinite_readings_clear_without_marking():
+    g = OccupancyGrid2D(0.1, size=(3.0, 1.0))
+    counts = g.integrate_scan((0.05, 0.05, 0.0), [2.5, np.inf], [0.0, 0.0], max_range=2.0)
+    assert counts["max_range"] == 2 and counts["dropped"] == 0
+    row = g.log_odds[0]
+    np.testing.assert_allclose(row[:20], L_MISS, rtol=1e-6)  # free up to 2.0 m, end cell excluded
+    assert not g.observed[0, 20:].any() and not (row > 0).any()
+
+
+def test_invalid_readings_are_dropped_and_counted():
+    g = OccupancyGrid2D(0.1, size=(2.0, 2.0))
+    counts = g.integrate_scan((1.0, 1.0, 0.0), [np.nan, -1.0, 0.0, 0.5], [0.0, 0.5, 1.0, 1.5])
+    assert counts == {"scans": 1, "beams": 1, "dropped": 3, "max_range": 0}
+    assert g.stats["dropped"] == 3
+
+
+def test_clamping_bounds():
+    g = OccupancyGrid2D(0.1, size=(2.0, 1.0))
+    for _ in range(20):
+        single_beam(g, 1.0)
+    assert g.log_odds[0, 10] == pytest.approx(L_MAX, rel=1e-6)
+    assert g.log_odds[0, 5] == pytest.approx(L_MIN, rel=1e-6)
+
+
+def test_a_moving_object_is_free_again_after_ceil_lmax_over_lmiss_scans():
+    """Seen for 10 scans the cell saturates at l_max; each later scan through it adds l_miss, so it
+    reads free (l ≤ 0) after exactly ceil(l_max / |l_miss|) scans (9 with OctoMap's defaults)."""
+    g = OccupancyGrid2D(0.1, size=(3.0, 1.0))
+    for _ in range(10):
+        single_beam(g, 1.0)  # the object in cell (0, 10)
+    expected = math.ceil(L_MAX / -L_MISS)
+    assert expected == 9
+    for k in range(1, expected + 1):
+        single_beam(g, 2.0)  # the object has gone: the beam now passes through its cell
+        assert (g.maximum_likelihood()[0, 10] == 0) == (k >= expected)
+
+
+def test_batched_integration_equals_one_scan_at_a_time(rng):
+    poses = np.column_stack([rng.uniform(-2, 2, 20), rng.uniform(-2, 2, 20), rng.uniform(-np.pi, np.pi, 20)])
+    angles = np.linspace(-np.pi / 2, np.pi / 2, 91)
+    ranges = rng.uniform(0.2, 4.0, (20, 91))
+    ranges[rng.random((20, 91)) < 0.05] = 5.0
+    a = OccupancyGrid2D(0.05, size=(12.0, 12.0), origin=(-6.0, -6.0))
+    b = OccupancyGrid2D(0.05, size=(12.0, 12.0), origin=(-6.0, -6.0))
+    a.integrate_scans(poses, ranges, angles, max_range=5.0)
+    for p, r in zip(poses, ranges):
+        b.integrate_scan(p, r, angles, max_range=5.0)
+    np.testing.assert_array_equal(a.log_odds, b.log_odds)
+    np.testing.assert_array_equal(a.observed, b.observed)
+
+
+def test_growing_map_keeps_content_and_alignment(rng):
+    g = OccupancyGrid2D(0.05)
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    g.integrate_scan((0.0, 0.0, 0.0), np.full(360, 1.5), angles)
+    probe = rng.uniform(-1.6, 1.6, (500, 2))
+    before = g.value_at(probe)
+    g.integrate_scan((30.0, -20.0, 0.0), np.full(360, 1.5), angles)  # far away: the map must grow
+    after = g.value_at(probe)
+    np.testing.assert_array_equal(np.isnan(before), np.isnan(after))
+    np.testing.assert_array_equal(before[~np.isnan(before)], after[~np.isnan(after)])
+    assert np.allclose(g.origin / 0.05, np.round(g.origin / 0.05))  # still on the same cell lattice
+    assert g.value_at([[30.0 + 1.5, -20.0]])[0] == pytest.approx(L_HIT, rel=1e-6)
+
+
+def test_fixed_map_ignores_ray_parts_outside():
+    g = OccupancyGrid2D(0.1, size=(1.0, 1.0))
+    counts = g.integrate_scan((-5.0, 0.55, 0.0), [10.0], [0.0])  # starts outside, crosses, ends outside
+    assert counts["beams"] == 1
+    np.testing.assert_allclose(g.log_odds[5], L_MISS, rtol=1e-6)
+
+
+def test_world_cell_conversions_and_occupancy_values():
+    g = OccupancyGrid2D(0.1, size=(2.0, 1.0), origin=(-1.0, 0.0))
+    assert g.shape == (10, 20)
+    np.testing.assert_array_equal(g.world_to_cell([[-0.95, 0.05], [0.95, 0.95]]), [[0, 0], [9, 19]])
+    np.testing.assert_allclose(g.cell_to_world([[0, 0], [9, 19]]), [[-0.95, 0.05], [0.95, 0.95]])
+    single_beam(g, 1.0, pose=(-0.95, 0.05, 0.0))
+    occ = g.occupancy()
+    assert occ[0, 0] == round(100 * 0.4) and occ[0, 10] == 70 and occ[5, 5] == -1
+
+
+def test_bad_input():
+    with pytest.raises(InvalidArgumentError):
+        OccupancyGrid2D(0.0)
+    with pytest.raises(InvalidArgumentError):
+        OccupancyGrid2D(0.1, prior=0.99)
+    g = OccupancyGrid2D(0.1)
+    with pytest.raises(NonFiniteError):
+        g.integrate_scan((np.nan, 0.0, 0.0), [1.0], [0.0])
+    with pytest.raises(ShapeError):
+        g.integrate_scans(np.zeros((2, 3)), np.ones((3, 5)), np.zeros(5))
+    with pytest.raises(ShapeError):
+        g.integrate_scan((0.0, 0.0, 0.0), [1.0, 2.0], [0.0, 0.1, 0.2])
+    with pytest.raises(InvalidArgumentError):
+        LidarModel(p_hit=0.4)
