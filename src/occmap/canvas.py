@@ -6,12 +6,13 @@ one place. Batched: every method takes arrays of points.
 
 from __future__ import annotations
 
-import os
-import tempfile
+import io
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
+
+from ._files import write_atomic
 
 
 class Canvas:
@@ -70,14 +71,6 @@ class Canvas:
 
     def save(self, path) -> Path:
         """Write a PNG atomically (temporary file in the same folder, then rename)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                self.image.save(f, format="PNG")
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return path
+        buffer = io.BytesIO()
+        self.image.save(buffer, format="PNG")
+        return write_atomic(path, buffer.getvalue())

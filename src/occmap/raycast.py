@@ -37,13 +37,10 @@ def count_2d(x0, y0, x1, y1, ox, oy, inv_res):
 
 
 @kernel
-def dda_2d(x0, y0, x1, y1, ox, oy, inv_res, cells, start):
-    """Write the cells crossed from (x0, y0) to (x1, y1) as rows ``(ix, iy)`` of ``cells`` from row
-    ``start`` on, start cell first, end cell last; returns the row after the last one written.
-
-    The walk takes exactly ``|ex − ix| + |ey − iy|`` steps: once one axis has reached the end cell's
-    index only the other one moves, so rounding can never overshoot or miss the end cell.
-    """
+def dda_init(x0, y0, x1, y1, ox, oy, inv_res):
+    """Start a walk from (x0, y0) to (x1, y1): returns ``(steps, state)`` where ``steps`` is the
+    number of :func:`dda_step` calls that reach the end cell and ``state`` starts in the start cell;
+    ``state[0], state[1]`` are the current ``(ix, iy)``."""
     u0, v0 = (x0 - ox) * inv_res, (y0 - oy) * inv_res
     u1, v1 = (x1 - ox) * inv_res, (y1 - oy) * inv_res
     ix, iy = int(math.floor(u0)), int(math.floor(v0))
@@ -52,31 +49,38 @@ def dda_2d(x0, y0, x1, y1, ox, oy, inv_res, cells, start):
     sx = 1 if ex > ix else -1
     sy = 1 if ey > iy else -1
     # parameter t ∈ [0, 1] along the segment at which the next x (y) cell boundary is crossed
+    t_max_x, t_dx, t_max_y, t_dy = np.inf, np.inf, np.inf, np.inf
     if du != 0.0:
         t_max_x = ((ix + (1 if du > 0.0 else 0)) - u0) / du
         t_dx = abs(1.0 / du)
-    else:
-        t_max_x = np.inf
-        t_dx = np.inf
     if dv != 0.0:
         t_max_y = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
         t_dy = abs(1.0 / dv)
-    else:
-        t_max_y = np.inf
-        t_dy = np.inf
+    return abs(ex - ix) + abs(ey - iy), (ix, iy, ex, ey, sx, sy, t_max_x, t_max_y, t_dx, t_dy)
+
+
+@kernel
+def dda_step(state):
+    """One step to the next cell. Once one axis has reached the end cell's index only the other
+    one moves, so rounding can never overshoot or miss the end cell."""
+    ix, iy, ex, ey, sx, sy, t_max_x, t_max_y, t_dx, t_dy = state
+    if iy == ey or (ix != ex and t_max_x <= t_max_y):
+        return (ix + sx, iy, ex, ey, sx, sy, t_max_x + t_dx, t_max_y, t_dx, t_dy)
+    return (ix, iy + sy, ex, ey, sx, sy, t_max_x, t_max_y + t_dy, t_dx, t_dy)
+
+
+@kernel
+def dda_2d(x0, y0, x1, y1, ox, oy, inv_res, cells, start):
+    """Write the cells crossed from (x0, y0) to (x1, y1) as rows ``(ix, iy)`` of ``cells`` from row
+    ``start`` on, start cell first, end cell last; returns the row after the last one written."""
+    steps, state = dda_init(x0, y0, x1, y1, ox, oy, inv_res)
     k = start
-    cells[k, 0], cells[k, 1] = ix, iy
-    k += 1
-    for _ in range(abs(ex - ix) + abs(ey - iy)):
-        if iy == ey or (ix != ex and t_max_x <= t_max_y):
-            ix += sx
-            t_max_x += t_dx
-        else:
-            iy += sy
-            t_max_y += t_dy
-        cells[k, 0], cells[k, 1] = ix, iy
+    cells[k, 0], cells[k, 1] = state[0], state[1]
+    for _ in range(steps):
+        state = dda_step(state)
         k += 1
-    return k
+        cells[k, 0], cells[k, 1] = state[0], state[1]
+    return k + 1
 
 
 @kernel

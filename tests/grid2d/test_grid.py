@@ -133,3 +133,34 @@ def test_bad_input():
         g.integrate_scan((0.0, 0.0, 0.0), [1.0, 2.0], [0.0, 0.1, 0.2])
     with pytest.raises(InvalidArgumentError):
         LidarModel(p_hit=0.4)
+
+
+def test_save_load_round_trip_keeps_the_trinary_map(tmp_path, rng):
+    g = OccupancyGrid2D(0.05, size=(6.0, 4.0), origin=(-3.0, -1.0))
+    poses = np.column_stack([rng.uniform(-2, 2, 10), rng.uniform(0, 2, 10), rng.uniform(-np.pi, np.pi, 10)])
+    g.integrate_scans(poses, rng.uniform(0.3, 2.5, (10, 90)), np.linspace(-np.pi, np.pi, 90, endpoint=False))
+    g.save(tmp_path / "map.yaml")
+    h = OccupancyGrid2D.load(tmp_path / "map.yaml")
+    assert h.shape == g.shape and np.allclose(h.origin, g.origin) and h.resolution == g.resolution
+    # the map_server rules give back exactly the trinary classes that were written
+    occ = g.occupancy()
+    trinary = np.where(occ < 0, -1, np.where(occ >= 65, 100, np.where(occ <= 19, 0, -1)))
+    np.testing.assert_array_equal(h.occupancy() >= 50, trinary == 100)
+    np.testing.assert_array_equal(h.observed, trinary >= 0)
+    np.testing.assert_array_equal(h.maximum_likelihood()[trinary >= 0], (trinary[trinary >= 0] == 100).astype(np.int8))
+    # a loaded map keeps integrating scans
+    h.integrate_scan((0.0, 1.0, 0.0), [1.0], [0.0])
+
+
+def test_save_png_draws_unknown_distinctly(tmp_path):
+    from PIL import Image
+
+    g = OccupancyGrid2D(0.1, size=(2.0, 1.0))
+    single_beam(g, 1.0)
+    g.save_png(tmp_path / "map.png")
+    with Image.open(tmp_path / "map.png") as im:
+        rgb = np.asarray(im.convert("RGB"))
+    assert rgb.shape[:2] == (10, 20)
+    bottom = rgb[-1]  # row 0 of the grid is drawn at the bottom of the picture
+    assert (bottom[5] > 100).all() and (bottom[10] < 100).all()  # free light, hit dark
+    assert tuple(rgb[0, 0]) != tuple(bottom[5])  # unknown is neither free nor occupied colour

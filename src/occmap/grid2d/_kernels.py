@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..raycast import dda_2d
+from ..raycast import dda_init, dda_step
 
 kernel = njit(cache=True, error_model="numpy")
 
@@ -29,7 +29,6 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
     ``scan0 + k``. Returns (beams used, readings dropped as NaN/≤ 0, max-range readings)."""
     H, W = L.shape
     n_scans, n_beams = ranges.shape
-    cells = np.empty((int(2.0 * max_range * inv_res) + 8, 2), dtype=np.int64)
     ex = np.empty(n_beams)
     ey = np.empty(n_beams)
     hit = np.empty(n_beams, dtype=np.bool_)
@@ -65,10 +64,11 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
         for b in range(n_beams):
             if not (ex[b] == ex[b]):
                 continue
-            m = dda_2d(x0, y0, ex[b], ey[b], ox, oy, inv_res, cells, 0)
-            for c in range(m - 1):
-                ix, iy = cells[c, 0], cells[c, 1]
+            steps, state = dda_init(x0, y0, ex[b], ey[b], ox, oy, inv_res)
+            for _ in range(steps):  # every cell but the end one
+                ix, iy = state[0], state[1]
                 if 0 <= ix < W and 0 <= iy < H and stamp[iy, ix] < 2 * s:
                     stamp[iy, ix] = 2 * s
                     _update(L, iy, ix, l_miss, l_min, l_max)
+                state = dda_step(state)
     return used, dropped, maxed

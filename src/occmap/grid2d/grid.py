@@ -215,6 +215,45 @@ class OccupancyGrid2D:
         self._L, self._stamp = L, S
         self.origin = self.origin - np.array([add_left, add_bottom]) * res
 
+    # ------------------------------------------------------------------ files
+
+    def save(self, path_yaml, **kwargs):
+        """Write a ROS map_server pair (``.yaml`` + trinary ``.pgm``) exactly as map_saver does;
+        keyword arguments go to :func:`occmap.io.mapserver.save_map`. Returns the image path."""
+        from ..io.mapserver import save_map
+
+        if self.origin is None:
+            raise InvalidArgumentError("an empty growing map has no extent to save yet")
+        return save_map(path_yaml, self.occupancy(), self.resolution, self.origin, **kwargs)
+
+    def save_png(self, path):
+        """A picture of the occupancy probability (free white, occupied black, unknown light blue)."""
+        from ..io.mapserver import save_probability_png
+
+        return save_probability_png(path, self.probability(), unknown_mask=~self.observed)
+
+    @classmethod
+    def load(cls, path_yaml, prior: float = 0.5, clamp=(0.1192, 0.971)) -> OccupancyGrid2D:
+        """A fixed-size grid from a map_server YAML (trinary, scale or raw image).
+
+        Occupied cells (100) start at the upper clamp, free ones (0) at the lower clamp, values in
+        between at ``logit(value / 100)`` clamped; unknown (−1) cells are unobserved. Maps with a
+        non-zero origin yaw are rejected: grids here are world-aligned.
+        """
+        from ..io.mapserver import load_map
+
+        m = load_map(path_yaml)
+        if m.origin[2] != 0.0:
+            raise InvalidArgumentError(f"{m.yaml_path}: origin yaw {m.origin[2]!r} is not supported (grids are world-aligned)")
+        H, W = m.occupancy.shape
+        grid = cls(m.resolution, size=(W * m.resolution, H * m.resolution), origin=m.origin[:2], prior=prior, clamp=clamp)
+        occ = m.occupancy.astype(np.float64)
+        known = occ >= 0
+        p = np.clip(occ / 100.0, 1e-9, 1 - 1e-9)
+        grid._L[known] = np.clip(np.log(p / (1.0 - p)), grid.l_min, grid.l_max)[known]
+        grid._stamp[known] = 1  # known from a file: below every scan's stamps (2s, 2s + 1 for s ≥ 1)
+        return grid
+
     def __repr__(self) -> str:
         H, W = self.shape
         o = "unset" if self.origin is None else f"({self.origin[0]:.3f}, {self.origin[1]:.3f})"

@@ -1,0 +1,656 @@
+"""ROS ``map_server`` / ``map_saver`` map files: a small YAML file next to an image.
+
+The pair is what ROS 1 ``map_server``/``map_saver`` and ROS 2 ``nav2_map_server`` read and write::
+
+    image: map.pgm
+    mode: trinary
+    resolution: 0.05
+    origin: [-10.0, -10.0, 0.0]
+    negate: 0
+    occupied_thresh: 0.65
+    free_thresh: 0.196
+
+Array convention (shared with ``nav_msgs/OccupancyGrid`` and the rest of occmap): ``occupancy`` is
+an int8 array ``(H, W)``, ``occupancy[row, col]`` is cell ``(iy, ix)``, row 0 is the row at the
+origin (lowest y); −1 unknown, 0 free … 100 occupied. The image stores the map the other way up:
+its first (top) row is the map's highest-y row, so both directions flip vertically.
+
+Saving (:func:`save_map`), trinary mode, as ``map_saver`` does:
+
+* ``0 <= occ <= floor(free_thresh·100)`` → 254 (free; 0 … 19 with the default 0.196),
+* ``occ >= ceil(occupied_thresh·100)`` → 0 (occupied; 65 … 100 with the default 0.65),
+* everything else, unknown (−1) and values outside 0 … 100 included → 205.
+
+  ROS 1's ``map_saver`` uses integer thresholds of its own (``--free 25 --occ 65`` in recent
+  versions) and nav2 uses ``rint(free_thresh·100)`` (20 for 0.196); here the cut is derived from
+  the very thresholds written into the YAML, so "free" in the file means the same thing as "free"
+  when the file is read back (a cell of 20 % is not below 0.196, so it is not free).
+
+With these values a saved map reads back exactly: 254 → p = 1/255 < free_thresh → 0,
+0 → p = 1 > occupied_thresh → 100 and 205 → p = 50/255 = 0.19608 → −1 (which is why map_saver
+writes the odd-looking ``free_thresh: 0.196``). :func:`save_map` therefore requires
+``1/255 < free_thresh < 50/255 < occupied_thresh < 1``. Two other modes are offered:
+
+* ``"raw"``: gray = occ for 0 … 100, 255 for unknown; reads back exactly (255 is −1 as a byte).
+* ``"scale"``: gray = round(255·(100 − occ)/100), unknown cells fully transparent (so PNG only),
+  as nav2 writes it; reading applies map_server's scale rule, so it does not read back exactly.
+
+Loading (:func:`load_map`) follows ``map_server``'s image loader:
+
+* colour images are averaged to gray over their channels (as map_server does: in trinary mode an
+  alpha channel is averaged in with the colour channels — a map_server quirk kept for fidelity —
+  in scale and raw mode it is left out of the average);
+* ``p = (255 − gray)/255``, or ``gray/255`` with ``negate: 1``;
+* trinary: ``p > occupied_thresh`` → 100, ``p < free_thresh`` → 0, else −1;
+* scale: the same two ends; between them ``rint(99·(p − free)/(occupied − free))``, and −1 where
+  the image has an alpha channel and the pixel's alpha is 0;
+* raw: the gray value itself, reinterpreted as a signed byte (255 → −1); with ``negate: 1`` it is
+  ``255 − gray`` first, as in ROS 1's loader. Colour pixels are averaged and truncated.
+
+16-bit gray images are brought to 0 … 255 by dividing by 257.
+
+The YAML reader is a strict parser for the subset map files use (no PyYAML dependency): one
+``key: value`` per line, ``#`` comments, an optional leading ``---``, bare or quoted ('…' or "…")
+scalars, numbers and one-level flow lists ``[a, b, c]``. Anything else raises
+:class:`~occmap.errors.FormatError` naming the file and line. Unknown keys are ignored (as
+map_server does); a repeated key is an error.
+
+Every file is written atomically: a temporary file in the target's folder, then ``os.replace``.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._files import write_atomic
+from ..errors import FormatError, InvalidArgumentError, ShapeError
+
+__all__ = ["MapFile", "load_map", "save_map", "save_probability_png"]
+
+#: Pixel values map_saver writes in trinary mode.
+FREE_PIXEL = 254
+OCCUPIED_PIXEL = 0
+UNKNOWN_PIXEL = 205
+
+_MODES = ("trinary", "scale", "raw")
+_IMAGE_FORMATS = {"pgm": "PPM", "png": "PNG", "bmp": "BMP"}
+
+
+@dataclass(frozen=True, eq=False)
+class MapFile:
+    """A map read by :func:`load_map`.
+
+    Attributes:
+        occupancy: int8 array ``(H, W)`` in nav_msgs order (row 0 = lowest y; −1 unknown,
+            0 free … 100 occupied; in raw mode the raw bytes).
+        resolution: cell size in metres.
+        origin: ``(x, y, yaw)`` of the outer corner of cell (0, 0), metres and radians.
+        mode: ``"trinary"``, ``"scale"`` or ``"raw"``.
+        negate: whether ``negate: 1`` was set (white = occupied).
+        occupied_thresh, free_thresh: the thresholds from the YAML.
+        image_path: the image file that was read (absolute, resolved against the YAML's folder).
+        yaml_path: the YAML file that was read.
+    """
+
+    occupancy: np.ndarray
+    resolution: float
+    origin: tuple[float, float, float]
+    mode: str
+    negate: bool
+    occupied_thresh: float
+    free_thresh: float
+    image_path: Path
+    yaml_path: Path
+
+
+# ----------------------------------------------------------------------------------------------
+# saving
+
+
+def _fmt_float(value: float) -> str:
+    """Shortest text that reads back to the same float (``0.05``, ``-10.0``); −0 prints as 0.0."""
+    return repr(float(value) + 0.0)
+
+
+_BARE_STRING = re.compile(r"^[A-Za-z0-9_./+][A-Za-z0-9_./+ -]*(?<! )$")
+
+
+def _yaml_string(text: str) -> str:
+    """A YAML scalar for ``text``: bare when safe, otherwise double-quoted."""
+    if _BARE_STRING.match(text) and _parse_number(text) is None and text.lower() not in (
+        "true", "false", "yes", "no", "on", "off", "null", "~",
+    ):
+        return text
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"')
+    return f'"{escaped}"'
+
+
+def _check_finite(name: str, value) -> float:
+    try:
+        result = float(value)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(result):
+        raise InvalidArgumentError(f"{name} must be finite, got {value!r}")
+    return result
+
+
+def save_map(
+    path_yaml,
+    occupancy,
+    resolution: float,
+    origin,
+    *,
+    image_format: str = "pgm",
+    mode: str = "trinary",
+    occupied_thresh: float = 0.65,
+    free_thresh: float = 0.196,
+) -> Path:
+    """Write ``occupancy`` as a map_saver YAML + image pair; return the image's path.
+
+    Args:
+        path_yaml: the YAML file to write (``…/name.yaml``); the image is written beside it as
+            ``name.<image_format>`` and named in the YAML relative to it.
+        occupancy: integer array ``(H, W)`` in nav_msgs convention (row 0 = lowest y;
+            −1 unknown, 0 free … 100 occupied; other values count as unknown).
+        resolution: cell size in metres (> 0).
+        origin: ``(x, y)`` or ``(x, y, yaw)`` of the outer corner of cell (0, 0).
+        image_format: ``"pgm"`` (binary P5, maxval 255, as map_saver), ``"png"`` or ``"bmp"``.
+        mode: ``"trinary"`` (map_saver's 254/0/205), ``"raw"`` or ``"scale"`` (PNG only); see the
+            module docstring for the pixel values.
+        occupied_thresh, free_thresh: written to the YAML and used to classify the cells in
+            trinary mode: ``occ >= ceil(occupied_thresh·100)`` occupied,
+            ``0 <= occ <= floor(free_thresh·100)`` free. Trinary mode requires
+            ``1/255 < free_thresh < 50/255 < occupied_thresh < 1`` so the file reads back to the
+            same classification.
+
+    Raises:
+        ShapeError: ``occupancy`` is not a non-empty 2-D array.
+        InvalidArgumentError: a bad resolution, origin, mode, format or threshold.
+    """
+    path_yaml = Path(path_yaml)
+    occ = np.asarray(occupancy)
+    if occ.ndim != 2 or occ.shape[0] == 0 or occ.shape[1] == 0:
+        raise ShapeError(f"occupancy must be a non-empty (H, W) array, got shape {occ.shape}")
+    if occ.dtype.kind not in "iu":
+        raise InvalidArgumentError(f"occupancy must be an integer array, got dtype {occ.dtype}")
+    occ = occ.astype(np.int64, copy=False)
+    res = _check_finite("resolution", resolution)
+    if res <= 0:
+        raise InvalidArgumentError(f"resolution must be > 0, got {resolution!r}")
+    origin_vals = [_check_finite("origin", v) for v in np.asarray(origin, dtype=object).ravel()]
+    if len(origin_vals) == 2:
+        origin_vals.append(0.0)
+    if len(origin_vals) != 3:
+        raise InvalidArgumentError(f"origin must be (x, y) or (x, y, yaw), got {origin!r}")
+    if mode not in _MODES:
+        raise InvalidArgumentError(f"mode must be one of {_MODES}, got {mode!r}")
+    fmt = str(image_format).lower().lstrip(".")
+    if fmt not in _IMAGE_FORMATS:
+        raise InvalidArgumentError(
+            f"image_format must be one of {tuple(_IMAGE_FORMATS)}, got {image_format!r}"
+        )
+    occ_t = _check_finite("occupied_thresh", occupied_thresh)
+    free_t = _check_finite("free_thresh", free_thresh)
+    if not (0.0 <= free_t < occ_t <= 1.0):
+        raise InvalidArgumentError(
+            f"thresholds must satisfy 0 <= free_thresh < occupied_thresh <= 1, "
+            f"got free_thresh={free_thresh!r}, occupied_thresh={occupied_thresh!r}"
+        )
+    if mode == "trinary" and not (1 / 255 < free_t < 50 / 255 < occ_t < 1.0):
+        raise InvalidArgumentError(
+            "trinary maps need 1/255 < free_thresh < 50/255 (0.19608) < occupied_thresh < 1 so "
+            "that the pixels 254/205/0 read back as free/unknown/occupied; got "
+            f"free_thresh={free_thresh!r}, occupied_thresh={occupied_thresh!r}"
+        )
+    if mode == "scale" and fmt != "png":
+        raise InvalidArgumentError("scale mode marks unknown cells by transparency: use PNG")
+
+    flipped = occ[::-1]  # image row 0 = the map's top (highest-y) row
+    known = (flipped >= 0) & (flipped <= 100)
+    alpha = None
+    if mode == "trinary":
+        free_max = math.floor(free_t * 100 + 1e-9)
+        occ_min = math.ceil(occ_t * 100 - 1e-9)
+        gray = np.full(flipped.shape, UNKNOWN_PIXEL, dtype=np.uint8)
+        gray[known & (flipped <= free_max)] = FREE_PIXEL
+        gray[known & (flipped >= occ_min)] = OCCUPIED_PIXEL
+    elif mode == "raw":
+        gray = np.where(known, flipped, 255).astype(np.uint8)
+    else:  # scale
+        gray = np.where(known, np.rint(255.0 * (100 - flipped) / 100.0), 128).astype(np.uint8)
+        alpha = np.where(known, 255, 0).astype(np.uint8)
+
+    image_path = path_yaml.with_name(path_yaml.stem + "." + fmt)
+    height, width = gray.shape
+    if fmt == "pgm":
+        data = b"P5\n%d %d\n255\n" % (width, height) + np.ascontiguousarray(gray).tobytes()
+    else:
+        from PIL import Image
+
+        if alpha is not None:
+            picture = Image.fromarray(np.stack([gray, alpha], axis=-1))
+        else:
+            picture = Image.fromarray(np.ascontiguousarray(gray))
+        buffer = io.BytesIO()
+        picture.save(buffer, format=_IMAGE_FORMATS[fmt])
+        data = buffer.getvalue()
+
+    text = (
+        f"image: {_yaml_string(image_path.name)}\n"
+        f"mode: {mode}\n"
+        f"resolution: {_fmt_float(res)}\n"
+        f"origin: [{', '.join(_fmt_float(v) for v in origin_vals)}]\n"
+        f"negate: 0\n"
+        f"occupied_thresh: {_fmt_float(occ_t)}\n"
+        f"free_thresh: {_fmt_float(free_t)}\n"
+    )
+    write_atomic(image_path, data)
+    write_atomic(path_yaml, text.encode("utf-8"))
+    return image_path
+
+
+# ----------------------------------------------------------------------------------------------
+# the YAML subset
+
+
+@dataclass(frozen=True)
+class _Scalar:
+    text: str
+    quoted: bool
+
+
+_KEY_LINE = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)[ \t]*:(?:[ \t]+(.*))?$")
+_NUMBER = re.compile(r"^[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?$")
+
+
+def _parse_number(text: str):
+    if not _NUMBER.match(text):
+        return None
+    if re.match(r"^[-+]?\d+$", text):
+        return int(text)
+    return float(text)
+
+
+def _strip_comment(text: str) -> str:
+    """Drop a ``#`` comment (at the start or after whitespace, outside quotes)."""
+    quote = None
+    i = 0
+    while i < len(text):
+        ch = text[i]
+        if quote:
+            if ch == "\\" and quote == '"':
+                i += 2
+                continue
+            if ch == quote:
+                if quote == "'" and text[i + 1 : i + 2] == "'":
+                    i += 2
+                    continue
+                quote = None
+        elif ch in "'\"" and (i == 0 or text[i - 1] in " \t[,"):
+            quote = ch
+        elif ch == "#" and (i == 0 or text[i - 1] in " \t"):
+            return text[:i]
+        i += 1
+    return text
+
+
+class _SyntaxProblem(Exception):
+    pass
+
+
+def _parse_quoted(text: str, start: int) -> tuple[str, int]:
+    """Parse a quoted scalar beginning at ``text[start]``; return (value, index after it)."""
+    quote = text[start]
+    out = []
+    i = start + 1
+    escapes = {"\\": "\\", '"': '"', "n": "\n", "t": "\t", "/": "/", "0": "\0"}
+    while i < len(text):
+        ch = text[i]
+        if quote == '"' and ch == "\\":
+            nxt = text[i + 1 : i + 2]
+            if nxt not in escapes:
+                raise _SyntaxProblem(f"unsupported escape '\\{nxt}' in a double-quoted string")
+            out.append(escapes[nxt])
+            i += 2
+            continue
+        if ch == quote:
+            if quote == "'" and text[i + 1 : i + 2] == "'":
+                out.append("'")
+                i += 2
+                continue
+            return "".join(out), i + 1
+        out.append(ch)
+        i += 1
+    raise _SyntaxProblem(f"unterminated {quote}-quoted string")
+
+
+def _parse_scalar(text: str) -> _Scalar:
+    text = text.strip()
+    if not text:
+        raise _SyntaxProblem("empty value")
+    if text[0] in "'\"":
+        value, end = _parse_quoted(text, 0)
+        if text[end:].strip():
+            raise _SyntaxProblem(f"unexpected text after the quoted string: {text[end:].strip()!r}")
+        return _Scalar(value, True)
+    if text[0] in "[]{}&*!|>%@`" or text[0] == "-" and text[1:2] in ("", " "):
+        raise _SyntaxProblem(f"unsupported YAML construct {text!r}")
+    if ": " in text or text.endswith(":"):
+        raise _SyntaxProblem(f"unexpected ':' in value {text!r} (nested mappings are not supported)")
+    return _Scalar(text, False)
+
+
+def _parse_value(text: str):
+    text = text.strip()
+    if text.startswith("["):
+        if not text.endswith("]"):
+            raise _SyntaxProblem("a flow list must end with ']' on the same line")
+        inner = text[1:-1].strip()
+        if not inner:
+            return []
+        items = []
+        i = 0
+        while True:
+            while i < len(inner) and inner[i] in " \t":
+                i += 1
+            if i < len(inner) and inner[i] in "'\"":
+                value, i = _parse_quoted(inner, i)
+                items.append(_Scalar(value, True))
+                rest_start = i
+            else:
+                j = inner.find(",", i)
+                j = len(inner) if j < 0 else j
+                token = inner[i:j]
+                if any(c in token for c in "[]{}"):
+                    raise _SyntaxProblem("nested lists or mappings are not supported")
+                items.append(_parse_scalar(token))
+                rest_start = j
+            k = rest_start
+            while k < len(inner) and inner[k] in " \t":
+                k += 1
+            if k == len(inner):
+                return items
+            if inner[k] != ",":
+                raise _SyntaxProblem(f"expected ',' in the flow list, found {inner[k:]!r}")
+            i = k + 1
+            if not inner[i:].strip():
+                raise _SyntaxProblem("empty item at the end of the flow list")
+    return _parse_scalar(text)
+
+
+def _parse_yaml(path: Path, text: str) -> dict[str, tuple[object, int]]:
+    """Parse the map_server YAML subset; return ``{key: (value, line_number)}``."""
+    result: dict[str, tuple[object, int]] = {}
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = _strip_comment(raw).rstrip()
+        if not line.strip():
+            continue
+        if line.strip() == "---" and not result:
+            continue
+        if line[0] in " \t":
+            raise FormatError(
+                path, "indented line: nested structures are not supported in a map file",
+                line=number,
+            )
+        match = _KEY_LINE.match(line)
+        if not match:
+            raise FormatError(path, f"expected 'key: value', got {raw.strip()!r}", line=number)
+        key, value_text = match.group(1), match.group(2)
+        if value_text is None or not value_text.strip():
+            raise FormatError(path, f"key {key!r} has no value", line=number)
+        if key in result:
+            raise FormatError(
+                path, f"key {key!r} repeated (first on line {result[key][1]})", line=number
+            )
+        try:
+            result[key] = (_parse_value(value_text), number)
+        except _SyntaxProblem as problem:
+            raise FormatError(path, f"{key}: {problem}", line=number) from None
+    return result
+
+
+# ----------------------------------------------------------------------------------------------
+# typed access to the parsed YAML
+
+
+def _require(path, fields, key):
+    if key not in fields:
+        raise FormatError(path, f"required key {key!r} is missing")
+    return fields[key]
+
+
+def _as_number(path, key, value, line) -> float:
+    if isinstance(value, _Scalar) and not value.quoted:
+        number = _parse_number(value.text)
+        if number is not None:
+            return float(number)
+    shown = value.text if isinstance(value, _Scalar) else value
+    raise FormatError(path, f"{key} must be a number, got {shown!r}", line=line)
+
+
+def _as_string(path, key, value, line) -> str:
+    if isinstance(value, _Scalar):
+        return value.text
+    raise FormatError(path, f"{key} must be a string, got a list", line=line)
+
+
+def load_map(path_yaml) -> MapFile:
+    """Read a map_server YAML file and its image; see the module docstring for the rules.
+
+    Raises:
+        FormatError: the YAML or the image is missing or unreadable, a line is not in the
+            supported subset, a required key (image, resolution, origin, occupied_thresh,
+            free_thresh) is missing, or a value is out of range (resolution <= 0, thresholds
+            outside [0, 1] or free_thresh >= occupied_thresh, unknown mode, negate not 0/1).
+            The message names the file and, where there is one, the line.
+    """
+    path_yaml = Path(path_yaml)
+    try:
+        raw = path_yaml.read_bytes()
+    except FileNotFoundError:
+        raise FormatError(path_yaml, "map YAML file not found") from None
+    except OSError as error:
+        raise FormatError(path_yaml, f"cannot read the map YAML file: {error}") from error
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        line = raw[: error.start].count(b"\n") + 1
+        raise FormatError(path_yaml, "not UTF-8 text", line=line) from None
+    fields = _parse_yaml(path_yaml, text)
+
+    image_value, image_line = _require(path_yaml, fields, "image")
+    image_name = _as_string(path_yaml, "image", image_value, image_line)
+    if not image_name:
+        raise FormatError(path_yaml, "image is empty", line=image_line)
+
+    res_value, res_line = _require(path_yaml, fields, "resolution")
+    resolution = _as_number(path_yaml, "resolution", res_value, res_line)
+    if not (math.isfinite(resolution) and resolution > 0):
+        raise FormatError(path_yaml, f"resolution must be > 0, got {resolution!r}", line=res_line)
+
+    origin_value, origin_line = _require(path_yaml, fields, "origin")
+    if not isinstance(origin_value, list) or len(origin_value) != 3:
+        raise FormatError(path_yaml, "origin must be a list [x, y, yaw]", line=origin_line)
+    origin = tuple(_as_number(path_yaml, "origin", v, origin_line) for v in origin_value)
+    if not all(math.isfinite(v) for v in origin):
+        raise FormatError(path_yaml, "origin must be finite", line=origin_line)
+
+    thresholds = {}
+    for key in ("occupied_thresh", "free_thresh"):
+        value, line = _require(path_yaml, fields, key)
+        number = _as_number(path_yaml, key, value, line)
+        if not (0.0 <= number <= 1.0):
+            raise FormatError(path_yaml, f"{key} must lie in [0, 1], got {number!r}", line=line)
+        thresholds[key] = number
+    occ_t, free_t = thresholds["occupied_thresh"], thresholds["free_thresh"]
+    if free_t >= occ_t:
+        raise FormatError(
+            path_yaml,
+            f"free_thresh ({free_t!r}) must be below occupied_thresh ({occ_t!r})",
+            line=fields["free_thresh"][1],
+        )
+
+    mode = "trinary"
+    if "mode" in fields:
+        value, line = fields["mode"]
+        mode = _as_string(path_yaml, "mode", value, line)
+        if mode not in _MODES:
+            raise FormatError(path_yaml, f"mode must be one of {_MODES}, got {mode!r}", line=line)
+
+    negate = False
+    if "negate" in fields:
+        value, line = fields["negate"]
+        text_value = value.text.lower() if isinstance(value, _Scalar) and not value.quoted else None
+        if text_value in ("0", "false"):
+            negate = False
+        elif text_value in ("1", "true"):
+            negate = True
+        else:
+            shown = value.text if isinstance(value, _Scalar) else value
+            raise FormatError(path_yaml, f"negate must be 0 or 1, got {shown!r}", line=line)
+
+    image_path = Path(image_name)
+    if not image_path.is_absolute():
+        image_path = path_yaml.parent / image_path
+    if not image_path.is_file():
+        raise FormatError(
+            path_yaml, f"image file {str(image_path)!r} not found", line=image_line
+        )
+
+    channels = _read_image(image_path)
+    occupancy = _classify(channels, mode=mode, negate=negate, occ_t=occ_t, free_t=free_t)
+    return MapFile(
+        occupancy=np.ascontiguousarray(occupancy[::-1]),
+        resolution=resolution,
+        origin=origin,  # type: ignore[arg-type]
+        mode=mode,
+        negate=negate,
+        occupied_thresh=occ_t,
+        free_thresh=free_t,
+        image_path=image_path,
+        yaml_path=path_yaml,
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# the image
+
+
+def _read_image(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Return ``(colour, alpha)``: float64 ``(H, W, C)`` colour channels on 0 … 255 and the
+    alpha channel ``(H, W)`` (or None), both top row first as stored."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as picture:
+            picture.load()
+            mode = picture.mode
+            if mode == "P":
+                picture = picture.convert("RGBA" if "transparency" in picture.info else "RGB")
+            elif mode == "PA":
+                picture = picture.convert("RGBA")
+            elif mode == "1":
+                picture = picture.convert("L")
+            elif mode in ("RGBX", "CMYK", "YCbCr", "LAB", "HSV"):
+                picture = picture.convert("RGB")
+            elif mode in ("La", "RGBa"):
+                picture = picture.convert(mode[:-1] + "A")
+            mode = picture.mode
+            data = np.asarray(picture)
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as error:
+        raise FormatError(path, f"cannot read the map image: {error}") from None
+    if mode.startswith("I;16") or mode == "I":
+        if data.size and (data.min() < 0 or data.max() > 65535):
+            raise FormatError(path, f"unsupported {mode} image values outside 0 … 65535")
+        data = data.astype(np.float64) / 257.0
+        mode = "L"
+    elif mode not in ("L", "LA", "RGB", "RGBA"):
+        raise FormatError(path, f"unsupported image mode {mode!r}")
+    data = np.asarray(data, dtype=np.float64)
+    if data.ndim == 2:
+        data = data[:, :, None]
+    if mode in ("LA", "RGBA"):
+        return data, data[:, :, -1]
+    return data, None
+
+
+def _classify(channels, *, mode: str, negate: bool, occ_t: float, free_t: float) -> np.ndarray:
+    """map_server's pixel rule; returns int8 ``(H, W)`` in image order (top row first)."""
+    data, alpha = channels
+    if mode == "trinary" or alpha is None:
+        gray = data.mean(axis=-1)  # map_server averages alpha in, in trinary mode
+    else:
+        gray = data[:, :, :-1].mean(axis=-1)
+    if negate:
+        gray = 255.0 - gray
+    if mode == "raw":
+        return np.floor(gray).astype(np.uint8).view(np.int8)
+    p = (255.0 - gray) / 255.0
+    out = np.full(gray.shape, -1, dtype=np.int8)
+    if mode == "scale":
+        ratio = (p - free_t) / (occ_t - free_t)
+        out[:] = np.clip(np.rint(99.0 * ratio), 0, 99).astype(np.int8)
+    out[p > occ_t] = 100
+    out[p < free_t] = 0
+    if mode == "scale" and alpha is not None:
+        out[alpha == 0] = -1
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# pictures
+
+#: Colour of unknown cells in :func:`save_probability_png` (light blue).
+UNKNOWN_RGB = (170, 200, 235)
+
+
+def save_probability_png(path, probability, unknown_mask=None) -> Path:
+    """Write a picture of a probability grid as PNG (atomically); return the path.
+
+    Args:
+        path: the PNG file to write.
+        probability: float array ``(H, W)`` in [0, 1], occupancy probability per cell, row 0 =
+            lowest y (drawn at the bottom of the picture). Free (0) is white, occupied (1) black,
+            gray levels in between: ``gray = round(255·(1 − p))``.
+        unknown_mask: optional bool array ``(H, W)``; True cells are drawn light blue
+            (:data:`UNKNOWN_RGB`). NaN probabilities are drawn as unknown too.
+
+    Raises:
+        ShapeError: not a non-empty 2-D array, or the mask's shape differs.
+        InvalidArgumentError: a probability outside [0, 1].
+    """
+    from PIL import Image
+
+    prob = np.asarray(probability, dtype=np.float64)
+    if prob.ndim != 2 or prob.shape[0] == 0 or prob.shape[1] == 0:
+        raise ShapeError(f"probability must be a non-empty (H, W) array, got shape {prob.shape}")
+    unknown = np.isnan(prob)
+    if unknown_mask is not None:
+        mask = np.asarray(unknown_mask, dtype=bool)
+        if mask.shape != prob.shape:
+            raise ShapeError(
+                f"unknown_mask has shape {mask.shape}, probability has shape {prob.shape}"
+            )
+        unknown = unknown | mask
+    known_values = prob[~unknown]
+    if known_values.size and (
+        not np.all(np.isfinite(known_values))
+        or known_values.min() < 0.0
+        or known_values.max() > 1.0
+    ):
+        raise InvalidArgumentError("probability values must lie in [0, 1]")
+    gray = np.rint(255.0 * (1.0 - np.where(unknown, 0.0, prob))).astype(np.uint8)
+    rgb = np.repeat(gray[:, :, None], 3, axis=-1)
+    rgb[unknown] = UNKNOWN_RGB
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgb[::-1])).save(buffer, format="PNG")
+    path = Path(path)
+    write_atomic(path, buffer.getvalue())
+    return path
