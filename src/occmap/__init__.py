@@ -5,7 +5,9 @@ Units are metres, radians and seconds throughout; see ``occmap.geometry`` for th
 
 from . import errors, geometry
 from .errors import OccmapError
+from .grid2d import LidarModel, OccupancyGrid2D
+from .scan import LaserScan
 
 __version__ = "0.1.0"
 
-__all__ = ["OccmapError", "errors", "geometry", "__version__"]
+__all__ = ["LaserScan", "LidarModel", "OccmapError", "OccupancyGrid2D", "errors", "geometry", "__version__"]
