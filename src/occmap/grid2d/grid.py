@@ -20,6 +20,16 @@ from .sensor_models import LidarModel, logit
 _GROW_MARGIN_CELLS = 64
 
 
+def _beam_bounds(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) -> tuple[float, float, float, float]:
+    """World box (xmin, ymin, xmax, ymax) of the sensor positions and of the beam ends that will
+    be used (ranges capped at ``max_range``, unusable readings left out)."""
+    r = np.where(R > 0, np.minimum(R, max_range), np.nan)  # NaN stays NaN: dropped beams
+    a = P[:, 2:3] + A
+    x = np.concatenate([P[:, 0], (P[:, 0:1] + r * np.cos(a)).ravel()])
+    y = np.concatenate([P[:, 1], (P[:, 1:2] + r * np.sin(a)).ravel()])
+    return float(np.nanmin(x)), float(np.nanmin(y)), float(np.nanmax(x)), float(np.nanmax(y))
+
+
 class OccupancyGrid2D:
     """A 2D occupancy grid in log-odds.
 
@@ -175,8 +185,7 @@ class OccupancyGrid2D:
         if not (math.isfinite(max_range) and max_range > 0):
             raise InvalidArgumentError(f"max_range must be a positive finite number of metres, got {max_range!r}")
         if self.growing and len(P):
-            self._grow_to(P[:, 0].min() - max_range, P[:, 1].min() - max_range,
-                          P[:, 0].max() + max_range, P[:, 1].max() + max_range)
+            self._grow_to(*_beam_bounds(P, R, A, max_range))
         used, dropped, maxed = K.integrate_lidar(
             self._L, self._stamp, self._scans + 1, P, R, A, float(max_range), float(self.origin[0]),
             float(self.origin[1]), 1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior,
