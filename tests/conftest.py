@@ -30,11 +30,11 @@ def rng():
 def data_dir():
     """The shared real-robot data: ``$OCCMAP_DATA`` or ``../shared/data`` beside the project.
     Tests that need it are skipped, saying why, when neither exists."""
-    import os
     from pathlib import Path
 
-    candidates = [os.environ.get("OCCMAP_DATA"), Path(__file__).resolve().parents[1].parent / "shared" / "data"]
-    for c in candidates:
-        if c and Path(c, "README.md").is_file():
-            return Path(c)
-    pytest.skip("real robot data not found: set OCCMAP_DATA or place it at ../shared/data")
+    from occmap._data import find_shared_data
+
+    found = find_shared_data(Path(__file__).resolve().parent)
+    if found is None:
+        pytest.skip("real robot data not found: set OCCMAP_DATA or place it at ../shared/data")
+    return found

@@ -48,3 +48,26 @@ def test_demo_writes_a_picture(tmp_path, capsys):
         assert im.size[0] > 300 and im.size[1] > 200
         colours = im.convert("RGB").getcolors(maxcolors=1 << 20)
     assert len(colours) > 10  # paths, particles and text were drawn, not a blank canvas
+
+
+def test_map2d_on_the_intel_log_writes_a_map_that_loads_back(tmp_path, capsys, data_dir):
+    from occmap import OccupancyGrid2D
+
+    out = tmp_path / "intel.yaml"
+    code = main(["map2d", str(data_dir / "carmen" / "intel-corrected.log.gz"), "-o", str(out),
+                 "--png", str(tmp_path / "intel.png"), "--max-range", "30", "--every", "3"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "scans 304," in printed and "integrated in" in printed
+    grid = OccupancyGrid2D.load(out)
+    ml = grid.maximum_likelihood()
+    assert (ml == 1).sum() > 5_000 and (ml == 0).sum() > 100_000  # walls and free space of a building
+    assert (tmp_path / "intel.png").stat().st_size > 10_000
+
+
+def test_map2d_reports_a_malformed_log_with_its_line(tmp_path, capsys):
+    log = tmp_path / "bad.log"
+    log.write_text("FLASER 3 1.0 1.0 1.0 0 0 0 0 0 0 1.0 host 1.0\nFLASER 3 1.0 oops 1.0 0 0 0 0 0 0 2.0 host 2.0\n")
+    assert main(["map2d", str(log), "-o", str(tmp_path / "m.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert "bad.log" in err and "line 2" in err

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,3 +38,73 @@ class LaserScan:
 
     def __len__(self) -> int:
         return int(self.ranges.shape[0])
+
+
+class ScanStack(NamedTuple):
+    """A run of scans as plain arrays, for batched processing (see :func:`stack_scans`).
+
+    Attributes
+    ----------
+    poses : ndarray (N, 3)
+        Sensor poses ``(x, y, theta)``.
+    ranges : ndarray (N, m)
+        Ranges, ``m`` = the largest beam count; shorter scans are padded with NaN at the end.
+    angles : ndarray (m,) or (N, m)
+        Beam angles relative to each sensor heading: one shared row ``(m,)`` when every scan has
+        the very same angles (the usual case for one log), else one NaN-padded row per scan.
+    max_ranges : ndarray (N,)
+        Each scan's maximum range.
+    stamps : ndarray (N,)
+        Each scan's time stamp.
+    """
+
+    poses: np.ndarray
+    ranges: np.ndarray
+    angles: np.ndarray
+    max_ranges: np.ndarray
+    stamps: np.ndarray
+
+
+def stack_scans(scans) -> ScanStack:
+    """Stack an iterable of :class:`LaserScan` into arrays (a :class:`ScanStack`, which unpacks as
+    ``poses, ranges, angles, max_ranges, stamps``).
+
+    Scans with different beam counts are allowed: ``ranges`` (and ``angles``, when they differ)
+    are padded with NaN to the largest count, and consumers drop NaN beams as they already do for
+    invalid readings. ``angles`` is a single ``(m,)`` row when every scan's angles are identical,
+    otherwise ``(N, m)``; check ``angles.ndim`` (or use ``np.broadcast_to(angles, ranges.shape)``).
+    An empty input gives ``(0, 3)``, ``(0, 0)``, ``(0,)``, ``(0,)``, ``(0,)``. Arrays are float64.
+    """
+    scans = list(scans)
+    count = len(scans)
+    if count == 0:
+        z = np.zeros((0,), dtype=np.float64)
+        return ScanStack(np.zeros((0, 3)), np.zeros((0, 0)), z, z.copy(), z.copy())
+    poses = np.empty((count, 3), dtype=np.float64)
+    max_ranges = np.empty(count, dtype=np.float64)
+    stamps = np.empty(count, dtype=np.float64)
+    widths = np.empty(count, dtype=np.intp)
+    first = np.asarray(scans[0].angles, dtype=np.float64)
+    shared = True
+    for k, s in enumerate(scans):
+        poses[k] = s.pose
+        max_ranges[k] = s.max_range
+        stamps[k] = s.stamp
+        widths[k] = np.shape(s.ranges)[0]
+        if shared and s.angles is not first:
+            a = np.asarray(s.angles)
+            shared = a.shape == first.shape and np.array_equal(a, first)
+    m = int(widths.max())
+    if (widths == m).all():
+        ranges = np.array([s.ranges for s in scans], dtype=np.float64).reshape(count, m)
+    else:
+        ranges = np.full((count, m), np.nan)
+        for k, s in enumerate(scans):
+            ranges[k, : widths[k]] = s.ranges
+    if shared:
+        angles = first.copy()
+    else:
+        angles = np.full((count, m), np.nan)
+        for k, s in enumerate(scans):
+            angles[k, : np.shape(s.angles)[0]] = s.angles
+    return ScanStack(poses, ranges, angles, max_ranges, stamps)

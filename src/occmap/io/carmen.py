@@ -1,0 +1,557 @@
+"""CARMEN laser logs (``.log`` / ``.clf``, plain, gzip, bzip2 or xz) → :class:`~occmap.scan.LaserScan`.
+
+The reader streams the file line by line and never holds more than one line in memory.
+Compression is detected from the first bytes (gzip ``1f 8b``, bzip2 ``BZh``, xz ``fd 37 7a 58 5a
+00``), whatever the file is called.
+
+Messages read as scans
+----------------------
+``FLASER`` / ``RLASER`` (front / rear laser, the old fixed-fan form)::
+
+    FLASER n r_1 … r_n x y theta odom_x odom_y odom_theta ipc_timestamp hostname logger_timestamp
+
+``x y theta`` is the pose of the *laser* in the world (for RLASER, the rear laser's own pose,
+so its theta already points backwards; nothing is added to it) and becomes ``LaserScan.pose``;
+``odom_*`` is the robot's odometry pose and becomes ``LaserScan.odom``. Beam ``i`` points at
+``theta + a_i`` (counter-clockwise, right to left) with
+
+* ``a_i = -pi/2 + i*pi/n`` for n = 180 or 360 (1° / 0.5° steps, the last beam one step short of
+  +pi/2);
+* ``a_i = -pi/2 + i*pi/(n-1)`` for n = 181 or 361 (closed fan, both ends included);
+* any other n: the same closed 180° fan, ``-pi/2 + i*pi/(n-1)``, which is what CARMEN's own
+  ``carmen_laser_guess_angle_increment`` assumes for a beam count it does not know. (CARMEN
+  special-cases 400/401 beams as 0.25° steps starting at -pi/2, i.e. a lopsided 100° fan; we do
+  not copy that and treat them like any other count. n = 1 gives the single angle -pi/2.)
+
+``ROBOTLASER1`` (and ``ROBOTLASER2`` … if asked for in ``kinds``), explicit geometry::
+
+    ROBOTLASER1 laser_type start_angle fov angular_res max_range accuracy remission_mode
+                n r_1 … r_n n_rem rem_1 … rem_k laser_x laser_y laser_theta
+                robot_x robot_y robot_theta tv rv forward_safety side_safety turn_axis
+                ipc_timestamp hostname logger_timestamp
+
+Beam ``i`` points at ``laser_theta + start_angle + i*angular_res`` (``fov`` is not used);
+``laser_*`` → ``pose``, ``robot_*`` → ``odom``, ``max_range`` → ``max_range`` (unless the caller
+overrides it).
+
+Conventions
+-----------
+* ``pose[2]`` and ``odom[2]`` are wrapped to (-pi, pi] (the csail log reaches 10.9 rad).
+* ``stamp`` is the logger timestamp (the last field). A line that ends at the hostname (no logger
+  timestamp) uses the ipc timestamp instead. Zero or wrapped timestamps are kept as read.
+* Maximum range (``LaserScan.max_range``; by that record's convention a reading at or beyond it
+  means "no return"): the ``max_range`` argument when given; else, for ROBOTLASER, the line's own
+  field; else, for FLASER / RLASER, a ``PARAM`` seen earlier in the log
+  (``robot_front_laser_max``, ``laser_front_laser_max_range`` or ``laser_front_laser_max`` for the
+  front laser, the same with ``rear`` for the rear one; the last one seen wins); else
+  :data:`DEFAULT_MAX_RANGE` = 81.0 m, just below the SICK LMS no-return codes 81.83 / 81.91.
+  On the shared logs this marks every no-return code: intel (no PARAM, 81.0 vs 81.83),
+  freiburg-079 (PARAM 80.99 vs 81.91), csail (PARAM 50 vs 81.91).
+* Readings are otherwise kept as read. Logs whose no-return code lies *below* the maximum range
+  (e.g. 32.767 from a 16-bit overflow with an 80 m max) can pass ``no_return_values`` (for example
+  :data:`TYPICAL_NO_RETURN`): readings equal to one of them (within 1e-6 m) that lie below the
+  scan's max range are set to it; readings at or beyond it already mean "no return" and are kept.
+  This is opt-in because 50.0 or 32.767 can also be genuine readings.
+
+Errors and counts
+-----------------
+A malformed scan line (too few or too many fields, a non-numeric field, a beam count that does not
+match the fields, a non-integer or negative count, a non-finite pose) raises
+:class:`~occmap.errors.FormatError` naming the file, the line number and what was expected. With
+``lenient=True`` it is skipped and counted instead. Comments (``#``), blank lines, ``PARAM``,
+``ODOM``, ``SYNC``, ``TRUEPOS``, ``NEFF`` and the other known non-scan messages (and scan kinds not
+in ``kinds``) are skipped and counted as "other"; unknown message types are counted apart, by name.
+Counts and ``PARAM`` values go into a :class:`CarmenStats` the caller may pass to
+:func:`iter_carmen`; :func:`read_carmen` returns them with the scans in a :class:`CarmenLog`.
+"""
+
+from __future__ import annotations
+
+import bz2
+import gzip
+import io
+import lzma
+import math
+import os
+import warnings
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import FormatError, InvalidArgumentError
+from ..scan import LaserScan, ScanStack, stack_scans
+
+__all__ = [
+    "DEFAULT_MAX_RANGE",
+    "TYPICAL_NO_RETURN",
+    "CarmenLog",
+    "CarmenStats",
+    "iter_carmen",
+    "read_carmen",
+    "flaser_angles",
+]
+
+#: Max range (m) for FLASER/RLASER when neither the caller nor a PARAM gives one (SICK LMS).
+DEFAULT_MAX_RANGE = 81.0
+#: No-return codes seen in CARMEN logs (SICK LMS 81.91 / 81.83, 50 m caps, 16-bit 32.767).
+TYPICAL_NO_RETURN = (81.91, 81.83, 50.0, 32.767)
+
+DEFAULT_KINDS = ("FLASER", "RLASER", "ROBOTLASER1")
+
+# Message types that are not scans (or not scans we read); skipped and counted as "other".
+_KNOWN_OTHER = frozenset(
+    {
+        "PARAM", "ODOM", "SYNC", "TRUEPOS", "NEFF", "FLASER", "RLASER", "LASER", "LASER3",
+        "LASER4", "RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4", "ROBOTLASER0",
+        "ROBOTLASER1", "ROBOTLASER2", "ROBOTLASER3", "ROBOTLASER4", "GPSNMEA", "NMEAGGA",
+        "NMEARMC", "SONAR", "BUMPER", "IMU", "VELOCITY", "BASEVELOCITY", "SCANMARK",
+        "POSITIONLASER", "MARKER",
+    }
+)  # fmt: skip
+
+_MAX_RANGE_PARAMS = {
+    "FLASER": ("robot_front_laser_max", "laser_front_laser_max_range", "laser_front_laser_max"),
+    "RLASER": ("robot_rear_laser_max", "laser_rear_laser_max_range", "laser_rear_laser_max"),
+}
+
+_TWO_PI = 2.0 * math.pi
+_MAX_KEPT_ERRORS = 100
+_EMPTY = np.zeros(0)
+
+
+@dataclass
+class CarmenStats:
+    """What :func:`iter_carmen` saw; filled in as the generator runs (final once it is exhausted).
+
+    Attributes
+    ----------
+    lines : int
+        Lines read.
+    scans : int
+        Scans yielded.
+    skipped_malformed : int
+        Malformed scan lines skipped (``lenient=True`` only; otherwise the first one raises).
+    skipped_other : int
+        Comments and known non-scan messages (PARAM, ODOM, SYNC, TRUEPOS, NEFF, ...), including
+        scan kinds not asked for. Blank lines are not counted.
+    skipped_unknown : int
+        Lines whose message type the reader does not know; ``unknown_types`` counts them by name.
+    skipped_decimated : int
+        Scans of the selected kinds passed over by ``every`` (not parsed, so not validated).
+    params : dict[str, str]
+        ``PARAM name value``: the value as written (the last one wins when a name repeats).
+    errors : list[FormatError]
+        The first 100 malformed-line errors met in lenient mode, for reporting.
+    """
+
+    lines: int = 0
+    scans: int = 0
+    skipped_malformed: int = 0
+    skipped_other: int = 0
+    skipped_unknown: int = 0
+    skipped_decimated: int = 0
+    unknown_types: dict[str, int] = field(default_factory=dict)
+    params: dict[str, str] = field(default_factory=dict)
+    errors: list[FormatError] = field(default_factory=list)
+
+
+@dataclass
+class CarmenLog:
+    """A whole CARMEN log read by :func:`read_carmen`: the scans in file order and the counts."""
+
+    path: str
+    scans: list[LaserScan]
+    stats: CarmenStats
+
+    @property
+    def skipped_malformed(self) -> int:
+        return self.stats.skipped_malformed
+
+    @property
+    def skipped_other(self) -> int:
+        return self.stats.skipped_other
+
+    @property
+    def skipped_unknown(self) -> int:
+        return self.stats.skipped_unknown
+
+    @property
+    def params(self) -> dict[str, str]:
+        return self.stats.params
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def __repr__(self) -> str:
+        st = self.stats
+        return (
+            f"CarmenLog({self.path!r}, {len(self.scans)} scans, skipped_malformed="
+            f"{st.skipped_malformed}, skipped_other={st.skipped_other}, "
+            f"skipped_unknown={st.skipped_unknown}, {len(st.params)} params)"
+        )
+
+    def __iter__(self) -> Iterator[LaserScan]:
+        return iter(self.scans)
+
+    def __getitem__(self, index):
+        return self.scans[index]
+
+    def stack(self) -> ScanStack:
+        """All scans as arrays; see :func:`occmap.scan.stack_scans`."""
+        return stack_scans(self.scans)
+
+
+def flaser_angles(n: int) -> np.ndarray:
+    """Beam angles (radians, relative to the laser heading) of an ``n``-beam FLASER/RLASER scan,
+    by the rules in the module docstring. Returns a new float64 array."""
+    n = int(n)
+    if n < 0:
+        raise InvalidArgumentError(f"beam count must be >= 0, got {n}")
+    i = np.arange(n, dtype=np.float64)
+    if n in (180, 360):
+        return -0.5 * np.pi + i * (np.pi / n)
+    if n <= 1:
+        return np.full(n, -0.5 * np.pi)
+    return -0.5 * np.pi + i * (np.pi / (n - 1))
+
+
+def _wrap(theta: float) -> float:
+    w = math.remainder(theta, _TWO_PI)
+    return math.pi if w <= -math.pi else w
+
+
+def _open_text(path) -> io.TextIOBase:
+    with open(path, "rb") as f:
+        magic = f.read(6)
+    if magic[:2] == b"\x1f\x8b":
+        raw = gzip.open(path, "rb")
+    elif magic[:3] == b"BZh":
+        raw = bz2.open(path, "rb")
+    elif magic == b"\xfd7zXZ\x00":
+        raw = lzma.open(path, "rb")
+    else:
+        raw = open(path, "rb")
+    # latin-1 never fails to decode; stray bytes then fail as non-numeric fields, with a line number
+    return io.TextIOWrapper(raw, encoding="latin-1", newline=None)
+
+
+def _first_bad_token(text: str) -> tuple[int, str] | None:
+    """Index and text of the first token in ``text`` that is not a number (for error messages)."""
+    for k, tok in enumerate(text.split()):
+        try:
+            float(tok)
+        except ValueError:
+            return k, tok
+    return None
+
+
+def _numbers(text: str) -> np.ndarray:
+    # np.fromstring(sep=' ') is the fastest text → float64 path. On a non-number, NumPy >= 2.x
+    # raises ValueError and older NumPy stops early with a DeprecationWarning (silenced here);
+    # either way the caller sees a short array, finds the count wrong and names the bad field.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return np.fromstring(text, dtype=np.float64, sep=" ")
+        except ValueError:
+            return _EMPTY
+
+
+def _split_tail(rest: str):
+    """Split ``... ipc_timestamp hostname logger_timestamp`` off a message body.
+
+    Returns ``(numeric_text, logger_timestamp or None)``; ``None`` when the line ends at the
+    hostname. Raises ValueError when the line is too short to hold a hostname."""
+    parts = rest.rsplit(None, 2)
+    if len(parts) < 3:
+        raise ValueError
+    try:
+        return parts[0], float(parts[2])
+    except ValueError:
+        # no logger timestamp: the last token is the hostname
+        head, _host = rest.rsplit(None, 1)
+        return head, None
+
+
+class _Parser:
+    """Per-file state: angle caches and PARAM-derived max ranges."""
+
+    def __init__(self, path, max_range, no_return_values, params):
+        self.path = path
+        self.max_range = None if max_range is None else float(max_range)
+        self.no_return = tuple(float(v) for v in (no_return_values or ()))
+        self.params = params
+        self._angle_cache: dict = {}
+        self._param_max: dict[str, float] = {}
+
+    # -- helpers -------------------------------------------------------------------------------
+    def _angles(self, key, make) -> np.ndarray:
+        a = self._angle_cache.get(key)
+        if a is None:
+            a = make()
+            a.flags.writeable = False
+            self._angle_cache[key] = a
+        return a
+
+    def param(self, name: str, value: str) -> None:
+        self.params[name] = value
+        for kind, names in _MAX_RANGE_PARAMS.items():
+            if name in names:
+                try:
+                    v = float(value)
+                except ValueError:
+                    continue
+                if v > 0 and math.isfinite(v):
+                    self._param_max[kind] = v
+
+    def _fail(self, lineno, what):
+        return FormatError(self.path, what, line=lineno)
+
+    def _finish_ranges(self, ranges, max_range):
+        for v in self.no_return:
+            if v < max_range:
+                ranges[np.abs(ranges - v) <= 1e-6] = max_range
+
+    def _pose(self, vals, at, lineno, kind, what):
+        x, y, t = vals[at], vals[at + 1], vals[at + 2]
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(t)):
+            raise self._fail(lineno, f"{kind}: {what} must be finite, got ({x}, {y}, {t})")
+        return np.array((x, y, _wrap(t)))
+
+    def _bad_numbers(self, lineno, kind, text, layout):
+        bad = _first_bad_token(text)
+        if bad is not None:
+            k, tok = bad
+            return self._fail(
+                lineno,
+                f"{kind}: field {k + 2} (the message name is field 1) is {tok!r}, "
+                f"expected a number ({layout})",
+            )
+        return None
+
+    # -- messages ------------------------------------------------------------------------------
+    def flaser(self, kind: str, rest: str, lineno: int) -> LaserScan:
+        layout = "n r_1..r_n x y theta odom_x odom_y odom_theta ipc_timestamp hostname logger_timestamp"
+        try:
+            text, logger = _split_tail(rest)
+        except ValueError:
+            raise self._fail(lineno, f"{kind}: line too short, expected {layout}") from None
+        vals = _numbers(text)
+        if vals.size == 0:
+            err = self._bad_numbers(lineno, kind, text, layout)
+            raise err or self._fail(lineno, f"{kind}: no beam count, expected {layout}")
+        n_f = vals[0]
+        if not (n_f >= 0 and n_f == int(n_f)):
+            raise self._fail(lineno, f"{kind}: beam count {n_f!r} is not a non-negative integer")
+        n = int(n_f)
+        if vals.size != n + 8:
+            err = self._bad_numbers(lineno, kind, text, layout)
+            if err is not None:
+                raise err
+            have = len(text.split()) - 1
+            raise self._fail(
+                lineno,
+                f"{kind}: beam count n = {n} needs {n + 7} numbers between n and the hostname "
+                f"(n ranges, x y theta, odom_x odom_y odom_theta, ipc_timestamp), the line has "
+                f"{have} (expected {layout})",
+            )
+        pose = self._pose(vals, n + 1, lineno, kind, "x y theta")
+        odom = self._pose(vals, n + 4, lineno, kind, "odom_x odom_y odom_theta")
+        stamp = float(vals[n + 7]) if logger is None else logger
+        if self.max_range is not None:
+            mr = self.max_range
+        else:
+            mr = self._param_max.get(kind, DEFAULT_MAX_RANGE)
+        ranges = vals[1 : n + 1]
+        if self.no_return:
+            self._finish_ranges(ranges, mr)
+        angles = self._angles(n, lambda: flaser_angles(n))
+        return LaserScan(pose=pose, ranges=ranges, angles=angles, max_range=mr, stamp=stamp, odom=odom)
+
+    def robotlaser(self, kind: str, rest: str, lineno: int) -> LaserScan:
+        layout = (
+            "laser_type start_angle fov angular_res max_range accuracy remission_mode n r_1..r_n "
+            "n_rem rem_1..rem_k laser_x laser_y laser_theta robot_x robot_y robot_theta tv rv "
+            "forward_safety side_safety turn_axis ipc_timestamp hostname logger_timestamp"
+        )
+        try:
+            text, logger = _split_tail(rest)
+        except ValueError:
+            raise self._fail(lineno, f"{kind}: line too short, expected {layout}") from None
+        vals = _numbers(text)
+        size = vals.size
+        problem = None
+        if size < 8:
+            problem = "line too short for the laser configuration and beam count"
+        else:
+            n_f = vals[7]
+            if not (n_f >= 0 and n_f == int(n_f)):
+                raise self._fail(lineno, f"{kind}: beam count {n_f!r} is not a non-negative integer")
+            n = int(n_f)
+            if size < n + 9:
+                problem = f"beam count n = {n} runs past the end of the line"
+            else:
+                k_f = vals[n + 8]
+                if not (k_f >= 0 and k_f == int(k_f)):
+                    raise self._fail(
+                        lineno, f"{kind}: remission count {k_f!r} is not a non-negative integer"
+                    )
+                k = int(k_f)
+                if size != n + k + 21:
+                    problem = (
+                        f"with n = {n} beams and {k} remissions the line needs {n + k + 21} "
+                        f"numbers before the hostname, it has {size}"
+                    )
+        if problem is not None:
+            err = self._bad_numbers(lineno, kind, text, layout)
+            raise err or self._fail(lineno, f"{kind}: {problem} (expected {layout})")
+        start, res = float(vals[1]), float(vals[3])
+        if not (math.isfinite(start) and math.isfinite(res)):
+            raise self._fail(lineno, f"{kind}: start_angle and angular_res must be finite")
+        at = n + k + 9
+        pose = self._pose(vals, at, lineno, kind, "laser_x laser_y laser_theta")
+        odom = self._pose(vals, at + 3, lineno, kind, "robot_x robot_y robot_theta")
+        stamp = float(vals[size - 1]) if logger is None else logger
+        mr = self.max_range if self.max_range is not None else float(vals[4])
+        ranges = vals[8 : n + 8]
+        if self.no_return:
+            self._finish_ranges(ranges, mr)
+        angles = self._angles(
+            ("R", start, res, n), lambda: start + np.arange(n, dtype=np.float64) * res
+        )
+        return LaserScan(pose=pose, ranges=ranges, angles=angles, max_range=mr, stamp=stamp, odom=odom)
+
+
+def iter_carmen(
+    path,
+    kinds: Iterable[str] = DEFAULT_KINDS,
+    lenient: bool = False,
+    every: int = 1,
+    *,
+    max_range: float | None = None,
+    no_return_values: Iterable[float] | None = None,
+    stats: CarmenStats | None = None,
+) -> Iterator[LaserScan]:
+    """Stream the scans of a CARMEN log as :class:`~occmap.scan.LaserScan` records, in file order.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The log; plain text, gzip, bzip2 or xz (detected from the first bytes).
+    kinds : iterable of str
+        Message types to read as scans: any of ``FLASER``, ``RLASER``, ``ROBOTLASER1`` …
+        ``ROBOTLASER4``. Others are skipped and counted in ``stats.skipped_other``.
+    lenient : bool
+        Skip and count malformed scan lines instead of raising :class:`FormatError`.
+    every : int
+        Keep the 1st, (1+every)th, ... message of the selected kinds; the ones in between are
+        counted in ``stats.skipped_decimated`` and not parsed (so not validated).
+    max_range : float, optional
+        Maximum range for every scan. Default: inferred (see the module docstring).
+    no_return_values : iterable of float, optional
+        Readings equal to one of these (within 1e-6 m) and below the scan's max range are set to
+        it ("no return"). Default: none; :data:`TYPICAL_NO_RETURN` holds the common codes.
+    stats : CarmenStats, optional
+        Filled in as the generator runs: counts, PARAM values and (lenient) the errors met.
+
+    Raises
+    ------
+    FormatError
+        A malformed scan line (unless ``lenient``), or a corrupt compressed stream.
+    InvalidArgumentError
+        A bad ``kinds``, ``every`` or ``max_range`` (raised at the call, before any reading).
+    """
+    every = int(every)
+    if every < 1:
+        raise InvalidArgumentError(f"every must be >= 1, got {every}")
+    if max_range is not None and not (float(max_range) > 0 and math.isfinite(float(max_range))):
+        raise InvalidArgumentError(f"max_range must be a positive finite number, got {max_range!r}")
+    if isinstance(kinds, str):
+        kinds = (kinds,)
+    wanted = {str(k).upper() for k in kinds}
+    for k in wanted:
+        if k not in ("FLASER", "RLASER") and not (k.startswith("ROBOTLASER") and k[10:].isdigit()):
+            raise InvalidArgumentError(
+                f"unsupported scan kind {k!r}: expected FLASER, RLASER or ROBOTLASER1..ROBOTLASER4"
+            )
+    if stats is None:
+        stats = CarmenStats()
+    path_str = os.fspath(path)
+    parser = _Parser(path_str, max_range, no_return_values, stats.params)
+    # arguments are checked now; the file is opened on the first next()
+    return _scan_lines(path_str, wanted, lenient, every, parser, stats)
+
+
+def _scan_lines(path_str, wanted, lenient, every, parser, stats) -> Iterator[LaserScan]:
+    seen = 0
+    f = _open_text(path_str)
+    lineno = 0
+    try:
+        for line in f:
+            lineno += 1
+            stats.lines = lineno
+            parts = line.split(None, 1)
+            if not parts:
+                continue
+            kind = parts[0]
+            if kind in wanted:
+                seen += 1
+                if (seen - 1) % every:
+                    stats.skipped_decimated += 1
+                    continue
+                rest = parts[1] if len(parts) > 1 else ""
+                try:
+                    if kind.startswith("ROBOTLASER"):
+                        scan = parser.robotlaser(kind, rest, lineno)
+                    else:
+                        scan = parser.flaser(kind, rest, lineno)
+                except FormatError as err:
+                    if not lenient:
+                        raise
+                    stats.skipped_malformed += 1
+                    if len(stats.errors) < _MAX_KEPT_ERRORS:
+                        stats.errors.append(err)
+                    continue
+                stats.scans += 1
+                yield scan
+            elif kind[0] == "#":
+                stats.skipped_other += 1
+            elif kind == "PARAM":
+                stats.skipped_other += 1
+                p = line.split()
+                if len(p) >= 3:
+                    parser.param(p[1], p[2])
+            elif kind in _KNOWN_OTHER:
+                stats.skipped_other += 1
+            else:
+                stats.skipped_unknown += 1
+                stats.unknown_types[kind] = stats.unknown_types.get(kind, 0) + 1
+    except (EOFError, OSError, lzma.LZMAError) as exc:
+        raise FormatError(
+            path_str, f"compressed stream is corrupt or ends early ({exc})", line=lineno + 1
+        ) from exc
+    finally:
+        f.close()
+
+
+def read_carmen(
+    path,
+    kinds: Iterable[str] = DEFAULT_KINDS,
+    lenient: bool = False,
+    every: int = 1,
+    *,
+    max_range: float | None = None,
+    no_return_values: Iterable[float] | None = None,
+) -> CarmenLog:
+    """Read a whole CARMEN log: :func:`iter_carmen` collected into a :class:`CarmenLog`
+    (``.scans``, ``.skipped_malformed``, ``.skipped_other``, ``.skipped_unknown``, ``.params``,
+    ``.stats``, ``.stack()``). Same arguments and errors as :func:`iter_carmen`."""
+    stats = CarmenStats()
+    scans = list(
+        iter_carmen(
+            path, kinds, lenient, every,
+            max_range=max_range, no_return_values=no_return_values, stats=stats,
+        )
+    )  # fmt: skip
+    return CarmenLog(path=os.fspath(path), scans=scans, stats=stats)
