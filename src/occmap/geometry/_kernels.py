@@ -447,41 +447,28 @@ def axis_angle_to_quat(axis, angle, out):
 
 
 @kernel
-def _quat_axis_angle(w, x, y, z, o, i):
-    """Write (axis, angle) of (w, x, y, z) into ``o[i, :4]``: angle = 2·atan2(‖v‖, |w|) ∈ [0, π],
-    accurate at both ends (no acos); axis (1, 0, 0) for the identity. The vector part is scaled
-    by its largest component first, so neither tiny (even subnormal) nor huge parts lose digits."""
+def _quat_axis_angle(w, x, y, z):
+    """(axis x, y, z, angle) of (w, x, y, z): angle = 2·atan2(‖v‖, |w|) ∈ [0, π], accurate at both
+    ends (no acos); axis (1, 0, 0) for the identity. The vector part is scaled by its largest
+    component first, so neither tiny (even subnormal) nor huge parts lose digits."""
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     m = max(max(abs(x), abs(y)), abs(z))
     if m == 0.0:
-        o[i, 0], o[i, 1], o[i, 2], o[i, 3] = 1.0, 0.0, 0.0, 0.0
-        return
+        return 1.0, 0.0, 0.0, 0.0
     xs, ys, zs = x / m, y / m, z / m
     ns = math.sqrt(xs * xs + ys * ys + zs * zs)
-    o[i, 0], o[i, 1], o[i, 2] = xs / ns, ys / ns, zs / ns
-    o[i, 3] = 2.0 * math.atan2(m * ns, w)
+    return xs / ns, ys / ns, zs / ns, 2.0 * math.atan2(m * ns, w)
 
 
 @kernel
-def _quat_rotvec(w, x, y, z, o, i):
-    """Write the rotation vector (axis · angle) of (w, x, y, z) into ``o[i, :3]``."""
-    aa = np.empty((1, 4))
-    _quat_axis_angle(w, x, y, z, aa, 0)
-    o[i, 0], o[i, 1], o[i, 2] = aa[0, 0] * aa[0, 3], aa[0, 1] * aa[0, 3], aa[0, 2] * aa[0, 3]
-
-
-@kernel
-def matrix_to_rotvec(R, out):
-    f = R.reshape((-1, 3, 3))
-    o = _view(out, f.shape[0], (3,))
-    q = np.empty((1, 4))
-    for i in range(f.shape[0]):
-        if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
-            raise Rejected(i)
-        _rot_to_quat(f, i, q, 0)
-        _quat_rotvec(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o, i)
-    return o
+def _write_axis_angle(o, i, w, x, y, z, rotvec):
+    """Row i of ``o``: the rotation vector (3 columns) or axis and angle (4 columns)."""
+    ax, ay, az, angle = _quat_axis_angle(w, x, y, z)
+    if rotvec:
+        o[i, 0], o[i, 1], o[i, 2] = ax * angle, ay * angle, az * angle
+    else:
+        o[i, 0], o[i, 1], o[i, 2], o[i, 3] = ax, ay, az, angle
 
 
 @kernel
@@ -491,20 +478,21 @@ def quat_to_axis_angle(q, out):
     for i in range(f.shape[0]):
         if not _unit_ok(f, i):
             raise Rejected(i)
-        _quat_axis_angle(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
+        _write_axis_angle(o, i, f[i, 0], f[i, 1], f[i, 2], f[i, 3], False)
     return o
 
 
 @kernel
-def matrix_to_axis_angle(R, out):
+def matrix_to_axis_angle(R, rotvec, out):
+    """Axis and angle (``rotvec`` False, 4 columns) or rotation vectors (True, 3 columns)."""
     f = R.reshape((-1, 3, 3))
-    o = _view(out, f.shape[0], (4,))
+    o = _view(out, f.shape[0], (3,) if rotvec else (4,))
     q = np.empty((1, 4))
     for i in range(f.shape[0]):
         if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
             raise Rejected(i)
         _rot_to_quat(f, i, q, 0)
-        _quat_axis_angle(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o, i)
+        _write_axis_angle(o, i, q[0, 0], q[0, 1], q[0, 2], q[0, 3], rotvec)
     return o
 
 
@@ -808,9 +796,9 @@ def log_se3(T, out):
         if not _rigid_ok(f, i):
             raise Rejected(i)
         _rot_to_quat(f, i, q, 0)
-        _quat_rotvec(q[0, 0], q[0, 1], q[0, 2], q[0, 3], o[:, 3:], i)
-        x, y, z = o[i, 3], o[i, 4], o[i, 5]
-        theta = math.sqrt(x * x + y * y + z * z)
+        ax, ay, az, theta = _quat_axis_angle(q[0, 0], q[0, 1], q[0, 2], q[0, 3])
+        x, y, z = ax * theta, ay * theta, az * theta
+        o[i, 3], o[i, 4], o[i, 5] = x, y, z
         t2 = theta * theta
         if theta < 0.1:
             d = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 * t2 * t2 / 1209600.0

@@ -63,14 +63,14 @@ def matrix_to_axis_angle(R):
     ~1e-15 at angles near 0 and near π, where ``acos((tr R − 1)/2)`` loses half the digits.
     The identity gets axis (1, 0, 0); at exactly π, ``axis`` and ``−axis`` are equally valid.
     """
-    out = run(K.matrix_to_axis_angle, (4,), (R, (3, 3), "R", "rotation"))
+    out = run(K.matrix_to_axis_angle, (4,), (R, (3, 3), "R", "rotation"), args=(False,))
     return out[..., :3], out[..., 3]
 
 
 def log_so3(R):
     """Rotation vectors (..., 3) (axis · angle, angle ∈ [0, π]) of rotation matrices; accurate to
     rounding relative to the angle from 0 up to π (see :func:`matrix_to_axis_angle`)."""
-    return run(K.matrix_to_rotvec, (3,), (R, (3, 3), "R", "rotation"))
+    return run(K.matrix_to_axis_angle, (3,), (R, (3, 3), "R", "rotation"), args=(True,))
 
 
 def axis_angle_to_matrix(axis, angle):
