@@ -72,3 +72,55 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
                     _update(L, iy, ix, l_miss, l_min, l_max)
                 state = dda_step(state)
     return used, dropped, maxed
+
+
+@kernel
+def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, half_width, max_range, arc, ox, oy, res,
+                    l_occ, l_free, l_min, l_max):
+    """Cone updates for N readings rings (poses (N, 3), ranges (N, k), bearings (k,)): each reading
+    updates every cell whose centre lies in its cone, once, weighted by 1 − (φ/half_width)².
+    Returns (readings used, readings dropped as NaN/≤ 0, max-range readings)."""
+    H, W = L.shape
+    n_scans, n_beams = ranges.shape
+    used = 0
+    dropped = 0
+    maxed = 0
+    for k in range(n_scans):
+        s = scan0 + k
+        x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
+        for b in range(n_beams):
+            r = ranges[k, b]
+            if not (r > 0.0):
+                dropped += 1
+                continue
+            hit = r < max_range
+            reach = r if hit else max_range
+            if not hit:
+                maxed += 1
+            used += 1
+            axis = th + bearings[b]
+            outer = reach + 0.5 * arc if hit else reach
+            ix0 = max(0, int(math.floor((x0 - outer - ox) / res)))
+            ix1 = min(W - 1, int(math.floor((x0 + outer - ox) / res)))
+            iy0 = max(0, int(math.floor((y0 - outer - oy) / res)))
+            iy1 = min(H - 1, int(math.floor((y0 + outer - oy) / res)))
+            for iy in range(iy0, iy1 + 1):
+                cy = oy + (iy + 0.5) * res - y0
+                for ix in range(ix0, ix1 + 1):
+                    cx = ox + (ix + 0.5) * res - x0
+                    d = math.sqrt(cx * cx + cy * cy)
+                    if d > outer:
+                        continue
+                    phi = math.atan2(cy, cx) - axis
+                    phi = (phi + math.pi) % (2.0 * math.pi) - math.pi
+                    if abs(phi) > half_width:
+                        continue
+                    w = 1.0 - (phi / half_width) ** 2
+                    if hit and d >= reach - 0.5 * arc:
+                        _update(L, iy, ix, w * l_occ, l_min, l_max)
+                        stamp[iy, ix] = 2 * s + 1
+                    else:
+                        _update(L, iy, ix, w * l_free, l_min, l_max)
+                        if stamp[iy, ix] < 2 * s:
+                            stamp[iy, ix] = 2 * s
+    return used, dropped, maxed

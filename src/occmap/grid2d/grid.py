@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from . import _kernels as K
-from .sensor_models import LidarModel, logit
+from .sensor_models import LidarModel, SonarModel, logit
 
 #: Cells added on each side when a growing map must grow, at least (amortises the copies).
 _GROW_MARGIN_CELLS = 64
@@ -190,6 +190,40 @@ class OccupancyGrid2D:
             self._L, self._stamp, self._scans + 1, P, R, A, float(max_range), float(self.origin[0]),
             float(self.origin[1]), 1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior,
             self.l_min, self.l_max,
+        )
+        self._scans += len(P)
+        counts = {"scans": len(P), "beams": int(used), "dropped": int(dropped), "max_range": int(maxed)}
+        for key, value in counts.items():
+            self.stats[key] += value
+        return counts
+
+    def integrate_sonar(self, poses, ranges, bearings, max_range: float, model: SonarModel | None = None) -> dict:
+        """Integrate rings of sonar readings with the cone model of :class:`SonarModel`.
+
+        ``poses`` (3,) or (N, 3) are robot poses; ``ranges`` (k,) or (N, k) in metres, one per
+        transducer; ``bearings`` (k,) the transducers' directions relative to the heading. Each
+        reading updates each cell of its cone once; overlapping cones of one ring each contribute
+        (the readings are independent measurements). NaN, zero and negative readings are dropped
+        and counted; readings at or beyond ``max_range`` clear their cone up to it.
+        """
+        model = SonarModel() if model is None else model
+        P = np.atleast_2d(np.asarray(poses, dtype=np.float64))
+        R = np.atleast_2d(np.asarray(ranges, dtype=np.float64))
+        B = np.ascontiguousarray(bearings, dtype=np.float64)
+        if P.shape[1:] != (3,) or R.shape[0] != P.shape[0] or B.shape != (R.shape[1],):
+            raise ShapeError(f"expected poses (N, 3), ranges (N, k), bearings (k,); got {P.shape}, {R.shape}, {B.shape}")
+        if not np.isfinite(P).all():
+            raise NonFiniteError("sonar poses must be finite")
+        if not (math.isfinite(max_range) and max_range > 0):
+            raise InvalidArgumentError(f"max_range must be a positive finite number of metres, got {max_range!r}")
+        arc = self.resolution if model.arc is None else model.arc
+        if self.growing and len(P):
+            reach = max_range + arc
+            self._grow_to(P[:, 0].min() - reach, P[:, 1].min() - reach, P[:, 0].max() + reach, P[:, 1].max() + reach)
+        used, dropped, maxed = K.integrate_sonar(
+            self._L, self._stamp, self._scans + 1, np.ascontiguousarray(P), np.ascontiguousarray(R), B,
+            0.5 * model.beam_width, float(max_range), float(arc), float(self.origin[0]), float(self.origin[1]),
+            self.resolution, model.l_occupied - self.l_prior, model.l_free - self.l_prior, self.l_min, self.l_max,
         )
         self._scans += len(P)
         counts = {"scans": len(P), "beams": int(used), "dropped": int(dropped), "max_range": int(maxed)}
