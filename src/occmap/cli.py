@@ -28,10 +28,15 @@ def _parser() -> argparse.ArgumentParser:
     m2.add_argument("--max-range", type=float, help="ignore the parts of beams beyond this many metres")
     m2.add_argument("--every", type=int, default=1, help="use every N-th scan (default: %(default)s)")
     m2.add_argument("--lenient", action="store_true", help="skip and count malformed lines instead of stopping")
+    m2.add_argument("--p-hit", type=float, default=0.7, help="P(occupied) for a beam's end cell (default: %(default)s, OctoMap's)")
+    m2.add_argument("--p-miss", type=float, default=0.4,
+                    help="P(occupied) for cells a beam passes (default: %(default)s, OctoMap's; 0.45 keeps walls "
+                    "that many grazing beams cross more continuous)")
     return p
 
 
 def _map2d(args) -> int:
+    from .grid2d import LidarModel
     from .io.carmen import read_carmen
     from .mapping2d import map_scans
 
@@ -41,7 +46,8 @@ def _map2d(args) -> int:
           + (f" ({log.skipped_malformed:,} malformed lines skipped)" if log.skipped_malformed else ""))
     if not len(log):
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
-    summary = map_scans(log.stack(), args.resolution, args.max_range, progress=sys.stderr.isatty())
+    model = LidarModel(args.p_hit, args.p_miss)
+    summary = map_scans(log.stack(), args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model)
     image = summary.grid.save(args.output)
     for line in summary.lines():
         print(line)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .grid2d import OccupancyGrid2D
+from .grid2d import LidarModel, OccupancyGrid2D
 from .scan import ScanStack
 
 
@@ -36,7 +36,7 @@ class MappingSummary:
 
 
 def map_scans(stack: ScanStack, resolution: float, max_range: float | None = None, chunk: int = 200,
-              progress: bool = False) -> MappingSummary:
+              progress: bool = False, model: LidarModel | None = None) -> MappingSummary:
     """Integrate a stacked log into a new growing grid.
 
     A reading at or beyond its own scan's maximum range means "no return"; it frees the cells up
@@ -52,7 +52,7 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         a = angles if angles.ndim == 1 else angles[start:stop]
-        grid.integrate_scans(poses[start:stop], ranges[start:stop], a, max_range=limit)
+        grid.integrate_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
         if progress:
             done = stop / n
             bar = "#" * int(30 * done)
