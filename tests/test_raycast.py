@@ -22,7 +22,8 @@ def segment_hits_cell(a, b, iy, ix, res, origin, tol=1e-9):
             if not lo[k] <= a[k] <= hi[k]:
                 return False
             continue
-        ta, tb = (lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]
+        with np.errstate(over="ignore"):  # a subnormal d gives ±inf, which clips correctly
+            ta, tb = (lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]
         t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
     return t0 <= t1
 

@@ -230,13 +230,32 @@ def _quat_to_rot(w, x, y, z, o, i):
 
 
 @kernel
+def _quat_to_matrix_row(f, o, i):
+    """Row i of quat_to_matrix; False for a quaternion that is not of unit norm."""
+    if not _unit_ok(f, i):
+        return False
+    _quat_to_rot(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
+    return True
+
+
+@kernel_parallel
+def _quat_to_matrix_parallel(f, o):
+    bad = 0
+    for i in prange(f.shape[0]):
+        if not _quat_to_matrix_row(f, o, i):
+            bad += 1
+    return bad
+
+
+@kernel
 def quat_to_matrix(q, out):
     f = q.reshape((-1, 4))
     o = _view(out, f.shape[0], (3, 3))
-    for i in range(f.shape[0]):
-        if not _unit_ok(f, i):
+    if f.shape[0] >= PARALLEL_MIN and _quat_to_matrix_parallel(f, o) == 0:
+        return o
+    for i in range(f.shape[0]):  # serial, or finding the first bad row after a parallel pass
+        if not _quat_to_matrix_row(f, o, i):
             raise Rejected(i)
-        _quat_to_rot(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
     return o
 
 
@@ -281,13 +300,32 @@ def _rot_to_quat(R, i, o, j):
 
 
 @kernel
+def _matrix_to_quat_row(f, o, i):
+    """Row i of matrix_to_quat; False for a matrix that is not a rotation."""
+    if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
+        return False
+    _rot_to_quat(f, i, o, i)
+    return True
+
+
+@kernel_parallel
+def _matrix_to_quat_parallel(f, o):
+    bad = 0
+    for i in prange(f.shape[0]):
+        if not _matrix_to_quat_row(f, o, i):
+            bad += 1
+    return bad
+
+
+@kernel
 def matrix_to_quat(R, out):
     f = R.reshape((-1, 3, 3))
     o = _view(out, f.shape[0], (4,))
+    if f.shape[0] >= PARALLEL_MIN and _matrix_to_quat_parallel(f, o) == 0:
+        return o
     for i in range(f.shape[0]):
-        if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
+        if not _matrix_to_quat_row(f, o, i):
             raise Rejected(i)
-        _rot_to_quat(f, i, o, i)
     return o
 
 
@@ -581,20 +619,39 @@ def _euler_zyx_entries(a, b, g, o, i):
 
 
 @kernel
+def _euler_row(fy, fp, fr, o, i):
+    """Row i of Rz(yaw) Ry(pitch) Rx(roll), single-element operands broadcast; False for NaN/inf."""
+    a = fy[i if fy.shape[0] > 1 else 0]
+    b = fp[i if fp.shape[0] > 1 else 0]
+    g = fr[i if fr.shape[0] > 1 else 0]
+    s = a + b + g
+    if not (s - s == 0.0):
+        return False
+    _euler_zyx_entries(a, b, g, o, i)
+    return True
+
+
+@kernel_parallel
+def _euler_parallel(fy, fp, fr, o):
+    bad = 0
+    for i in prange(o.shape[0]):
+        # prange indices are unsigned: cast, or the broadcast select below types as float
+        if not _euler_row(fy, fp, fr, o, np.int64(i)):
+            bad += 1
+    return bad
+
+
+@kernel
 def euler_zyx_to_matrix(yaw, pitch, roll, out):
     fy = yaw.reshape(-1)
     fp = pitch.reshape(-1)
     fr = roll.reshape(-1)
     o = _view(out, max(fy.shape[0], fp.shape[0], fr.shape[0]), (3, 3))
-    sy = 1 if fy.shape[0] > 1 else 0
-    sp = 1 if fp.shape[0] > 1 else 0
-    sr = 1 if fr.shape[0] > 1 else 0
+    if o.shape[0] >= PARALLEL_MIN and _euler_parallel(fy, fp, fr, o) == 0:
+        return o
     for i in range(o.shape[0]):
-        a, b, g = fy[i * sy], fp[i * sp], fr[i * sr]
-        s = a + b + g
-        if not (s - s == 0.0):
+        if not _euler_row(fy, fp, fr, o, i):
             raise Rejected(i)
-        _euler_zyx_entries(a, b, g, o, i)
     return o
 
 
