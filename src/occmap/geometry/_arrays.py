@@ -45,10 +45,10 @@ def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
     """
     arrays = []
     single = True
-    for value, trailing, *_ in args:
-        a = np.asarray(value, dtype=_F64, order="C")
+    for arg in args:
+        a = np.asarray(arg[0], dtype=_F64, order="C")
         arrays.append(a)
-        single = single and a.shape == trailing
+        single = single and a.shape == arg[1]
     if single:
         return arrays, ()
     leads = [batch(a, arg[1], arg[2])[1] for a, arg in zip(arrays, args)]
@@ -91,18 +91,23 @@ def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (
     ``kernel(*arrays, *args, out)`` and turn a ``Rejected`` into the error that names the bad
     argument and element. Batches get an output allocated here (leading shape + ``out_trailing``);
     a single element lets the kernel allocate (``out=None``) and returns its only row."""
-    if len(operands) == 1:
-        value, trailing, name, _ = operands[0]
-        a, lead = batch(value, trailing, name)
-        arrays = (a,)
+    arrays = []
+    single = True
+    for op in operands:  # the common single call costs one conversion and one comparison each
+        a = np.asarray(op[0], dtype=_F64, order="C")
+        arrays.append(a)
+        single = single and a.shape == op[1]
+    if single:
+        lead = ()
+        out = None
     else:
         arrays, lead = broadcast(*operands)
-    out = np.empty(lead + out_trailing) if lead else None
+        out = np.empty(lead + out_trailing)
     try:
         rows = kernel(*arrays, *args, out)
     except Rejected as e:
         reject(e.args[0], lead, *[(a, op[1], op[2], op[3]) for a, op in zip(arrays, operands)])
-    return out if lead else rows[0]
+    return rows[0] if single else out
 
 
 def where(index: int, lead: tuple[int, ...]) -> str:
