@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench clean clean-cache
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,5 +22,10 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_geometry.py
 	$(BIN)/python benchmarks/bench_grid2d.py
 
-clean:
+clean: clean-cache
 	rm -rf $(VENV) demo_output
+
+# Numba's compiled-kernel cache lives beside the sources; clear it after editing kernels if a
+# stale entry misbehaves (its validity check is the source file's timestamp and size).
+clean-cache:
+	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
