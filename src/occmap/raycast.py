@@ -15,12 +15,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
-
+from ._jit import kernel
 from .errors import InvalidArgumentError, NonFiniteError, ShapeError
-
-kernel = njit(cache=True, error_model="numpy")
-
 
 @kernel
 def cell_of(x, y, ox, oy, inv_res):

@@ -19,15 +19,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
+
+from .._jit import kernel, kernel_parallel
 
 class Rejected(Exception):
     """Raised by a kernel with the flat index of the first element its checks rejected."""
 
 
-# Division by zero yields inf/NaN (caught by the checks) instead of raising inside the loop.
-kernel = njit(cache=True, error_model="numpy")
-kernel_parallel = njit(cache=True, error_model="numpy", parallel=True)
 
 # Point loops this long or longer run on all cores; shorter ones stay serial, where the thread
 # pool's dispatch would cost more than it saves.

@@ -10,12 +10,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
-
+from .._jit import kernel
 from ..raycast import dda_init, dda_step
-
-kernel = njit(cache=True, error_model="numpy")
-
 
 @kernel
 def _update(L, iy, ix, l_delta, l_min, l_max):

@@ -191,11 +191,7 @@ class OccupancyGrid2D:
             float(self.origin[1]), 1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior,
             self.l_min, self.l_max,
         )
-        self._scans += len(P)
-        counts = {"scans": len(P), "beams": int(used), "dropped": int(dropped), "max_range": int(maxed)}
-        for key, value in counts.items():
-            self.stats[key] += value
-        return counts
+        return self._record(len(P), used, dropped, maxed)
 
     def integrate_sonar(self, poses, ranges, bearings, max_range: float, model: SonarModel | None = None) -> dict:
         """Integrate rings of sonar readings with the cone model of :class:`SonarModel`.
@@ -225,8 +221,12 @@ class OccupancyGrid2D:
             0.5 * model.beam_width, float(max_range), float(arc), float(self.origin[0]), float(self.origin[1]),
             self.resolution, model.l_occupied - self.l_prior, model.l_free - self.l_prior, self.l_min, self.l_max,
         )
-        self._scans += len(P)
-        counts = {"scans": len(P), "beams": int(used), "dropped": int(dropped), "max_range": int(maxed)}
+        return self._record(len(P), used, dropped, maxed)
+
+    def _record(self, scans: int, beams, dropped, maxed) -> dict:
+        """Advance the scan counter and add one call's counts to :attr:`stats`; returns them."""
+        self._scans += scans
+        counts = {"scans": scans, "beams": int(beams), "dropped": int(dropped), "max_range": int(maxed)}
         for key, value in counts.items():
             self.stats[key] += value
         return counts

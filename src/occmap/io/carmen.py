@@ -80,6 +80,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import FormatError, InvalidArgumentError
+from ..geometry.so2 import wrap_angle
 from ..scan import LaserScan, ScanStack, stack_scans
 
 __all__ = [
@@ -115,7 +116,6 @@ _MAX_RANGE_PARAMS = {
     "RLASER": ("robot_rear_laser_max", "laser_rear_laser_max_range", "laser_rear_laser_max"),
 }
 
-_TWO_PI = 2.0 * math.pi
 _MAX_KEPT_ERRORS = 100
 _EMPTY = np.zeros(0)
 
@@ -216,11 +216,6 @@ def flaser_angles(n: int) -> np.ndarray:
     return -0.5 * np.pi + i * (np.pi / (n - 1))
 
 
-def _wrap(theta: float) -> float:
-    w = math.remainder(theta, _TWO_PI)
-    return math.pi if w <= -math.pi else w
-
-
 def _open_text(path) -> io.TextIOBase:
     with open(path, "rb") as f:
         magic = f.read(6)
@@ -317,7 +312,7 @@ class _Parser:
         x, y, t = vals[at], vals[at + 1], vals[at + 2]
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(t)):
             raise self._fail(lineno, f"{kind}: {what} must be finite, got ({x}, {y}, {t})")
-        return np.array((x, y, _wrap(t)))
+        return np.array((x, y, float(wrap_angle(t))))
 
     def _bad_numbers(self, lineno, kind, text, layout):
         bad = _first_bad_token(text)

@@ -10,10 +10,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-kernel = njit(cache=True, error_model="numpy")
-kernel_parallel = njit(cache=True, error_model="numpy", parallel=True)
+from .._jit import kernel, kernel_parallel
 
 # Ray batches this long or longer run on all cores.
 PARALLEL_MIN = 1 << 14
