@@ -3,11 +3,15 @@
 Units are metres, radians and seconds throughout; see ``occmap.geometry`` for the conventions.
 """
 
-from . import errors, geometry
+from . import errors, geometry, io
+from .cloud import PointCloud
 from .errors import OccmapError
 from .grid2d import LidarModel, OccupancyGrid2D
 from .scan import LaserScan
 
 __version__ = "0.1.0"
 
-__all__ = ["LaserScan", "LidarModel", "OccmapError", "OccupancyGrid2D", "errors", "geometry", "__version__"]
+__all__ = [
+    "LaserScan", "LidarModel", "OccmapError", "OccupancyGrid2D", "PointCloud", "errors", "geometry", "io",
+    "__version__",
+]

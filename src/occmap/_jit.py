@@ -1,11 +1,12 @@
 """The Numba decorators every kernel module uses.
 
 ``cache=True`` keeps compiled code between runs; ``error_model="numpy"`` makes a division by zero
-give inf/NaN (caught by the kernels' own checks) instead of raising inside a loop. No fastmath:
-the kernels' NaN checks must survive compilation.
+give inf/NaN (caught by the kernels' own checks) instead of raising inside a loop; ``nogil=True``
+lets Python threads run kernels side by side. No fastmath: the kernels' NaN checks must survive
+compilation.
 """
 
 from numba import njit
 
-kernel = njit(cache=True, error_model="numpy")
-kernel_parallel = njit(cache=True, error_model="numpy", parallel=True)
+kernel = njit(cache=True, error_model="numpy", nogil=True)
+kernel_parallel = njit(cache=True, error_model="numpy", nogil=True, parallel=True)

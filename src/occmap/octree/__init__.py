@@ -1,0 +1,5 @@
+"""3D occupancy octree with OctoMap's semantics (:class:`OcTree`)."""
+
+from .tree import Leaves, OcTree
+
+__all__ = ["Leaves", "OcTree"]

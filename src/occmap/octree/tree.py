@@ -1,0 +1,344 @@
+"""The occupancy octree: OctoMap's semantics on a node pool in NumPy arrays.
+
+Conventions (OctoMap's, so maps compare voxel by voxel): depth 16; the key of a coordinate is
+``floor(x / resolution) + 32768`` per axis; child index ``x-bit + 2·y-bit + 4·z-bit``; each node
+holds a float32 log-odds ``l = log(p / (1 − p))``; a hit adds ``logit(prob_hit)``, a miss
+``logit(prob_miss)``, and values are clamped to ``logit(clamp)``; a node is occupied when
+``l ≥ logit(occupancy_threshold)``; an inner node holds the maximum of its children; eight leaf
+children with equal values are pruned into their parent. Space no node covers is *unknown*.
+Points are metres in the map frame; rays start at the sensor origin.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ThreadPoolExecutor
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import InvalidArgumentError, ShapeError
+from . import _insert as I
+from . import _kernels as K
+
+_INITIAL_SLOTS = 1 << 12
+#: Scans with at least this many rays are marked by two threads.
+_PARALLEL_RAYS = 20_000
+_POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="occmap-octree")
+
+
+def _logodds32(p: float) -> np.float32:
+    """OctoMap's ``logodds``: computed in float64, stored as float32."""
+    return np.float32(math.log(p / (1.0 - p)))
+
+
+def _probability(name: str, p) -> float:
+    if not (isinstance(p, (int, float, np.floating)) and 0.0 < p < 1.0):
+        raise InvalidArgumentError(f"{name} must be a probability strictly between 0 and 1, got {p!r}")
+    return float(p)
+
+
+def _points(name: str, points) -> np.ndarray:
+    P = np.asarray(points, dtype=np.float64)
+    if P.ndim == 1 and P.shape == (3,):
+        P = P[None, :]
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise ShapeError(f"{name} must have shape (N, 3), got {P.shape}")
+    return P
+
+
+def _origin(origin) -> np.ndarray:
+    o = np.asarray(origin, dtype=np.float64)
+    if o.shape != (3,):
+        raise ShapeError(f"origin must have shape (3,), got {o.shape}")
+    if not np.all(np.isfinite(o)):
+        raise InvalidArgumentError(f"origin must be finite, got {o.tolist()}")
+    return o
+
+
+def _mark_range(origin, ends, hit, res, start, stop):
+    """Block masks of rays ``start..stop-1`` (grown until they fit)."""
+    storage = I.new_blocks(max(64, (stop - start) // 8))
+    while True:
+        start = I.mark_scan(origin, ends, hit, res, start, stop, *storage)
+        if start == stop:
+            table, codes, hits, frees, count = storage
+            n = int(count[0])
+            return codes[:n], hits[:n], frees[:n]
+        storage = I.grow_blocks(*storage)
+
+
+def _mark(origin, ends, hit, res):
+    """The scan's voxels as Morton-sorted blocks of hit and free bits; large scans are marked by
+    two threads (the kernels release the GIL) and merged."""
+    n = len(ends)
+    if n < _PARALLEL_RAYS:
+        parts = [_mark_range(origin, ends, hit, res, 0, n)]
+    else:
+        half = n // 2
+        futures = [_POOL.submit(_mark_range, origin, ends, hit, res, a, b) for a, b in ((0, half), (half, n))]
+        parts = [f.result() for f in futures]
+    return I.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
+
+
+class Leaves(NamedTuple):
+    """Leaf nodes as arrays: centres (M, 3) and edge lengths (M,) in metres, log-odds (M,) and
+    depth (M,) (16 = one voxel of ``resolution``)."""
+
+    centers: np.ndarray
+    sizes: np.ndarray
+    log_odds: np.ndarray
+    depths: np.ndarray
+
+
+class OcTree:
+    """A probabilistic 3D occupancy octree with OctoMap's update rules and file formats.
+
+    Parameters
+    ----------
+    resolution : float
+        Edge of a depth-16 voxel in metres.
+    prob_hit, prob_miss : float
+        Sensor model: occupancy probability after a hit / a pass-through (OctoMap: 0.7 / 0.4).
+    clamp : (p_min, p_max)
+        Clamping bounds in probability (OctoMap: 0.1192 / 0.971).
+    occupancy_threshold : float
+        Probability at or above which a node counts as occupied (OctoMap: 0.5).
+    """
+
+    def __init__(self, resolution: float, prob_hit: float = 0.7, prob_miss: float = 0.4,
+                 clamp=(0.1192, 0.971), occupancy_threshold: float = 0.5):
+        if not (isinstance(resolution, (int, float, np.floating)) and math.isfinite(resolution) and resolution > 0):
+            raise InvalidArgumentError(f"resolution must be a positive number of metres, got {resolution!r}")
+        self.resolution = float(resolution)
+        self.prob_hit = _probability("prob_hit", prob_hit)
+        self.prob_miss = _probability("prob_miss", prob_miss)
+        self.clamp = (_probability("clamp[0]", clamp[0]), _probability("clamp[1]", clamp[1]))
+        self.occupancy_threshold = _probability("occupancy_threshold", occupancy_threshold)
+        if not self.clamp[0] < self.clamp[1]:
+            raise InvalidArgumentError(f"clamp must be (p_min, p_max) with p_min < p_max, got {clamp!r}")
+        self._l_hit = _logodds32(self.prob_hit)
+        self._l_miss = _logodds32(self.prob_miss)
+        self._l_min = _logodds32(self.clamp[0])
+        self._l_max = _logodds32(self.clamp[1])
+        self._l_occ = _logodds32(self.occupancy_threshold)
+        self.stats = {"scans": 0, "points": 0, "dropped": 0}
+        self.clear()
+
+    # ------------------------------------------------------------------ storage
+
+    def clear(self) -> None:
+        """Forget every node (the map becomes all unknown)."""
+        self._value = np.full(_INITIAL_SLOTS, np.nan, dtype=np.float32)
+        self._child = np.full(_INITIAL_SLOTS, -1, dtype=np.int32)
+        self._meta = np.array([8, -1, 0], dtype=np.int64)
+
+    @property
+    def log_odds_hit(self) -> float:
+        return float(self._l_hit)
+
+    @property
+    def log_odds_miss(self) -> float:
+        return float(self._l_miss)
+
+    @property
+    def clamping_log_odds(self) -> tuple[float, float]:
+        return float(self._l_min), float(self._l_max)
+
+    # ------------------------------------------------------------------ keys
+
+    def coord_to_key(self, points) -> np.ndarray:
+        """Depth-16 keys (N, 3) int64 of points (N, 3) in metres, OctoMap's ``coordToKey``
+        (``floor(x / res) + 32768`` on the float64 coordinate). Raises on keys outside 0..65535."""
+        P = _points("points", points)
+        keys = np.floor(P * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
+        bad = np.flatnonzero(~np.all((keys >= 0) & (keys <= K.MAX_KEY), axis=1))
+        if bad.size:
+            i = int(bad[0])
+            raise InvalidArgumentError(
+                f"point {i} {P[i].tolist()} lies outside the octree's key range "
+                f"(±{K.CENTER * self.resolution:g} m at resolution {self.resolution:g} m)")
+        return keys
+
+    def key_to_coord(self, keys, depth: int = 16) -> np.ndarray:
+        """Centres (N, 3) of the nodes at ``depth`` that hold the given keys, computed as OctoMap's
+        ``keyToCoord(key, depth)`` (bit for bit)."""
+        k = np.asarray(keys, dtype=np.int64)
+        return self._centers(k, np.full(k.shape[:-1], depth, np.int64))
+
+    def _centers(self, keys: np.ndarray, depths: np.ndarray) -> np.ndarray:
+        cells = (1 << (16 - depths))[..., None]
+        return (np.floor_divide(keys - K.CENTER, cells) + 0.5) * (self.resolution * cells)
+
+    # ------------------------------------------------------------------ insertion
+
+    def insert_point_cloud(self, points, origin, max_range: float = -1.0, discretize: bool = False,
+                           lazy: bool = False) -> dict:
+        """Integrate one scan as OctoMap's ``insertPointCloud`` does.
+
+        ``points`` (N, 3) are the measured end points and ``origin`` (3,) the sensor position, both
+        in the map frame, metres. Every ray marks the voxels it crosses free (the origin's voxel
+        included, the end voxel excluded) and its end voxel occupied; a voxel that is both is
+        occupied, and no voxel is updated twice in one scan. A point farther than ``max_range``
+        (< 0: no limit) clears free space up to ``max_range`` and marks nothing. ``discretize``
+        merges points that fall in one voxel first (one ray per voxel, from the voxel centre).
+        ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
+        :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
+        """
+        P = _points("points", points)
+        o = _origin(origin)
+        finite = np.all(np.isfinite(P), axis=1)
+        dropped = int(P.shape[0] - np.count_nonzero(finite))
+        if dropped:
+            P = P[finite]
+        if discretize and P.shape[0]:
+            keys = self.coord_to_key(P)
+            _, first = np.unique(keys, axis=0, return_index=True)
+            P = self.key_to_coord(keys[np.sort(first)])
+        o32 = o.astype(np.float32)
+        self.coord_to_key(o32.astype(np.float64))
+        ends, hit = I.ray_ends(P.astype(np.float32), o32, float(max_range))
+        self.coord_to_key(ends.astype(np.float64))
+        codes, hits, frees = _mark(o32, ends, hit, self.resolution)
+        start = 0
+        while True:
+            start = I.apply_blocks(self._value, self._child, self._meta, codes, hits, frees, start,
+                                   self._l_hit, self._l_miss, self._l_min, self._l_max, not lazy)
+            if start == len(codes):
+                break
+            self._value, self._child = K.grow(self._value, self._child)
+        self.stats["scans"] += 1
+        self.stats["points"] += int(P.shape[0])
+        self.stats["dropped"] += dropped
+        return {"points": int(P.shape[0]), "dropped": dropped, "beyond_max_range": int(np.count_nonzero(~hit))}
+
+    def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
+                            lazy: bool = False) -> dict:
+        """Integrate many scans in order. ``clouds`` holds (N_i, 3) arrays with ``origins`` (S, 3),
+        or objects with ``world_points()`` and ``origin`` (:class:`occmap.cloud.PointCloud`)."""
+        clouds = list(clouds)
+        if origins is None:
+            pairs = [(c.world_points(), c.origin) for c in clouds]
+        else:
+            O = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+            if len(O) != len(clouds):
+                raise ShapeError(f"{len(clouds)} clouds but {len(O)} origins")
+            pairs = list(zip(clouds, O))
+        total = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+        for pts, o in pairs:
+            summary = self.insert_point_cloud(pts, o, max_range, discretize, lazy)
+            total["scans"] += 1
+            for k in ("points", "dropped", "beyond_max_range"):
+                total[k] += summary[k]
+        return total
+
+    def insert_ray(self, origin, end, max_range: float = -1.0, lazy: bool = False) -> None:
+        """OctoMap's ``insertRay``: the voxels from ``origin`` to ``end`` free, ``end``'s voxel
+        occupied; with ``max_range > 0`` a longer ray is cut there and marks nothing."""
+        o = _origin(origin)
+        e = _points("end", end)
+        if e.shape[0] != 1:
+            raise ShapeError(f"end must be one point (3,), got {np.asarray(end).shape}")
+        self.insert_point_cloud(e, o, max_range if max_range > 0 else -1.0, lazy=lazy)
+
+    def update_inner_occupancy(self) -> None:
+        """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
+        K.settle_all(self._value, self._child, self._meta, True, False)
+
+    def prune(self) -> None:
+        """Collapse every node whose eight children are leaves with equal values."""
+        K.settle_all(self._value, self._child, self._meta, False, True)
+
+    def to_max_likelihood(self) -> None:
+        """Set every node to the clamping bound of its class (occupied: upper, free: lower)."""
+        K.to_max_likelihood(self._value, self._child, self._l_occ, self._l_min, self._l_max)
+
+    # ------------------------------------------------------------------ queries
+
+    def _search(self, points, depth: int) -> np.ndarray:
+        if not 0 <= depth <= 16:
+            raise InvalidArgumentError(f"depth must be 0..16, got {depth!r}")
+        P = _points("points", points)
+        keys = np.floor(P * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
+        inside = np.all((keys >= 0) & (keys <= K.MAX_KEY), axis=1) & np.all(np.isfinite(P), axis=1)
+        keys[~inside] = 0
+        nodes = K.search_keys(self._value, self._child, keys, depth)
+        nodes[~inside] = -1
+        return nodes
+
+    def log_odds_at(self, points, depth: int = 16) -> np.ndarray:
+        """Log-odds (N,) of the node holding each point at ``depth`` (or of a pruned ancestor);
+        NaN where the space is unknown or outside the tree."""
+        nodes = self._search(points, depth)
+        out = np.full(nodes.shape, np.nan)
+        known = nodes >= 0
+        out[known] = self._value[nodes[known]]
+        return out
+
+    def occupancy_at(self, points, depth: int = 16) -> np.ndarray:
+        """Per point: −1 unknown, 0 free, 1 occupied (log-odds ≥ the occupancy threshold)."""
+        l = self.log_odds_at(points, depth)
+        out = np.where(l >= self._l_occ, 1, 0).astype(np.int8)
+        out[np.isnan(l)] = -1
+        return out
+
+    def leaves(self, bbx_min=None, bbx_max=None, depth: int | None = None) -> Leaves:
+        """The leaves (nodes at ``depth`` count as leaves when given), optionally only those
+        overlapping the box [bbx_min, bbx_max] in metres."""
+        return self._nodes(bbx_min, bbx_max, 16 if depth is None else depth, True)
+
+    def _nodes(self, bbx_min, bbx_max, depth: int, leaves_only: bool) -> Leaves:
+        if not 0 <= depth <= 16:
+            raise InvalidArgumentError(f"depth must be 0..16, got {depth!r}")
+        kmin = np.zeros(3, np.int64) if bbx_min is None else np.clip(self._bbx_key(bbx_min), 0, K.MAX_KEY)
+        kmax = np.full(3, K.MAX_KEY, np.int64) if bbx_max is None else np.clip(self._bbx_key(bbx_max), 0, K.MAX_KEY)
+        args = (self._value, self._child, depth, kmin, kmax, leaves_only)
+        n = K.collect_nodes(*args, True, np.empty((0, 3), np.int64), np.empty(0, np.int64), np.empty(0, np.float32))
+        keys = np.empty((n, 3), np.int64)
+        depths = np.empty(n, np.int64)
+        values = np.empty(n, np.float32)
+        K.collect_nodes(*args, False, keys, depths, values)
+        sizes = self.resolution * (1 << (16 - depths)).astype(np.float64)
+        return Leaves(self._centers(keys, depths), sizes, values, depths)
+
+    def _bbx_key(self, p) -> np.ndarray:
+        p = np.asarray(p, dtype=np.float64)
+        if p.shape != (3,):
+            raise ShapeError(f"bounding-box corners must have shape (3,), got {p.shape}")
+        return np.floor(p * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
+
+    def occupied_centers(self) -> np.ndarray:
+        """Centres (M, 3) of the occupied leaves (at their own depth)."""
+        lv = self.leaves()
+        return lv.centers[lv.log_odds >= self._l_occ]
+
+    def num_nodes(self) -> int:
+        """Number of nodes, inner and leaves (OctoMap's ``size()``)."""
+        return int(self._meta[K.SIZE])
+
+    def num_leaves(self) -> int:
+        """Number of leaf nodes (OctoMap's ``getNumLeafNodes()``)."""
+        return int(K.count_leaves(self._value, self._child, int(self._meta[K.TOP])))
+
+    def memory_usage(self) -> int:
+        """Bytes the nodes occupy: every inner node's block of eight slots at 8 bytes a slot (float32
+        value, int32 child index), plus the root. Compare with OctoMap's ``memoryUsage()``."""
+        inner = self.num_nodes() - self.num_leaves()
+        return (8 * inner + 1) * 8 if self.num_nodes() else 0
+
+    def metric_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min, max) corners in metres of the box around every known leaf."""
+        lv = self.leaves()
+        if not len(lv.sizes):
+            return np.zeros(3), np.zeros(3)
+        half = 0.5 * lv.sizes[:, None]
+        return (lv.centers - half).min(axis=0), (lv.centers + half).max(axis=0)
+
+    def volume(self) -> float:
+        """Volume in m³ of :meth:`metric_bounds`' box (OctoMap's ``volume()``)."""
+        lo, hi = self.metric_bounds()
+        return float(np.prod(hi - lo))
+
+    def __repr__(self) -> str:
+        return (f"OcTree(resolution={self.resolution:g}, nodes={self.num_nodes()}, "
+                f"leaves={self.num_leaves()})")
