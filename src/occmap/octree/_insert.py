@@ -9,8 +9,9 @@ coordinates interleave to ``m``, x lowest, so bit order is the octree's child or
    arithmetic included) and sets the bits; a hash of block keys with the last block cached keeps
    this a few nanoseconds per voxel. Disjoint ranges of rays can be marked in parallel threads and
    merged (:func:`merge_blocks`).
-2. :func:`apply_blocks` visits the marked voxels in Morton order (blocks sorted by their Morton
-   code), so consecutive voxels share their path from the root except the last level or two. Each
+2. :func:`block_voxels` lists the marked voxels in Morton order (blocks sorted by their Morton
+   code) and :func:`apply_voxels` updates them in that order, so consecutive voxels share their
+   path from the root except the last level or two. Each
    voxel gets one update, a hit if its hit bit is set: log-odds added in float32 and clamped, a
    pruned leaf expanded into eight copies before one changes, and nothing done where OctoMap's
    early abort does nothing (a pruned leaf, or a leaf, already at the clamp the update pushes
@@ -28,25 +29,26 @@ import numpy as np
 from .._jit import kernel
 from ._kernels import DEPTH, FREE, SIZE, TOP, coord_to_key, key_to_coord, settle
 
-#: Slots one block of marked voxels may need at most: 13 ancestors' blocks above the depth-13
-#: node, plus 1 + 8 + 64 blocks below it.
-_BLOCK_ROOM = 8 * (13 + 1 + 8 + 64)
+#: Slots one voxel update may allocate at most: a new block at every level.
+_ROOM = 8 * DEPTH
 
 # Bit index of local coordinate (x, y, z) in a block's mask: interleave 3-bit values, x lowest.
 _SPREAD = np.array([0, 1, 8, 9, 64, 65, 72, 73], np.int64)
 
 
 @kernel
-def ray_ends(points, origin, max_range):
+def ray_ends(points, origins, max_range):
     """End of every ray as ``computeUpdate`` takes it (float32): the point itself when within
-    ``max_range`` (< 0: unlimited), else the point ``max_range`` along the ray; and whether the
-    point is within range (its voxel is then a hit)."""
+    ``max_range`` (< 0: unlimited) of its origin (``origins`` (N, 3), or (1, 3) for all), else the
+    point ``max_range`` along the ray; and whether the point is within range (its voxel is then a
+    hit)."""
     n = points.shape[0]
     ends = np.empty((n, 3), np.float32)
     hit = np.empty(n, np.bool_)
-    ox, oy, oz = origin[0], origin[1], origin[2]
     mr = np.float32(max_range)
     for i in range(n):
+        j = i if origins.shape[0] > 1 else 0
+        ox, oy, oz = origins[j, 0], origins[j, 1], origins[j, 2]
         dx = points[i, 0] - ox
         dy = points[i, 1] - oy
         dz = points[i, 2] - oz
@@ -93,43 +95,54 @@ def _ray_init(ox, oy, oz, ex, ey, ez, okx, oky, okz, res):
 
 
 @kernel
-def ray_keys(origin, end, res):
-    """Keys (M, 3) of the voxels ``computeRayKeys`` reports for one ray: the origin's voxel
-    included, the end's excluded (none when both are in one voxel)."""
+def _step(kx, ky, kz, tx, ty, tz, sx, sy, sz, gx, gy, gz):
+    """One DDA step: advance along the axis whose voxel border comes first (OctoMap's tie-breaks)."""
+    if tx < ty:
+        if tx < tz:
+            return kx + sx, ky, kz, tx + gx, ty, tz
+        return kx, ky, kz + sz, tx, ty, tz + gz
+    if ty < tz:
+        return kx, ky + sy, kz, tx, ty + gy, tz
+    return kx, ky, kz + sz, tx, ty, tz + gz
+
+
+@kernel
+def ray_voxels(origins, ends, with_end, res):
+    """The voxels OctoMap's ``insertRay`` updates, ray after ray: each ray's free voxels (from
+    ``computeRayKeys``: the origin's voxel included, the end's excluded) then, where ``with_end``,
+    its end voxel as a hit. Returns packed keys ``kx | ky << 16 | kz << 32`` and hit flags."""
     inv_res = 1.0 / res
-    ox, oy, oz = origin[0], origin[1], origin[2]
-    okx, oky, okz = coord_to_key(ox, inv_res), coord_to_key(oy, inv_res), coord_to_key(oz, inv_res)
-    ekx, eky, ekz = coord_to_key(end[0], inv_res), coord_to_key(end[1], inv_res), coord_to_key(end[2], inv_res)
-    out = np.empty((16, 3), np.int64)
-    m = 0
-    if ekx == okx and eky == oky and ekz == okz:
-        return out[:0]
-    length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _ray_init(ox, oy, oz, end[0], end[1], end[2], okx, oky, okz, res)
-    kx, ky, kz = okx, oky, okz
-    while True:
-        if m == out.shape[0]:
-            bigger = np.empty((2 * m, 3), np.int64)
-            bigger[:m] = out
-            out = bigger
-        out[m, 0] = kx
-        out[m, 1] = ky
-        out[m, 2] = kz
-        m += 1
-        if tx < ty:
-            if tx < tz:
-                kx += sx
-                tx += gx
-            else:
-                kz += sz
-                tz += gz
-        elif ty < tz:
-            ky += sy
-            ty += gy
-        else:
-            kz += sz
-            tz += gz
-        if (kx == ekx and ky == eky and kz == ekz) or min(tx, ty, tz) > length:
-            return out[:m]
+    n_rays = ends.shape[0]
+    total = 0
+    for count_only in (True, False):
+        if not count_only:
+            keys = np.empty(total, np.int64)
+            is_hit = np.empty(total, np.bool_)
+        m = 0
+        for r in range(n_rays):
+            o = origins[r] if origins.shape[0] > 1 else origins[0]
+            ox, oy, oz = o[0], o[1], o[2]
+            ex, ey, ez = ends[r, 0], ends[r, 1], ends[r, 2]
+            okx, oky, okz = coord_to_key(ox, inv_res), coord_to_key(oy, inv_res), coord_to_key(oz, inv_res)
+            ekx, eky, ekz = coord_to_key(ex, inv_res), coord_to_key(ey, inv_res), coord_to_key(ez, inv_res)
+            if not (ekx == okx and eky == oky and ekz == okz):
+                length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _ray_init(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+                kx, ky, kz = okx, oky, okz
+                while True:
+                    if not count_only:
+                        keys[m] = kx | (ky << 16) | (kz << 32)
+                        is_hit[m] = False
+                    m += 1
+                    kx, ky, kz, tx, ty, tz = _step(kx, ky, kz, tx, ty, tz, sx, sy, sz, gx, gy, gz)
+                    if (kx == ekx and ky == eky and kz == ekz) or min(tx, ty, tz) > length:
+                        break
+            if with_end[r]:
+                if not count_only:
+                    keys[m] = ekx | (eky << 16) | (ekz << 32)
+                    is_hit[m] = True
+                m += 1
+        total = m
+    return keys, is_hit
 
 
 # ---------------------------------------------------------------------------- marking
@@ -216,19 +229,7 @@ def mark_scan(origin, ends, hit, res, start, stop, table, codes, hits, frees, co
                 hits[cur, m >> 6] |= np.int64(1) << (m & 63)
                 break
             frees[cur, m >> 6] |= np.int64(1) << (m & 63)
-            if tx < ty:
-                if tx < tz:
-                    kx += sx
-                    tx += gx
-                else:
-                    kz += sz
-                    tz += gz
-            elif ty < tz:
-                ky += sy
-                ty += gy
-            else:
-                kz += sz
-                tz += gz
+            kx, ky, kz, tx, ty, tz = _step(kx, ky, kz, tx, ty, tz, sx, sy, sz, gx, gy, gz)
             if (kx == ekx and ky == eky and kz == ekz) or min(tx, ty, tz) > length:
                 kx, ky, kz = ekx, eky, ekz
                 is_hit = True
@@ -294,103 +295,129 @@ def _compact(m):
 
 
 @kernel
-def apply_blocks(value, child, meta, codes, hits, frees, start, l_hit, l_miss, lo, hi, settle_nodes):
-    """Update every marked voxel of blocks ``start..`` (Morton-sorted) once. Returns the number of
-    blocks, or the block at which the node pool ran out of room (nothing of it applied yet: the
-    caller grows the pool and resumes there). With ``settle_nodes`` false (OctoMap's lazy
-    evaluation) inner nodes are neither updated nor pruned."""
-    nb = codes.shape[0]
-    cap = value.shape[0]
-    path = np.zeros(DEPTH + 1, np.int64)  # path[d]: node at depth d on the last walk
-    known = -1  # deepest valid entry of path
-    dirty = -1  # path[0..dirty] saw a change since the walk entered them
-    px = py = pz = 0
-    for b in range(start, nb):
-        if meta[FREE] < 0 and meta[TOP] + _BLOCK_ROOM > cap:
-            if settle_nodes:
-                for d in range(min(dirty, known - 1), -1, -1):
-                    settle(value, child, meta, path[d], True, True)
-            return b
+def block_voxels(codes, hits, frees):
+    """The marked voxels of Morton-sorted blocks as packed keys ``kx | ky << 16 | kz << 32`` in
+    Morton order, with a flag for the hit voxels (a voxel both hit and crossed is a hit)."""
+    n = 0
+    for b in range(codes.shape[0]):
+        for w in range(8):
+            word = hits[b, w] | frees[b, w]
+            while word != 0:
+                word &= word - 1
+                n += 1
+    keys = np.empty(n, np.int64)
+    is_hit = np.empty(n, np.bool_)
+    n = 0
+    for b in range(codes.shape[0]):
         c0 = codes[b] - 1
-        bx, by, bz = (c0 >> 26) << 3, ((c0 >> 13) & 8191) << 3, (c0 & 8191) << 3
+        base = ((c0 >> 26) << 3) | ((((c0 >> 13) & 8191) << 3) << 16) | (((c0 & 8191) << 3) << 32)
         for w in range(8):
             word = hits[b, w] | frees[b, w]
             while word != 0:
                 bit = _lowest_bit(word)
                 word &= word - 1
-                is_hit = (hits[b, w] >> bit) & 1 == 1
                 m = (w << 6) | bit
-                kx = bx | _compact(m)
-                ky = by | _compact(m >> 1)
-                kz = bz | _compact(m >> 2)
-                # ---- leave the previous voxel's path down to the node both share
-                d = 0
-                if known >= 0:
-                    diff = (kx ^ px) | (ky ^ py) | (kz ^ pz)
-                    top = 0
-                    while diff > 1:
-                        diff >>= 1
-                        top += 1
-                    shared = DEPTH - 1 - top
-                    if settle_nodes:
-                        for s in range(min(dirty, known - 1), shared, -1):
-                            settle(value, child, meta, path[s], True, True)
-                        dirty = min(dirty, shared)
-                    d = min(shared, known)
-                px, py, pz = kx, ky, kz
-                # ---- walk down, creating or expanding nodes, unless the update cannot change anything
-                node = path[d]
-                created = False
-                if d == 0 and np.isnan(value[0]):
-                    value[0] = 0.0
-                    child[0] = -1
-                    meta[SIZE] += 1
-                    created = True
-                absorbed = False
-                while d < DEPTH:
-                    c = child[node]
-                    if c < 0:
-                        if not created:
-                            v = value[node]
-                            absorbed = v >= hi if is_hit else v <= lo  # OctoMap's early abort
-                            if absorbed:
-                                break
-                        c = meta[FREE]
-                        if c >= 0:
-                            meta[FREE] = child[c]
-                        else:
-                            c = meta[TOP]
-                            meta[TOP] = c + 8
-                        fill = np.float32(np.nan) if created else value[node]  # expansion: 8 copies
-                        for j in range(c, c + 8):
-                            value[j] = fill
-                            child[j] = -1
-                        if not created:
-                            meta[SIZE] += 8
-                        child[node] = c
-                    shift = DEPTH - 1 - d
-                    node = c + (((kx >> shift) & 1) | (((ky >> shift) & 1) << 1) | (((kz >> shift) & 1) << 2))
-                    created = np.isnan(value[node])
-                    if created:
-                        value[node] = 0.0
-                        meta[SIZE] += 1
-                    d += 1
-                    path[d] = node
-                known = d
-                if absorbed:
-                    continue
-                v = value[node]
-                if is_hit:
-                    if v >= hi:
-                        continue
-                    v = v + l_hit
+                keys[n] = base | _compact(m) | (_compact(m >> 1) << 16) | (_compact(m >> 2) << 32)
+                is_hit[n] = (hits[b, w] >> bit) & 1 == 1
+                n += 1
+    return keys, is_hit
+
+
+@kernel
+def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes):
+    """Update voxels ``start..`` (packed keys) in order, each as OctoMap's ``updateNode`` with a hit
+    or a miss. Returns the number of voxels, or the one at which the node pool ran out of room
+    (nothing of it applied yet: the caller grows the pool and resumes there). With
+    ``settle_nodes`` false (OctoMap's lazy evaluation) inner nodes are neither updated nor pruned.
+
+    The walk to a voxel restarts from the deepest node shared with the previous voxel's path, so
+    voxels in Morton order cost a level or two instead of sixteen; an inner node is settled once
+    the walk leaves it, if anything below it changed. The update step is written once and inline:
+    a Numba call passing arrays costs more than the step itself."""
+    n = keys.shape[0]
+    cap = value.shape[0]
+    path = np.zeros(DEPTH + 1, np.int64)  # path[d]: node at depth d on the last walk
+    known = -1  # deepest valid entry of path
+    dirty = -1  # path[0..dirty] saw a change since the walk entered them
+    previous = 0
+    for i in range(start, n):
+        if meta[FREE] < 0 and meta[TOP] + _ROOM > cap:
+            if settle_nodes:
+                for d in range(min(dirty, known - 1), -1, -1):
+                    settle(value, child, meta, path[d], True, True)
+            return i
+        key = keys[i]
+        kx, ky, kz = key & 0xFFFF, (key >> 16) & 0xFFFF, key >> 32
+        hit = is_hit[i]
+        # ---- leave the previous voxel's path up to the node both share
+        d = 0
+        if known >= 0:
+            diff = key ^ previous
+            diff = (diff | (diff >> 16) | (diff >> 32)) & 0xFFFF
+            top = -1
+            while diff:
+                diff >>= 1
+                top += 1
+            shared = DEPTH - 1 - top  # 16 when it is the same voxel
+            if settle_nodes:
+                for s in range(min(dirty, known - 1), shared, -1):
+                    settle(value, child, meta, path[s], True, True)
+                dirty = min(dirty, shared)
+            d = min(shared, known)
+        previous = key
+        # ---- walk down, creating or expanding nodes, unless the update cannot change anything
+        node = path[d]
+        created = False
+        if d == 0 and np.isnan(value[0]):
+            value[0] = 0.0
+            child[0] = -1
+            meta[SIZE] += 1
+            created = True
+        absorbed = False
+        while d < DEPTH:
+            c = child[node]
+            if c < 0:
+                if not created:
+                    v = value[node]
+                    absorbed = v >= hi if hit else v <= lo  # OctoMap's early abort
+                    if absorbed:
+                        break
+                c = meta[FREE]
+                if c >= 0:
+                    meta[FREE] = child[c]
                 else:
-                    if v <= lo:
-                        continue
-                    v = v + l_miss
-                value[node] = lo if v < lo else (hi if v > hi else v)
-                dirty = DEPTH
+                    c = meta[TOP]
+                    meta[TOP] = c + 8
+                fill = np.float32(np.nan) if created else value[node]  # expansion: 8 copies
+                for j in range(c, c + 8):
+                    value[j] = fill
+                    child[j] = -1
+                if not created:
+                    meta[SIZE] += 8
+                child[node] = c
+            shift = DEPTH - 1 - d
+            node = c + (((kx >> shift) & 1) | (((ky >> shift) & 1) << 1) | (((kz >> shift) & 1) << 2))
+            created = np.isnan(value[node])
+            if created:
+                value[node] = 0.0
+                meta[SIZE] += 1
+            d += 1
+            path[d] = node
+        known = d
+        if absorbed:
+            continue
+        v = value[node]
+        if hit:
+            if v >= hi:
+                continue
+            v = v + l_hit
+        else:
+            if v <= lo:
+                continue
+            v = v + l_miss
+        value[node] = lo if v < lo else (hi if v > hi else v)
+        dirty = DEPTH
     if settle_nodes and known >= 0:
         for d in range(min(dirty, known - 1), -1, -1):
             settle(value, child, meta, path[d], True, True)
-    return nb
+    return n

@@ -114,6 +114,42 @@ def settle_all(value, child, meta, set_max, prune):
 
 
 @kernel
+def expand_all(value, child, meta):
+    """Expand every pruned leaf down to depth 16 (OctoMap's ``expand``); the arrays must have room
+    for the new blocks (see ``OcTree.expand``)."""
+    if np.isnan(value[0]):
+        return
+    nodes = np.empty(DEPTH + 1, np.int64)
+    next_child = np.zeros(DEPTH + 1, np.int64)
+    nodes[0] = 0
+    sp = 0
+    while sp >= 0:
+        node = nodes[sp]
+        if sp < DEPTH and child[node] < 0:
+            c = meta[FREE]
+            if c >= 0:
+                meta[FREE] = child[c]
+            else:
+                c = meta[TOP]
+                meta[TOP] = c + 8
+            for j in range(c, c + 8):
+                value[j] = value[node]
+                child[j] = -1
+            child[node] = c
+            meta[SIZE] += 8
+        i = next_child[sp]
+        if sp == DEPTH or i == 8:
+            sp -= 1
+            continue
+        next_child[sp] = i + 1
+        k = child[node] + i
+        if not np.isnan(value[k]):
+            sp += 1
+            nodes[sp] = k
+            next_child[sp] = 0
+
+
+@kernel
 def to_max_likelihood(value, child, occ, lo, hi):
     """Every node's value to the clamping bound of its class (OctoMap's ``toMaxLikelihood``)."""
     for i in range(value.shape[0]):
@@ -218,3 +254,116 @@ def collect_nodes(value, child, max_depth, kmin, kmax, leaves_only, count_only, 
         if not pushed:
             sp -= 1
     return m
+
+
+@kernel
+def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown, occ):
+    """OctoMap's ``castRay`` for each ray (float32 origins and directions as its ``point3d``):
+    walk the voxels from the origin's until an occupied one (hit), an unknown one (a miss unless
+    ``ignore_unknown``), ``max_range`` (> 0) or the tree's border. Returns hit flags, the centre of
+    the voxel where each ray stopped (float32, NaN where the ray could not be cast: origin outside
+    the tree or zero direction)."""
+    inv_res = 1.0 / res
+    n = max(origins.shape[0], directions.shape[0])
+    hit = np.zeros(n, np.bool_)
+    ends = np.full((n, 3), np.nan, np.float32)
+    path = np.zeros(DEPTH + 1, np.int64)
+    known = -1
+    px = py = pz = 0
+    max_range_set = max_range > 0.0
+    max_range_sq = max_range * max_range
+    big = np.finfo(np.float64).max
+    for r in range(n):
+        o = origins[r] if origins.shape[0] == n else origins[0]
+        ox, oy, oz = o[0], o[1], o[2]
+        kx, ky, kz = coord_to_key(ox, inv_res), coord_to_key(oy, inv_res), coord_to_key(oz, inv_res)
+        if not (0 <= kx <= MAX_KEY and 0 <= ky <= MAX_KEY and 0 <= kz <= MAX_KEY):
+            continue
+        q = directions[r] if directions.shape[0] == n else directions[0]
+        dx, dy, dz = q[0], q[1], q[2]
+        norm = np.float32(math.sqrt(np.float64(dx * dx + dy * dy + dz * dz)))
+        if norm > 0:
+            dx, dy, dz = dx / norm, dy / norm, dz / norm
+        sx = 1 if dx > 0 else (-1 if dx < 0 else 0)
+        sy = 1 if dy > 0 else (-1 if dy < 0 else 0)
+        sz = 1 if dz > 0 else (-1 if dz < 0 else 0)
+        tx = ty = tz = gx = gy = gz = big
+        if sx != 0:
+            tx = (key_to_coord(kx, res) + sx * res * 0.5 - np.float64(ox)) / np.float64(dx)
+            gx = res / abs(np.float64(dx))
+        if sy != 0:
+            ty = (key_to_coord(ky, res) + sy * res * 0.5 - np.float64(oy)) / np.float64(dy)
+            gy = res / abs(np.float64(dy))
+        if sz != 0:
+            tz = (key_to_coord(kz, res) + sz * res * 0.5 - np.float64(oz)) / np.float64(dz)
+            gz = res / abs(np.float64(dz))
+        first = True
+        while True:
+            # ---- search (kx, ky, kz), restarting from the node shared with the previous search
+            d = 0
+            if known >= 0:
+                diff = (kx ^ px) | (ky ^ py) | (kz ^ pz)
+                top = -1
+                while diff:
+                    diff >>= 1
+                    top += 1
+                d = min(DEPTH - 1 - top, known)
+            px, py, pz = kx, ky, kz
+            node = path[d]
+            if d == 0 and np.isnan(value[0]):
+                node = -1
+            while node >= 0 and d < DEPTH and child[node] >= 0:
+                nxt = child[node] + child_pos(kx, ky, kz, d)
+                if np.isnan(value[nxt]):
+                    node = -1
+                else:
+                    node = nxt
+                    d += 1
+                    path[d] = node
+            known = d  # path[0..d] holds existing nodes whether or not the search found one
+            ends[r, 0] = key_to_coord(kx, res)
+            ends[r, 1] = key_to_coord(ky, res)
+            ends[r, 2] = key_to_coord(kz, res)
+            if node >= 0:
+                if value[node] >= occ:
+                    hit[r] = True
+                    break
+            elif not ignore_unknown:
+                break
+            if first:
+                first = False
+                if sx == 0 and sy == 0 and sz == 0:
+                    ends[r, :] = np.nan
+                    break
+            # ---- next voxel, unless the ray leaves the tree or passes max_range
+            if tx < ty:
+                dim = 0 if tx < tz else 2
+            else:
+                dim = 1 if ty < tz else 2
+            if dim == 0:
+                if (sx < 0 and kx == 0) or (sx > 0 and kx == MAX_KEY):
+                    break
+                kx += sx
+                tx += gx
+            elif dim == 1:
+                if (sy < 0 and ky == 0) or (sy > 0 and ky == MAX_KEY):
+                    break
+                ky += sy
+                ty += gy
+            else:
+                if (sz < 0 and kz == 0) or (sz > 0 and kz == MAX_KEY):
+                    break
+                kz += sz
+                tz += gz
+            if max_range_set:
+                ex = np.float32(key_to_coord(kx, res))
+                ey = np.float32(key_to_coord(ky, res))
+                ez = np.float32(key_to_coord(kz, res))
+                dist_sq = (np.float64((ex - ox) * (ex - ox)) + np.float64((ey - oy) * (ey - oy))
+                           + np.float64((ez - oz) * (ez - oz)))
+                if dist_sq > max_range_sq:
+                    ends[r, 0] = ex
+                    ends[r, 1] = ey
+                    ends[r, 2] = ez
+                    break
+    return hit, ends

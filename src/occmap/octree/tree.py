@@ -197,16 +197,10 @@ class OcTree:
             P = self.key_to_coord(keys[np.sort(first)])
         o32 = o.astype(np.float32)
         self.coord_to_key(o32.astype(np.float64))
-        ends, hit = I.ray_ends(P.astype(np.float32), o32, float(max_range))
+        ends, hit = I.ray_ends(P.astype(np.float32), o32[None, :], float(max_range))
         self.coord_to_key(ends.astype(np.float64))
-        codes, hits, frees = _mark(o32, ends, hit, self.resolution)
-        start = 0
-        while True:
-            start = I.apply_blocks(self._value, self._child, self._meta, codes, hits, frees, start,
-                                   self._l_hit, self._l_miss, self._l_min, self._l_max, not lazy)
-            if start == len(codes):
-                break
-            self._value, self._child = K.grow(self._value, self._child)
+        keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution))
+        self._apply(keys, is_hit, lazy)
         self.stats["scans"] += 1
         self.stats["points"] += int(P.shape[0])
         self.stats["dropped"] += dropped
@@ -232,14 +226,47 @@ class OcTree:
                 total[k] += summary[k]
         return total
 
+    def insert_rays(self, origins, ends, max_range: float = -1.0, lazy: bool = False) -> None:
+        """OctoMap's ``insertRay`` for each ray in turn: the voxels from ``origins`` (N, 3) or one
+        origin (3,) to ``ends`` (N, 3) free, each end's voxel occupied; with ``max_range > 0`` a
+        longer ray is cut there and marks nothing. Unlike :meth:`insert_point_cloud`, rays are
+        independent updates (a voxel crossed by two rays is updated twice)."""
+        E = _points("ends", ends)
+        O = np.asarray(origins, dtype=np.float64)
+        O = _points("origins", O) if O.ndim == 2 else _origin(O)[None, :]
+        if O.shape[0] not in (1, E.shape[0]):
+            raise ShapeError(f"origins must be (3,) or ({E.shape[0]}, 3), got {O.shape}")
+        if not np.all(np.isfinite(E)) or not np.all(np.isfinite(O)):
+            raise InvalidArgumentError("ray origins and ends must be finite")
+        O32, E32 = O.astype(np.float32), E.astype(np.float32)
+        E32, with_end = I.ray_ends(E32, O32, float(max_range) if max_range > 0 else -1.0)
+        self.coord_to_key(O32.astype(np.float64))
+        self.coord_to_key(E32.astype(np.float64))
+        keys, is_hit = I.ray_voxels(O32, E32, with_end, self.resolution)
+        self._apply(keys, is_hit, lazy)
+
     def insert_ray(self, origin, end, max_range: float = -1.0, lazy: bool = False) -> None:
-        """OctoMap's ``insertRay``: the voxels from ``origin`` to ``end`` free, ``end``'s voxel
-        occupied; with ``max_range > 0`` a longer ray is cut there and marks nothing."""
-        o = _origin(origin)
-        e = _points("end", end)
-        if e.shape[0] != 1:
-            raise ShapeError(f"end must be one point (3,), got {np.asarray(end).shape}")
-        self.insert_point_cloud(e, o, max_range if max_range > 0 else -1.0, lazy=lazy)
+        """One ray (see :meth:`insert_rays`)."""
+        self.insert_rays(_origin(origin), _points("end", end), max_range, lazy)
+
+    def update_nodes(self, points, occupied, lazy: bool = False) -> None:
+        """OctoMap's ``updateNode(point, occupied)`` for each point in turn: one hit (``occupied``
+        true) or miss on the voxel holding it. ``occupied`` is a bool or one bool per point."""
+        P = _points("points", points)
+        if not np.all(np.isfinite(P)):
+            raise InvalidArgumentError("points must be finite")
+        occ = np.broadcast_to(np.asarray(occupied, dtype=bool), P.shape[:1])
+        k = self.coord_to_key(P.astype(np.float32).astype(np.float64))
+        self._apply(k[:, 0] | (k[:, 1] << 16) | (k[:, 2] << 32), np.ascontiguousarray(occ), lazy)
+
+    def _apply(self, keys: np.ndarray, is_hit: np.ndarray, lazy: bool) -> None:
+        start = 0
+        while True:
+            start = I.apply_voxels(self._value, self._child, self._meta, keys, is_hit, start,
+                                   self._l_hit, self._l_miss, self._l_min, self._l_max, not lazy)
+            if start == len(keys):
+                return
+            self._value, self._child = K.grow(self._value, self._child)
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
@@ -248,6 +275,15 @@ class OcTree:
     def prune(self) -> None:
         """Collapse every node whose eight children are leaves with equal values."""
         K.settle_all(self._value, self._child, self._meta, False, True)
+
+    def expand(self) -> None:
+        """Expand every pruned leaf into its depth-16 voxels (OctoMap's ``expand``; memory grows by
+        8^(16 − depth) per pruned leaf)."""
+        depths = self.leaves().depths
+        new_nodes = int(sum(((8 ** (17 - depths) - 8) // 7).tolist()))
+        while self._value.shape[0] < self._meta[K.TOP] + new_nodes:
+            self._value, self._child = K.grow(self._value, self._child)
+        K.expand_all(self._value, self._child, self._meta)
 
     def to_max_likelihood(self) -> None:
         """Set every node to the clamping bound of its class (occupied: upper, free: lower)."""
@@ -281,6 +317,21 @@ class OcTree:
         out = np.where(l >= self._l_occ, 1, 0).astype(np.int8)
         out[np.isnan(l)] = -1
         return out
+
+    def cast_ray(self, origins, directions, max_range: float = -1.0, ignore_unknown: bool = False):
+        """OctoMap's ``castRay`` for each ray: from the voxel of ``origins`` (N, 3) (or one (3,))
+        along ``directions`` (N, 3) (or one), stop at the first occupied voxel (a hit), at an
+        unknown voxel (a miss, unless ``ignore_unknown``), beyond ``max_range`` (> 0) or at the
+        tree's border. Returns ``(hit (N,) bool, end_points (N, 3))``: the centre of the voxel where
+        each ray stopped; NaN where it could not be cast (origin outside the tree, zero direction).
+        """
+        O, D = _points("origins", origins), _points("directions", directions)
+        n = max(len(O), len(D))
+        if len(O) not in (1, n) or len(D) not in (1, n):
+            raise ShapeError(f"origins {O.shape} and directions {D.shape} do not match")
+        hit, ends = K.cast_rays(self._value, self._child, O.astype(np.float32), D.astype(np.float32),
+                                self.resolution, float(max_range), bool(ignore_unknown), self._l_occ)
+        return hit, ends.astype(np.float64)
 
     def leaves(self, bbx_min=None, bbx_max=None, depth: int | None = None) -> Leaves:
         """The leaves (nodes at ``depth`` count as leaves when given), optionally only those

@@ -1,0 +1,356 @@
+"""The octree against OctoMap: its own unit tests' figures (octomap/src/testing) and voxel-by-voxel
+agreement with octomap-python on the same inputs."""
+
+from __future__ import annotations
+
+import bz2
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from occmap.errors import InvalidArgumentError, ShapeError
+from occmap.octree import OcTree
+
+octomap = pytest.importorskip("octomap")
+
+
+# ----------------------------------------------------------------------------- helpers
+
+@numba.njit(cache=False)
+def _rotate_ip(v, pitch, yaw):
+    """octomath::Vector3::rotate_IP(0, pitch, yaw) on a float32 vector: pitch then yaw, each
+    result rounded to float (roll 0 leaves the value unchanged)."""
+    x, z = np.float64(v[0]), np.float64(v[2])
+    v[0] = np.float32(z * math.sin(pitch) + x * math.cos(pitch))
+    v[2] = np.float32(z * math.cos(pitch) - x * math.sin(pitch))
+    x, y = np.float64(v[0]), np.float64(v[1])
+    v[0] = np.float32(x * math.cos(yaw) - y * math.sin(yaw))
+    v[1] = np.float32(x * math.sin(yaw) + y * math.cos(yaw))
+    y, z = np.float64(v[1]), np.float64(v[2])
+    v[1] = np.float32(y * 1.0 - z * 0.0)
+    v[2] = np.float32(y * 0.0 + z * 1.0)
+
+
+@numba.njit(cache=False)
+def _sphere(origin, start, n, angle):
+    """The sphere of points OctoMap's tests build: ``origin + p`` with p rotated by ``angle`` in yaw
+    n times per row and in pitch after each row (float32 throughout, as octomath)."""
+    out = np.empty((n * n, 3), np.float32)
+    p = start.copy()
+    k = 0
+    for _ in range(n):
+        for _ in range(n):
+            for a in range(3):
+                out[k, a] = origin[a] + p[a]
+            k += 1
+            _rotate_ip(p, 0.0, angle)
+        _rotate_ip(p, angle, 0.0)
+    return out
+
+
+ORIGIN = np.array([0.01, 0.01, 0.02], np.float32)
+SURFACE = np.array([2.01, 0.01, 0.01], np.float32)
+
+
+def _leaf_table(tree: OcTree) -> np.ndarray:
+    lv = tree.leaves()  # octomap-python reports centres as float32 (octomath's point3d)
+    t = np.c_[lv.centers.astype(np.float32), lv.depths, lv.log_odds.astype(np.float64)]
+    return t[np.lexsort(t[:, [4, 3, 2, 1, 0]].T)]
+
+
+def _octomap_leaf_table(tree) -> np.ndarray:
+    rows = [(*it.getCoordinate(), it.getDepth(), it.getValue()) for it in tree.begin_leafs()]
+    t = np.array(rows, dtype=np.float64).reshape(-1, 5)
+    t[:, 4] = t[:, 4].astype(np.float32)
+    return t[np.lexsort(t[:, [4, 3, 2, 1, 0]].T)]
+
+
+def assert_same_as_octomap(ours: OcTree, ref) -> None:
+    """Same node count, same leaves (centre, depth) and the same float32 log-odds in each."""
+    assert ours.num_nodes() == ref.size()
+    assert ours.num_leaves() == ref.getNumLeafNodes()
+    a, b = _leaf_table(ours), _octomap_leaf_table(ref)
+    assert a.shape == b.shape
+    np.testing.assert_array_equal(a[:, 3], b[:, 3])
+    np.testing.assert_array_equal(a[:, :3], b[:, :3])
+    np.testing.assert_array_equal(a[:, 4].astype(np.float32), b[:, 4].astype(np.float32))
+
+
+def _room_cloud(rng, n, half=4.0):
+    """Points on the walls, floor and ceiling of a box around the origin, plus a few inside."""
+    pts = rng.uniform(-half, half, size=(n, 3))
+    axis = rng.integers(0, 3, size=n)
+    pts[np.arange(n), axis] = np.where(rng.random(n) < 0.5, -half, half) * rng.uniform(0.7, 1.0, n)
+    return pts
+
+
+# ----------------------------------------------------------------------------- OctoMap's unit tests
+
+def test_insert_scan_sphere_matches_octomap_unit_test():
+    """unit_tests InsertScan: a 360×360 sphere of points at 2 m, 0.05 m → 53,959 nodes."""
+    cloud = _sphere(ORIGIN, SURFACE, 360, math.pi / 180.0)
+    tree = OcTree(0.05)
+    tree.insert_point_cloud(cloud.astype(np.float64), ORIGIN.astype(np.float64))
+    assert tree.num_nodes() == 53959
+
+
+def test_insert_ray_sphere_matches_octomap_unit_test():
+    """unit_tests InsertRay: the same sphere as 129,600 separate insertRay calls, then the
+    maximum-likelihood, pruned tree writeBinary leaves → 50,615 nodes."""
+    cloud = _sphere(ORIGIN, SURFACE, 360, math.pi / 180.0)
+    tree = OcTree(0.05)
+    tree.insert_rays(ORIGIN.astype(np.float64), cloud.astype(np.float64))
+    tree.to_max_likelihood()
+    tree.prune()
+    assert tree.num_nodes() == 50615
+
+
+def test_raycasting_sphere_matches_octomap_test():
+    """test_raycasting: every ray from the centre of a 500×500-beam sphere hits it, at 2 ± 0.05 m."""
+    n = 500
+    angle = 2.0 * math.pi / n
+    tree = OcTree(0.05)
+    tree.insert_point_cloud(_sphere(ORIGIN, SURFACE, n, angle).astype(np.float64), ORIGIN.astype(np.float64))
+    directions = _sphere(np.zeros(3, np.float32), np.array([1.0, 0.0, 0.0], np.float32), n, angle)
+    hit, ends = tree.cast_ray(ORIGIN.astype(np.float64), directions.astype(np.float64), max_range=3.0)
+    assert hit.all()
+    assert abs(np.linalg.norm(ends - ORIGIN.astype(np.float32).astype(np.float64), axis=1).mean() - 2.0) < 0.05
+
+
+def _cube_tree() -> OcTree:
+    """test_raycasting's cube: free voxels for x < 0.9, occupied beyond, four extra hits."""
+    res = 0.1
+    steps = np.arange(-0.95, 1.0 + 1e-6, res, dtype=np.float64)  # float loop of the test, same voxels
+    g = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), axis=-1).reshape(-1, 3)
+    tree = OcTree(res)
+    tree.update_nodes(g, g[:, 0] >= 0.9)
+    h = res / 2
+    tree.update_nodes(np.array([[h, h, -h], [3 * h, h, -h], [-h, h, -h], [-3 * h, h, -h]]), True)
+    return tree
+
+
+def test_raycasting_cube_matches_octomap_test():
+    tree = _cube_tree()
+    hit, ends = tree.cast_ray([0.0, 0.0, 0.0], [[0.95, 0.95, 0.95], [1.0, 0.0, 0.0]])
+    assert hit.all()
+    assert (tree.occupancy_at(ends) == 1).all()
+    assert abs(np.linalg.norm(ends[1]) - 1.0) <= 0.05
+    # straight down onto the occupied voxels at z = -0.05, then straight up to the free ceiling
+    origin = np.array([0.05, 0.05, 0.5], np.float32).astype(np.float64)
+    hit, ends = tree.cast_ray(origin, [0.0, 0.0, -1.0])
+    assert hit[0] and tree.occupancy_at(ends)[0] == 1
+    assert ends[0, 0] == np.float32(origin[0]) and ends[0, 1] == np.float32(origin[1])
+    assert abs(ends[0, 2] - (-0.05)) < 1e-6
+    hit, _ = tree.cast_ray(origin, [0.0, 0.0, 1.0])
+    assert not hit[0]
+
+
+def test_pruning_sequence_matches_octomap_test():
+    """test_pruning: node counts through single inserts, the pruning of eight equal siblings,
+    a filled cube, expand() and prune()."""
+    res = np.float32(0.01)
+    tree = OcTree(float(res))
+    assert tree.num_nodes() == 0
+    tree.prune()
+    assert tree.num_nodes() == 0
+    key = tree.coord_to_key(np.array([-0.05, -0.02, 1.0], np.float32).astype(np.float64))[0]
+
+    def update(offset, occupied=True):
+        tree.update_nodes(tree.key_to_coord(key + np.asarray(offset))[None, :], occupied)
+
+    update((0, 0, 0))
+    assert tree.num_nodes() == 17
+    assert tree.occupancy_at(tree.key_to_coord(key)[None, :])[0] == 1
+    update((1, 1, 1))
+    assert tree.num_nodes() == 18
+    for off in ((1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1)):
+        update(off)
+    assert tree.num_nodes() == 23
+    update((0, 1, 1))  # the eighth sibling: the parent is pruned
+    assert tree.num_nodes() == 16
+    assert tree.leaves().depths.min() == 15
+    # a 32×32×32 cube of occupied voxels collapses into few nodes
+    xs = np.arange(np.float32(0.005), np.float32(0.32) + np.float32(1e-7), res, dtype=np.float32)
+    cube = np.stack(np.meshgrid(xs, xs, xs, indexing="ij"), axis=-1).reshape(-1, 3).astype(np.float64)
+    tree.update_nodes(cube, True)
+    assert tree.num_nodes() == 27
+    tree.prune()
+    assert tree.num_nodes() == 27
+    tree.expand()
+    assert tree.num_nodes() == 37483
+    tree.prune()
+    assert tree.num_nodes() == 27
+    assert (tree.occupancy_at(cube) == 1).all()
+    tree.update_nodes(np.array([[0.1, 0.1, 0.1]], np.float32).astype(np.float64), True)
+    assert tree.num_nodes() == 67
+    tree.update_nodes(np.array([[-2.0, -2.0, -2.0]]), True)
+    assert tree.num_nodes() == 83
+    tree.clear()
+    assert tree.num_nodes() == 0
+
+
+# ----------------------------------------------------------------------------- agreement with octomap-python
+
+@pytest.mark.parametrize("res", [0.05, 0.1, 0.2])
+def test_random_scans_match_octomap(res):
+    """Several overlapping scans from different origins, with a max range: identical trees after
+    every scan (pruning, expansion of pruned nodes and clamping all exercised)."""
+    rng = np.random.default_rng(int(res * 1000))
+    ours, ref = OcTree(res), octomap.OcTree(res)
+    for k in range(4):
+        origin = rng.uniform(-0.5, 0.5, 3)
+        pts = _room_cloud(rng, 3000)
+        ours.insert_point_cloud(pts, origin, max_range=5.0)
+        ref.insertPointCloud(pts, origin, 5.0)
+        assert ours.num_nodes() == ref.size()
+    assert_same_as_octomap(ours, ref)
+
+
+def test_discretize_matches_octomap():
+    rng = np.random.default_rng(7)
+    pts = _room_cloud(rng, 5000)
+    origin = np.array([0.1, -0.2, 0.3])
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    ours.insert_point_cloud(pts, origin, discretize=True)
+    ref.insertPointCloud(pts, origin, discretize=True)
+    assert_same_as_octomap(ours, ref)
+
+
+def test_lazy_insertion_then_update_and_prune_matches_octomap():
+    """Lazy scans leave inner nodes stale and nothing pruned, as OctoMap's lazy_eval; updating the
+    inner nodes gives OctoMap's lazy tree, and pruning then gives the eagerly built one."""
+    rng = np.random.default_rng(8)
+    ours, lazy_ref, eager_ref = OcTree(0.1), octomap.OcTree(0.1), octomap.OcTree(0.1)
+    for _ in range(3):
+        pts, origin = _room_cloud(rng, 2000), rng.uniform(-0.3, 0.3, 3)
+        ours.insert_point_cloud(pts, origin, lazy=True)
+        lazy_ref.insertPointCloud(pts, origin, lazy_eval=True)
+        eager_ref.insertPointCloud(pts, origin)
+    assert ours.num_nodes() == lazy_ref.size() > eager_ref.size()
+    ours.update_inner_occupancy()
+    lazy_ref.updateInnerOccupancy()
+    assert_same_as_octomap(ours, lazy_ref)
+    ours.prune()
+    assert_same_as_octomap(ours, eager_ref)
+
+
+def test_real_scan_matches_octomap(data_dir):
+    pts = np.loadtxt(bz2.open(data_dir / "octomap" / "scan.dat.bz2"))
+    assert pts.shape == (88206, 3)
+    ours, ref = OcTree(0.2), octomap.OcTree(0.2)
+    ours.insert_point_cloud(pts, np.zeros(3))
+    ref.insertPointCloud(pts, np.zeros(3))
+    assert_same_as_octomap(ours, ref)
+    assert ours.memory_usage() <= ref.memoryUsage()
+
+
+def test_queries_match_octomap():
+    rng = np.random.default_rng(9)
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    pts = _room_cloud(rng, 4000)
+    ours.insert_point_cloud(pts, np.zeros(3))
+    ref.insertPointCloud(pts, np.zeros(3))
+    q = rng.uniform(-5, 5, size=(500, 3))
+    l = ours.log_odds_at(q)
+    for p, v in zip(q, l):
+        try:
+            assert np.float32(v) == np.float32(ref.search(p).getLogOdds())
+        except octomap.NullPointerException:  # octomap-python's way of saying "unknown"
+            assert np.isnan(v)
+    # ray casting: random origins inside the room, random directions, with and without max range
+    O = rng.uniform(-1, 1, size=(300, 3))
+    D = rng.normal(size=(300, 3))
+    for max_range, ignore in ((-1.0, False), (2.0, False), (-1.0, True)):
+        hit, ends = ours.cast_ray(O, D, max_range=max_range, ignore_unknown=ignore)
+        for o, d, h, e in zip(O, D, hit, ends):
+            end = np.zeros(3)
+            ref_hit = ref.castRay(o, d, end, ignoreUnknownCells=ignore, maxRange=max_range)
+            assert h == ref_hit
+            np.testing.assert_array_equal(e.astype(np.float32), end.astype(np.float32))
+    lo, hi = ours.metric_bounds()
+    np.testing.assert_allclose(lo, ref.getMetricMin(), atol=1e-6)
+    np.testing.assert_allclose(hi, ref.getMetricMax(), atol=1e-6)
+    assert ours.volume() == pytest.approx(ref.volume(), rel=1e-9)
+
+
+def test_bbx_leaves_match_octomap():
+    """The leaves overlapping a box. OctoMap's bbx iterator also returns coarse leaves that end one
+    voxel before the box's lower corner (its overlap test adds one key above each node); occmap
+    returns exactly the overlapping ones, which are OctoMap's minus those."""
+    rng = np.random.default_rng(10)
+    res = 0.1
+    ours, ref = OcTree(res), octomap.OcTree(res)
+    pts = _room_cloud(rng, 3000)
+    ours.insert_point_cloud(pts, np.zeros(3))
+    ref.insertPointCloud(pts, np.zeros(3))
+    lo, hi = np.array([-1.0, -0.5, -2.0]), np.array([2.0, 1.5, 0.5])
+    lv = ours.leaves(lo, hi)
+    ref_rows = np.array([(*it.getCoordinate(), it.getSize()) for it in ref.begin_leafs_bbx(lo, hi)])
+    kmin, kmax = ours.coord_to_key(lo)[0], ours.coord_to_key(hi)[0]
+    first = np.rint((ref_rows[:, :3] - ref_rows[:, 3:] / 2) / res).astype(np.int64) + 32768
+    cells = np.rint(ref_rows[:, 3] / res).astype(np.int64)[:, None]
+    overlapping = np.all((first <= kmax) & (first + cells - 1 >= kmin), axis=1)
+    assert 0 < np.count_nonzero(~overlapping) < 0.05 * len(ref_rows)
+    ref_rows = ref_rows[overlapping]
+    ours_rows = np.c_[lv.centers.astype(np.float32), lv.sizes]
+    key = lambda t: t[np.lexsort(t.T[::-1])]  # noqa: E731
+    np.testing.assert_allclose(key(ours_rows), key(ref_rows), rtol=0, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- behaviour and bad input
+
+def test_hit_wins_and_each_voxel_once_per_scan():
+    """Two points in one voxel and a ray through another point's voxel: one hit each, no miss."""
+    tree = OcTree(0.1)
+    pts = np.array([[1.05, 0.05, 0.05], [1.06, 0.04, 0.05], [0.55, 0.05, 0.05]])
+    tree.insert_point_cloud(pts, np.array([0.05, 0.05, 0.05]))
+    l = tree.log_odds_at(np.array([[1.05, 0.05, 0.05], [0.55, 0.05, 0.05], [0.75, 0.05, 0.05]]))
+    assert l[0] == tree.log_odds_hit and l[1] == tree.log_odds_hit
+    assert l[2] == tree.log_odds_miss
+
+
+def test_max_range_clears_without_marking():
+    tree = OcTree(0.1)
+    tree.insert_point_cloud(np.array([[10.05, 0.05, 0.05]]), np.array([0.05, 0.05, 0.05]), max_range=3.0)
+    l = tree.log_odds_at(np.array([[2.0, 0.05, 0.05], [3.5, 0.05, 0.05], [10.05, 0.05, 0.05]]))
+    assert l[0] == tree.log_odds_miss
+    assert np.isnan(l[1]) and np.isnan(l[2])
+
+
+def test_nan_points_are_dropped_and_counted():
+    tree = OcTree(0.1)
+    pts = np.array([[1.0, 0.0, 0.0], [np.nan, 0.0, 0.0], [0.0, np.inf, 0.0], [0.0, 1.0, 0.0]])
+    summary = tree.insert_point_cloud(pts, np.zeros(3))
+    assert summary["dropped"] == 2 and summary["points"] == 2
+    assert tree.stats["dropped"] == 2
+
+
+def test_empty_cloud_changes_nothing():
+    tree = OcTree(0.1)
+    tree.insert_point_cloud(np.empty((0, 3)), np.zeros(3))
+    assert tree.num_nodes() == 0 and len(tree.leaves().sizes) == 0
+
+
+def test_bad_input_raises_clear_errors():
+    tree = OcTree(0.1)
+    with pytest.raises(InvalidArgumentError, match="outside the octree's key range"):
+        tree.insert_point_cloud(np.array([[1e5, 0.0, 0.0]]), np.zeros(3))
+    with pytest.raises(ShapeError):
+        tree.insert_point_cloud(np.zeros((5, 2)), np.zeros(3))
+    with pytest.raises(InvalidArgumentError, match="origin"):
+        tree.insert_point_cloud(np.zeros((5, 3)), np.array([np.nan, 0, 0]))
+    with pytest.raises(InvalidArgumentError):
+        OcTree(0.0)
+    with pytest.raises(InvalidArgumentError):
+        OcTree(0.1, prob_hit=1.0)
+    assert tree.num_nodes() == 0
+
+
+def test_occupancy_and_unknown_readout():
+    tree = OcTree(0.1)
+    tree.insert_point_cloud(np.array([[1.05, 0.05, 0.05]]), np.array([0.05, 0.05, 0.05]))
+    occ = tree.occupancy_at(np.array([[1.05, 0.05, 0.05], [0.55, 0.05, 0.05], [5.0, 5.0, 5.0], [1e9, 0, 0]]))
+    np.testing.assert_array_equal(occ, [1, 0, -1, -1])
+    np.testing.assert_allclose(tree.occupied_centers(), [[1.05, 0.05, 0.05]], atol=1e-12)
