@@ -2,8 +2,8 @@
 
 OctoMap collects the scan's free and occupied voxels in two hash sets of keys, then updates each
 voxel once (occupied ones only as hits) with a walk from the root. Here the two sets are bit masks
-over 8×8×8-voxel *blocks* (a block = one depth-13 node; bit ``m`` = the voxel whose local
-coordinates interleave to ``m``, x lowest, so bit order is the octree's child order):
+over 8×8×8-voxel *blocks* (a block = one depth-13 node; bit ``lx + 8·ly + 64·lz`` = the voxel at
+local coordinates (lx, ly, lz)):
 
 1. :func:`mark_scan` traverses the rays (OctoMap's ``computeRayKeys`` to the bit, float32
    arithmetic included) and sets the bits; a hash of block keys with the last block cached keeps
@@ -32,8 +32,6 @@ from ._kernels import DEPTH, FREE, SIZE, TOP, coord_to_key, key_to_coord, settle
 #: Slots one voxel update may allocate at most: a new block at every level.
 _ROOM = 8 * DEPTH
 
-# Bit index of local coordinate (x, y, z) in a block's mask: interleave 3-bit values, x lowest.
-_SPREAD = np.array([0, 1, 8, 9, 64, 65, 72, 73], np.int64)
 
 
 @kernel
@@ -155,38 +153,45 @@ def _block_code(kx, ky, kz):
 
 @kernel
 def new_blocks(capacity):
-    """Empty block storage for ``capacity`` blocks: hash table (twice as many slots), block codes,
-    hit masks, free masks, and the count."""
+    """Empty block storage for ``capacity`` blocks: hash table (block codes and block indices, at
+    least twice as many slots), block codes, hit masks, free masks, and the count."""
     size = 16
     while size < 2 * capacity:
         size *= 2
-    return (np.zeros(size, np.int64), np.zeros(capacity, np.int64), np.zeros((capacity, 8), np.int64),
-            np.zeros((capacity, 8), np.int64), np.zeros(1, np.int64))
+    return (np.zeros(size, np.int64), np.zeros(size, np.int64), np.zeros(capacity, np.int64),
+            np.zeros((capacity, 8), np.int64), np.zeros((capacity, 8), np.int64), np.zeros(1, np.int64))
 
 
 @kernel
-def grow_blocks(table, codes, hits, frees, count):
+def _hash(code, mask):
+    return ((code * 0x5851F42D4C957F2D) >> 20) & mask
+
+
+@kernel
+def grow_blocks(table, slots, codes, hits, frees, count):
     """The block storage at twice the capacity, rehashed."""
     n = count[0]
-    t2, c2, h2, f2, n2 = new_blocks(2 * codes.shape[0])
+    t2, s2, c2, h2, f2, n2 = new_blocks(2 * codes.shape[0])
     c2[:n] = codes[:n]
     h2[:n] = hits[:n]
     f2[:n] = frees[:n]
     n2[0] = n
     mask = t2.shape[0] - 1
     for b in range(n):
-        h = (codes[b] * 0x5851F42D4C957F2D >> 20) & mask
+        h = _hash(codes[b], mask)
         while t2[h] != 0:
             h = (h + 1) & mask
-        t2[h] = b + 1
-    return t2, c2, h2, f2, n2
+        t2[h] = codes[b]
+        s2[h] = b
+    return t2, s2, c2, h2, f2, n2
 
 
 @kernel
-def mark_scan(origin, ends, hit, res, start, stop, table, codes, hits, frees, count):
+def mark_scan(origin, ends, hit, res, start, stop, table, slots, codes, hits, frees, count):
     """Set the hit bit of each in-range end voxel and the free bits of every ray's voxels, for rays
     ``start..stop-1``. Returns ``stop``, or the ray at which the block storage filled up (marking
-    is idempotent, so the caller grows it and resumes there)."""
+    is idempotent, so the caller grows it and resumes there). Within a block, bit
+    ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates (lx, ly, lz)."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
     okx = coord_to_key(ox, inv_res)
@@ -213,18 +218,19 @@ def mark_scan(origin, ends, hit, res, start, stop, table, codes, hits, frees, co
                 break
             code = _block_code(kx, ky, kz)
             if code != cur_code:  # find or add the block (the last one is cached)
-                h = (code * 0x5851F42D4C957F2D >> 20) & mask
-                while table[h] != 0 and codes[table[h] - 1] != code:
+                h = _hash(code, mask)
+                while table[h] != 0 and table[h] != code:
                     h = (h + 1) & mask
                 if table[h] == 0:
                     if count[0] == cap:
                         return i
+                    table[h] = code
+                    slots[h] = count[0]
+                    codes[count[0]] = code
                     count[0] += 1
-                    table[h] = count[0]
-                    codes[count[0] - 1] = code
-                cur = table[h] - 1
+                cur = slots[h]
                 cur_code = code
-            m = _SPREAD[kx & 7] | (_SPREAD[ky & 7] << 1) | (_SPREAD[kz & 7] << 2)
+            m = (kx & 7) | ((ky & 7) << 3) | ((kz & 7) << 6)
             if is_hit:
                 hits[cur, m >> 6] |= np.int64(1) << (m & 63)
                 break
@@ -289,8 +295,14 @@ def _lowest_bit(word):
 
 
 @kernel
+def _spread(v):
+    """Bits 0..2 of v moved to bits 0, 3, 6 (one axis of a 9-bit Morton code)."""
+    return (v & 1) | ((v & 2) << 2) | ((v & 4) << 4)
+
+
+@kernel
 def _compact(m):
-    """Every third bit of m from bit 0, packed (undoes the interleave of one axis)."""
+    """Every third bit of m from bit 0, packed (undoes :func:`_spread`)."""
     return (m & 1) | ((m >> 2) & 2) | ((m >> 4) & 4)
 
 
@@ -307,18 +319,30 @@ def block_voxels(codes, hits, frees):
                 n += 1
     keys = np.empty(n, np.int64)
     is_hit = np.empty(n, np.bool_)
+    morton = np.empty(8, np.int64)  # the block's bits re-laid in Morton order
     n = 0
     for b in range(codes.shape[0]):
-        c0 = codes[b] - 1
-        base = ((c0 >> 26) << 3) | ((((c0 >> 13) & 8191) << 3) << 16) | (((c0 & 8191) << 3) << 32)
+        morton[:] = 0
         for w in range(8):
             word = hits[b, w] | frees[b, w]
             while word != 0:
                 bit = _lowest_bit(word)
                 word &= word - 1
                 m = (w << 6) | bit
-                keys[n] = base | _compact(m) | (_compact(m >> 1) << 16) | (_compact(m >> 2) << 32)
-                is_hit[n] = (hits[b, w] >> bit) & 1 == 1
+                z = _spread(m & 7) | (_spread((m >> 3) & 7) << 1) | (_spread(m >> 6) << 2)
+                morton[z >> 6] |= np.int64(1) << (z & 63)
+        c0 = codes[b] - 1
+        base = ((c0 >> 26) << 3) | ((((c0 >> 13) & 8191) << 3) << 16) | (((c0 & 8191) << 3) << 32)
+        for w in range(8):
+            word = morton[w]
+            while word != 0:
+                bit = _lowest_bit(word)
+                word &= word - 1
+                z = (w << 6) | bit
+                lx, ly, lz = _compact(z), _compact(z >> 1), _compact(z >> 2)
+                keys[n] = base | lx | (ly << 16) | (lz << 32)
+                linear = lx | (ly << 3) | (lz << 6)
+                is_hit[n] = (hits[b, linear >> 6] >> (linear & 63)) & 1 == 1
                 n += 1
     return keys, is_hit
 

@@ -62,7 +62,7 @@ def _mark_range(origin, ends, hit, res, start, stop):
     while True:
         start = I.mark_scan(origin, ends, hit, res, start, stop, *storage)
         if start == stop:
-            table, codes, hits, frees, count = storage
+            table, slots, codes, hits, frees, count = storage
             n = int(count[0])
             return codes[:n], hits[:n], frees[:n]
         storage = I.grow_blocks(*storage)
