@@ -32,7 +32,129 @@ def _parser() -> argparse.ArgumentParser:
     m2.add_argument("--p-miss", type=float, default=0.4,
                     help="P(occupied) for cells a beam passes (default: %(default)s, OctoMap's; 0.45 keeps walls "
                     "that many grazing beams cross more continuous)")
+
+    m3 = sub.add_parser("map3d", help="build a 3D occupancy octree (OctoMap .bt/.ot) from point clouds with sensor poses")
+    m3.add_argument("inputs", nargs="+", help="point clouds (.pcd .ply .xyz/.txt/.dat[.gz|.bz2|.xz] .bin .3d) or "
+                    "OctoMap ScanGraphs (.graph); each cloud carries its sensor pose (PCD viewpoint, 3DTK .frames)")
+    m3.add_argument("-o", "--output", required=True, help="octree to write (.bt maximum likelihood, .ot full values)")
+    m3.add_argument("--resolution", type=float, default=0.1, help="voxel size in metres (default: %(default)s)")
+    m3.add_argument("--max-range", type=float, default=-1.0, help="clear free space only up to this range, no hits "
+                    "beyond (default: no limit)")
+    m3.add_argument("--discretize", action="store_true", help="merge points falling in one voxel before ray casting")
+    m3.add_argument("--png", help="also write a top-down height picture")
+
+    info = sub.add_parser("info", help="describe an octree file (.bt or .ot)")
+    info.add_argument("file")
+
+    conv = sub.add_parser("convert", help="convert an octree: .bt <-> .ot, or occupied voxels to .ply")
+    conv.add_argument("input")
+    conv.add_argument("output")
+
+    ren = sub.add_parser("render", help="draw an octree as a PNG (top-down height map, or a slice)")
+    ren.add_argument("file")
+    ren.add_argument("-o", "--output", required=True, help="PNG to write")
+    ren.add_argument("--slice", type=float, metavar="Z", help="draw the horizontal slice at height Z instead")
+    ren.add_argument("--pixel", type=float, help="pixel size in metres (default: the octree's resolution)")
     return p
+
+
+def _clouds(paths):
+    """Point clouds from files, in order: ScanGraphs give one cloud per node."""
+    from .io.pointclouds import read_cloud
+    from .io.scangraph import read_scangraph
+
+    for path in paths:
+        if str(path).endswith(".graph"):
+            yield from read_scangraph(path).nodes
+        else:
+            yield read_cloud(path)
+
+
+def _save_octree(tree, path) -> None:
+    from .octree import formats
+
+    path = str(path)
+    if path.endswith(".bt"):
+        formats.write_binary(tree, path)
+    elif path.endswith(".ot"):
+        formats.write_ot(tree, path)
+    elif path.endswith(".ply"):
+        tree.export_ply(path)
+    else:
+        raise InvalidArgumentError(f"{path}: unknown octree file type (use .bt, .ot or .ply)")
+
+
+def _map3d(args) -> int:
+    from .octree import OcTree
+
+    t0 = time.perf_counter()
+    tree = OcTree(args.resolution)
+    show = sys.stderr.isatty()
+    points = dropped = scans = 0
+    insert_seconds = 0.0
+    for cloud in _clouds(args.inputs):
+        t1 = time.perf_counter()
+        s = tree.insert_point_cloud(cloud.world_points(), cloud.origin, args.max_range, args.discretize)
+        insert_seconds += time.perf_counter() - t1
+        scans += 1
+        points += s["points"]
+        dropped += s["dropped"] + cloud.dropped
+        if show:
+            print(f"\rscan {scans}: {points:,} points, {tree.num_nodes():,} nodes", end="", file=sys.stderr, flush=True)
+    if show:
+        print(file=sys.stderr)
+    if not scans:
+        raise InvalidArgumentError("no point clouds given")
+    _save_octree(tree, args.output)
+    rate = points / insert_seconds if insert_seconds > 0 else float("inf")
+    print(f"{scans} scans, {points:,} points ({dropped:,} dropped: no return or not finite) at {args.resolution:g} m")
+    print(f"inserted in {insert_seconds:.2f} s ({rate:,.0f} points/s); {tree.num_nodes():,} nodes, "
+          f"{tree.num_leaves():,} leaves, {tree.memory_usage() / 2**20:.1f} MiB")
+    print(f"wrote {args.output}")
+    if args.png:
+        tree.save_height_png(args.png)
+        print(f"wrote {args.png}")
+    print(f"total {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def _info(args) -> int:
+    from .octree import formats
+
+    tree = formats.load(args.file)
+    lv = tree.leaves()
+    occupied = int((lv.log_odds >= tree.occupancy_log_odds).sum())
+    lo, hi = tree.metric_bounds()
+    print(f"{args.file}")
+    print(f"  resolution      {tree.resolution:g} m")
+    print(f"  nodes           {tree.num_nodes():,}")
+    print(f"  leaves          {len(lv.sizes):,} ({occupied:,} occupied, {len(lv.sizes) - occupied:,} free)")
+    print(f"  bounds          [{lo[0]:.3f}, {lo[1]:.3f}, {lo[2]:.3f}] .. [{hi[0]:.3f}, {hi[1]:.3f}, {hi[2]:.3f}] m")
+    print(f"  memory          {tree.memory_usage():,} bytes")
+    print(f"  volume          {tree.volume():.3f} m³ (bounding box)")
+    known = float((lv.sizes ** 3).sum())
+    print(f"  known volume    {known:.3f} m³ ({(lv.sizes[lv.log_odds >= tree.occupancy_log_odds] ** 3).sum():.3f} occupied)")
+    return 0
+
+
+def _convert(args) -> int:
+    from .octree import formats
+
+    _save_octree(formats.load(args.input), args.output)
+    print(f"wrote {args.output}")
+    return 0
+
+
+def _render(args) -> int:
+    from .octree import formats
+
+    tree = formats.load(args.file)
+    if args.slice is None:
+        tree.save_height_png(args.output, args.pixel)
+    else:
+        tree.save_slice_png(args.output, args.slice, args.pixel)
+    print(f"wrote {args.output}")
+    return 0
 
 
 def _map2d(args) -> int:
@@ -69,8 +191,9 @@ def main(argv: list[str] | None = None) -> int:
             from .demo import run
 
             return run(args.out)
-        if args.command == "map2d":
-            return _map2d(args)
+        commands = {"map2d": _map2d, "map3d": _map3d, "info": _info, "convert": _convert, "render": _render}
+        if args.command in commands:
+            return commands[args.command](args)
     except OccmapError as e:
         print(f"occmap {args.command}: error: {e}", file=sys.stderr)
         return 2

@@ -175,8 +175,9 @@ def encode_bt(value, child, top, occ, lo, hi):
 @kernel
 def decode_bt(data, start, lo, hi):
     """Decode the body of a ``.bt`` file, ``data[start:]``, as OctoMap's ``readBinaryNode`` does:
-    free leaves get ``lo``, occupied leaves ``hi``, inner nodes the maximum of their children; a
-    root without children gets ``hi``, as in OctoMap.
+    free leaves get ``lo``, occupied leaves ``hi``, inner nodes the maximum of their children (the
+    root too, where OctoMap leaves it at ``hi``); a root without children gets ``hi``, as in
+    OctoMap.
 
     Returns ``(value, child, top, nodes, error, offset)``; ``error`` is one of the module's codes
     and ``offset`` the byte where decoding stopped (the arrays are then meaningless).

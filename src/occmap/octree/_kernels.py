@@ -89,9 +89,9 @@ def settle(value, child, meta, node, set_max, prune):
 
 
 @kernel
-def settle_all(value, child, meta, set_max, prune):
-    """Post-order pass over every inner node: :func:`settle` each after its children (OctoMap's
-    ``updateInnerOccupancy`` with ``set_max``, ``prune`` with ``prune``)."""
+def update_inner(value, child, meta):
+    """Set every inner node to the max of its children, bottom-up (OctoMap's
+    ``updateInnerOccupancy``)."""
     if np.isnan(value[0]) or child[0] < 0:
         return
     nodes = np.empty(DEPTH + 1, np.int64)
@@ -109,8 +109,40 @@ def settle_all(value, child, meta, set_max, prune):
             nodes[sp] = c + i
             next_child[sp] = 0
         else:
-            settle(value, child, meta, nodes[sp], set_max, prune)
+            settle(value, child, meta, nodes[sp], True, False)
             sp -= 1
+
+
+@kernel
+def prune_level(value, child, meta, depth):
+    """Collapse the nodes at ``depth`` whose eight children are leaves of one value; returns how
+    many (one level of OctoMap's ``prune``)."""
+    if np.isnan(value[0]) or child[0] < 0:
+        return 0
+    nodes = np.empty(DEPTH + 1, np.int64)
+    next_child = np.zeros(DEPTH + 1, np.int64)
+    nodes[0] = 0
+    sp = 0
+    pruned = 0
+    while sp >= 0:
+        node = nodes[sp]
+        if sp == depth:
+            if settle(value, child, meta, node, False, True):
+                pruned += 1
+            sp -= 1
+            continue
+        c = child[node]
+        i = next_child[sp]
+        while i < 8 and child[c + i] < 0:
+            i += 1
+        if i < 8:
+            next_child[sp] = i + 1
+            sp += 1
+            nodes[sp] = c + i
+            next_child[sp] = 0
+        else:
+            sp -= 1
+    return pruned
 
 
 @kernel

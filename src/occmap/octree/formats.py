@@ -25,6 +25,12 @@ lie below depth 16, and a ``.bt`` node marked inner must have children; each rai
 :class:`~occmap.errors.FormatError` naming the file and the byte offset. Memory is bounded by the
 file's length whatever its header claims.
 
+One deliberate difference from OctoMap's ``readBinary``: OctoMap leaves the root of a ``.bt`` it
+reads at the upper clamping bound (it never sets the root from its children), so a map without an
+occupied leaf reads back with an "occupied" root. Here the root, like every inner node, gets the
+maximum of its children; the two agree whenever the map has an occupied leaf. (A root with no
+children at all carries no class in the file; it reads as occupied, as in OctoMap.)
+
 Kernels: :mod:`._codec`. Writes are atomic (:func:`occmap._files.write_atomic`).
 """
 

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import InvalidArgumentError, ShapeError
 from . import _insert as I
 from . import _kernels as K
+from . import views
 
 _INITIAL_SLOTS = 1 << 12
 #: Scans with at least this many rays are marked by two threads.
@@ -144,6 +145,11 @@ class OcTree:
     @property
     def clamping_log_odds(self) -> tuple[float, float]:
         return float(self._l_min), float(self._l_max)
+
+    @property
+    def occupancy_log_odds(self) -> float:
+        """Log-odds at or above which a node is occupied."""
+        return float(self._l_occ)
 
     # ------------------------------------------------------------------ keys
 
@@ -270,11 +276,15 @@ class OcTree:
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
-        K.settle_all(self._value, self._child, self._meta, True, False)
+        K.update_inner(self._value, self._child, self._meta)
 
     def prune(self) -> None:
-        """Collapse every node whose eight children are leaves with equal values."""
-        K.settle_all(self._value, self._child, self._meta, False, True)
+        """Collapse nodes whose eight children are leaves with equal values, as OctoMap's ``prune``:
+        level by level from depth 15 up to depth 1 (never the root), stopping after the first
+        level where nothing collapsed."""
+        for depth in range(15, 0, -1):
+            if K.prune_level(self._value, self._child, self._meta, depth) == 0:
+                break
 
     def expand(self) -> None:
         """Expand every pruned leaf into its depth-16 voxels (OctoMap's ``expand``; memory grows by
@@ -389,6 +399,57 @@ class OcTree:
         """Volume in m³ of :meth:`metric_bounds`' box (OctoMap's ``volume()``)."""
         lo, hi = self.metric_bounds()
         return float(np.prod(hi - lo))
+
+    # ------------------------------------------------------------------ files
+
+    def write_binary(self, path) -> None:
+        """Write OctoMap's ``.bt`` (maximum likelihood, pruned as OctoMap's ``writeBinary`` does),
+        atomically; this tree is not changed."""
+        from . import formats
+
+        formats.write_binary(self, path)
+
+    def write(self, path) -> None:
+        """Write OctoMap's ``.ot`` (every node with its log-odds), atomically."""
+        from . import formats
+
+        formats.write_ot(self, path)
+
+    @classmethod
+    def read_binary(cls, path, **kwargs) -> OcTree:
+        """Read OctoMap's ``.bt``; ``kwargs`` (prob_hit, clamp, ...) as for the constructor."""
+        from . import formats
+
+        return formats.read_binary(path, **kwargs)
+
+    @classmethod
+    def read(cls, path, **kwargs) -> OcTree:
+        """Read OctoMap's ``.ot``."""
+        from . import formats
+
+        return formats.read_ot(path, **kwargs)
+
+    @classmethod
+    def load(cls, path, **kwargs) -> OcTree:
+        """Read ``.bt`` or ``.ot`` by extension (else by the file's first line)."""
+        from . import formats
+
+        return formats.load(path, **kwargs)
+
+    # ------------------------------------------------------------------ pictures and exports
+
+    def save_height_png(self, path, pixel: float | None = None) -> None:
+        """Top-down picture: occupied columns coloured by their highest occupied z, known empty
+        columns white, unknown grey (see :mod:`occmap.octree.views`)."""
+        views.save_image(views.height_image(self, pixel), path)
+
+    def save_slice_png(self, path, z: float, pixel: float | None = None) -> None:
+        """Horizontal slice at height ``z``: occupied black, free white, unknown grey."""
+        views.save_image(views.slice_image(self, z, pixel), path)
+
+    def export_ply(self, path, binary: bool = True) -> int:
+        """Occupied leaf centres as a PLY point cloud coloured by height; returns the point count."""
+        return views.export_ply(self, path, binary)
 
     def __repr__(self) -> str:
         return (f"OcTree(resolution={self.resolution:g}, nodes={self.num_nodes()}, "
