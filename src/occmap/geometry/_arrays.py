@@ -11,17 +11,21 @@ million points is never copied a million times.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from ..errors import InvalidArgumentError, NonFiniteError, NotARotationError, NotUnitQuaternionError, ShapeError
 from ._kernels import UNIT_TOL, Rejected
 
 _F64 = np.dtype(np.float64)
+# bound once: single calls are counted in tenths of a microsecond
+_asarray, _empty, _ndarray = np.asarray, np.empty, np.ndarray
 
 #: Largest accepted Frobenius norm of RᵀR − I for a rotation matrix.
 ROTATION_TOL = 1e-6
 
-__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "index_batch", "reject", "run", "unstack", "where"]
+__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "entry", "index_batch", "reject", "run", "unstack", "where"]
 
 
 def batch(x, trailing: tuple[int, ...], name: str) -> tuple[np.ndarray, tuple[int, ...]]:
@@ -87,27 +91,86 @@ def unstack(out: np.ndarray) -> tuple:
 
 def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = ()) -> np.ndarray:
     """The whole calling convention in one place: broadcast ``operands`` — each
-    ``(value, trailing, name, kind)`` with ``kind`` as in :func:`reject` — call
-    ``kernel(*arrays, *args, out)`` and turn a ``Rejected`` into the error that names the bad
-    argument and element. Batches get an output allocated here (leading shape + ``out_trailing``);
-    a single element lets the kernel allocate (``out=None``) and returns its only row."""
-    arrays = []
-    single = True
-    for op in operands:  # the common single call costs one conversion and one comparison each
-        a = np.asarray(op[0], dtype=_F64, order="C")
-        arrays.append(a)
-        single = single and a.shape == op[1]
-    if single:
-        lead = ()
-        out = None
-    else:
-        arrays, lead = broadcast(*operands)
-        out = np.empty(lead + out_trailing)
+    ``(value, trailing, name, kind)`` with ``kind`` as in :func:`reject` — allocate the output
+    (leading shape + ``out_trailing``), call ``kernel(*args, *arrays, out)`` and turn a
+    ``Rejected`` into the error that names the bad argument and element. :func:`entry` builds
+    the faster path single elements take before they come here."""
+    arrays, lead = broadcast(*operands)
+    out = _empty(lead + out_trailing)
     try:
-        rows = kernel(*arrays, *args, out)
+        kernel(*args, *arrays, out)
     except Rejected as e:
         reject(e.args[0], lead, *[(a, op[1], op[2], op[3]) for a, op in zip(arrays, operands)])
-    return rows[0] if single else out
+    return out
+
+
+def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (), otherwise=None):
+    """The Python face of ``kernel``: a function of the operand values, each operand described by
+    ``(trailing, name, kind)`` as in :func:`run`.
+
+    A single element (every operand exactly its trailing shape) takes a path unrolled for one,
+    two or three operands: a conversion and a comparison each, the output allocated, the kernel
+    called — half the overhead of the loops in :func:`run`. With three operands (slerp's ``t``,
+    Euler angles, planar poses: scalars that are usually floats) Python floats go to the kernel
+    as they are, which costs less than a 0-d array each. Anything else — batches, rejected
+    input — goes to ``otherwise`` (by default :func:`run`, which names what is wrong).
+    """
+
+    def general(*values):
+        return run(kernel, out_trailing, *[(v, *op) for v, op in zip(values, operands)], args=args)
+
+    otherwise = otherwise or general
+    bound = partial(kernel, *args) if args else kernel
+    trailing = [op[0] for op in operands]
+    if len(operands) == 1:
+        (t1,) = trailing
+
+        def call(x):
+            a = _asarray(x, _F64, "C")
+            if a.shape == t1:
+                out = _empty(out_trailing)
+                try:
+                    bound(a, out)
+                    return out
+                except Rejected:
+                    pass
+            return otherwise(x)
+
+    elif len(operands) == 2:
+        t1, t2 = trailing
+
+        def call(x, y):
+            a, b = _asarray(x, _F64, "C"), _asarray(y, _F64, "C")
+            if a.shape == t1 and b.shape == t2:
+                out = _empty(out_trailing)
+                try:
+                    bound(a, b, out)
+                    return out
+                except Rejected:
+                    pass
+            return otherwise(x, y)
+
+    else:
+        t1, t2, t3 = trailing
+
+        def call(x, y, z):
+            a = x if type(x) is float else _asarray(x, _F64, "C")
+            b = y if type(y) is float else _asarray(y, _F64, "C")
+            c = z if type(z) is float else _asarray(z, _F64, "C")
+            if (
+                (a.shape == t1 if type(a) is _ndarray else not t1)
+                and (b.shape == t2 if type(b) is _ndarray else not t2)
+                and (c.shape == t3 if type(c) is _ndarray else not t3)
+            ):
+                out = _empty(out_trailing)
+                try:
+                    bound(a, b, c, out)
+                    return out
+                except Rejected:
+                    pass
+            return otherwise(x, y, z)
+
+    return call
 
 
 def where(index: int, lead: tuple[int, ...]) -> str:

@@ -5,13 +5,13 @@ vectors; transforms are homogeneous 4×4 (or 3×3 in 2D).
 
 Calling convention: inputs are C-contiguous arrays of any leading shape, viewed here as rows
 ``(n, ...)``; an operand with a single row is broadcast with stride 0 (``i * step``, step 0 or
-1). For batches the caller allocates ``out`` in its final shape (NumPy's allocator gives large
-outputs huge pages, which halves the cost of writing them) and the kernel fills it; for a single
-element the caller passes ``out=None`` and the kernel allocates. Either way the kernel returns
-the rows it wrote. Each kernel checks its
-input in the same pass and raises :class:`Rejected` with the index of the first bad element.
-Checks are written ``not (err <= tol)`` so NaN fails them; no fastmath, which would assume NaN
-away.
+1), and a scalar operand may also be a plain float (see :func:`_flat`). Constant arguments (a
+mode, an axis) come first. The caller allocates ``out`` in its final shape (NumPy's allocator
+gives large outputs huge pages, which halves the cost of writing them); the kernel fills it and
+returns nothing, since boxing a returned array costs Numba more than NumPy's whole allocation of
+a small one. Each kernel checks its input in the same pass and raises :class:`Rejected` with the
+index of the first bad element. Checks are written ``not (err <= tol)`` so NaN fails them; no
+fastmath, which would assume NaN away.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ from numba import prange
 
 from .._jit import kernel, kernel_parallel
 
+
 class Rejected(Exception):
     """Raised by a kernel with the flat index of the first element its checks rejected."""
-
 
 
 # Point loops this long or longer run on all cores; shorter ones stay serial, where the thread
@@ -37,15 +37,6 @@ ROT_TOL_SQ = 1e-12  # ROTATION_TOL², compared with ‖RᵀR − I‖²_F
 # cos(pitch) at or below which a matrix is at gimbal lock up to rounding (4 ulp of 1): the
 # roll = 0 convention then changes the matrix by at most 2·GIMBAL_EPS
 GIMBAL_EPS = 4.0 * 2.220446049250313e-16
-
-
-@kernel
-def _view(out, n, shape):
-    """The rows ``(n, *shape)`` a kernel writes: a view of the caller's ``out``, or, when ``out`` is
-    None (one element: skipping NumPy's allocation saves a third of a single call), a new array."""
-    if out is None:
-        return np.empty((n,) + shape)
-    return out.reshape((-1,) + shape)
 
 
 # ---------------------------------------------------------------- checks
@@ -152,13 +143,19 @@ def _atan2(y, x):
     return math.pi if a == -math.pi else a
 
 
+@kernel
+def _flat(x):
+    """A scalar operand as a 1-D array: single calls pass Python floats as they are (``_arrays.entry``)."""
+    return np.asarray(x).reshape(-1)
+
+
 # ---------------------------------------------------------------- SO(3) basics
 
 
 @kernel
 def hat(w, out):
     f = w.reshape((-1, 3))
-    o = _view(out, f.shape[0], (3, 3))
+    o = out.reshape((-1, 3, 3))
     for i in range(f.shape[0]):
         if not _finite_row(f, i):
             raise Rejected(i)
@@ -166,27 +163,25 @@ def hat(w, out):
         o[i, 0, 0], o[i, 0, 1], o[i, 0, 2] = 0.0, -z, y
         o[i, 1, 0], o[i, 1, 1], o[i, 1, 2] = z, 0.0, -x
         o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = -y, x, 0.0
-    return o
 
 
 @kernel
 def vee(W, out):
     f = W.reshape((-1, 9))
-    o = _view(out, f.shape[0], (3,))
+    o = out.reshape((-1, 3))
     for i in range(f.shape[0]):
         if not _finite_row(f, i):
             raise Rejected(i)
         o[i, 0] = 0.5 * (f[i, 7] - f[i, 5])
         o[i, 1] = 0.5 * (f[i, 2] - f[i, 6])
         o[i, 2] = 0.5 * (f[i, 3] - f[i, 1])
-    return o
 
 
 @kernel
-def rot_axis(angle, axis, out):
+def rot_axis(axis, angle, out):
     """Elementary rotations about coordinate axis 0 (x), 1 (y) or 2 (z)."""
-    f = angle.reshape(-1)
-    o = _view(out, f.shape[0], (3, 3))
+    f = _flat(angle)
+    o = out.reshape((-1, 3, 3))
     j = (axis + 1) % 3
     k = (axis + 2) % 3
     for i in range(f.shape[0]):
@@ -205,7 +200,6 @@ def rot_axis(angle, axis, out):
 
 
 # ---------------------------------------------------------------- quaternions
-    return o
 
 
 @kernel
@@ -249,13 +243,12 @@ def _quat_to_matrix_parallel(f, o):
 @kernel
 def quat_to_matrix(q, out):
     f = q.reshape((-1, 4))
-    o = _view(out, f.shape[0], (3, 3))
+    o = out.reshape((-1, 3, 3))
     if f.shape[0] >= PARALLEL_MIN and _quat_to_matrix_parallel(f, o) == 0:
-        return o
+        return
     for i in range(f.shape[0]):  # serial, or finding the first bad row after a parallel pass
         if not _quat_to_matrix_row(f, o, i):
             raise Rejected(i)
-    return o
 
 
 @kernel
@@ -319,20 +312,19 @@ def _matrix_to_quat_parallel(f, o):
 @kernel
 def matrix_to_quat(R, out):
     f = R.reshape((-1, 3, 3))
-    o = _view(out, f.shape[0], (4,))
+    o = out.reshape((-1, 4))
     if f.shape[0] >= PARALLEL_MIN and _matrix_to_quat_parallel(f, o) == 0:
-        return o
+        return
     for i in range(f.shape[0]):
         if not _matrix_to_quat_row(f, o, i):
             raise Rejected(i)
-    return o
 
 
 @kernel
 def quat_multiply(a, b, out):
     fa = a.reshape((-1, 4))
     fb = b.reshape((-1, 4))
-    o = _view(out, max(fa.shape[0], fb.shape[0]), (4,))
+    o = out.reshape((-1, 4))
     sa = 1 if fa.shape[0] > 1 else 0
     sb = 1 if fb.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -345,7 +337,6 @@ def quat_multiply(a, b, out):
         o[i, 1] = pw * qx + px * qw + py * qz - pz * qy
         o[i, 2] = pw * qy - px * qz + py * qw + pz * qx
         o[i, 3] = pw * qz + px * qy - py * qx + pz * qw
-    return o
 
 
 @kernel
@@ -354,12 +345,12 @@ def _max_abs4(w, x, y, z):
 
 
 @kernel
-def quat_scale(q, mode, out):
+def quat_scale(mode, q, out):
     """mode 0: conjugate; 1: inverse (conjugate / ‖q‖²); 2: normalise. Rejects non-finite input,
     and zero quaternions for modes 1 and 2. Norms are taken of q / max|q_k|, so they neither
     underflow nor overflow for any finite non-zero q."""
     f = q.reshape((-1, 4))
-    o = _view(out, f.shape[0], (4,))
+    o = out.reshape((-1, 4))
     for i in range(f.shape[0]):
         w, x, y, z = f[i, 0], f[i, 1], f[i, 2], f[i, 3]
         m = _max_abs4(w, x, y, z)
@@ -377,7 +368,6 @@ def quat_scale(q, mode, out):
                 a = b = 1.0 / n
             w, x, y, z = ws, xs, ys, zs
         o[i, 0], o[i, 1], o[i, 2], o[i, 3] = w * a, x * b, y * b, z * b
-    return o
 
 
 @kernel
@@ -423,16 +413,16 @@ def quat_rotate(q, v, out):
     applied to many vectors goes through its matrix and :func:`_map_points`."""
     fq = q.reshape((-1, 4))
     fv = v.reshape((-1, 3))
-    o = _view(out, max(fq.shape[0], fv.shape[0]), (3,))
+    o = out.reshape((-1, 3))
     if o.shape[0] == 0:
-        return o
+        return
     if fq.shape[0] == 1:
         if not _unit_ok(fq, 0):
             raise Rejected(0)
         M = np.zeros((1, 3, 4))
         _quat_to_rot(fq[0, 0], fq[0, 1], fq[0, 2], fq[0, 3], M, 0)
         _map_points(M[0], fv, o)
-        return o
+        return
     sv = 1 if fv.shape[0] > 1 else 0
     for i in range(o.shape[0]):
         if not _unit_ok(fq, i):
@@ -449,7 +439,6 @@ def quat_rotate(q, v, out):
         o[i, 0] = px + w * tx + (y * tz - z * ty)
         o[i, 1] = py + w * ty + (z * tx - x * tz)
         o[i, 2] = pz + w * tz + (x * ty - y * tx)
-    return o
 
 
 @kernel
@@ -464,8 +453,8 @@ def _sinc_half(theta):
 @kernel
 def axis_angle_to_quat(axis, angle, out):
     fa = axis.reshape((-1, 3))
-    fg = angle.reshape(-1)
-    o = _view(out, max(fa.shape[0], fg.shape[0]), (4,))
+    fg = _flat(angle)
+    o = out.reshape((-1, 4))
     sa = 1 if fa.shape[0] > 1 else 0
     sg = 1 if fg.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -480,7 +469,6 @@ def axis_angle_to_quat(axis, angle, out):
         o[i, 1] = x * s
         o[i, 2] = y * s
         o[i, 3] = z * s
-    return o
 
 
 @kernel
@@ -511,26 +499,24 @@ def _write_axis_angle(o, i, w, x, y, z, rotvec):
 @kernel
 def quat_to_axis_angle(q, out):
     f = q.reshape((-1, 4))
-    o = _view(out, f.shape[0], (4,))
+    o = out.reshape((-1, 4))
     for i in range(f.shape[0]):
         if not _unit_ok(f, i):
             raise Rejected(i)
         _write_axis_angle(o, i, f[i, 0], f[i, 1], f[i, 2], f[i, 3], False)
-    return o
 
 
 @kernel
-def matrix_to_axis_angle(R, rotvec, out):
+def matrix_to_axis_angle(rotvec, R, out):
     """Axis and angle (``rotvec`` False, 4 columns) or rotation vectors (True, 3 columns)."""
     f = R.reshape((-1, 3, 3))
-    o = _view(out, f.shape[0], (3,) if rotvec else (4,))
+    o = out.reshape((-1, out.shape[-1]))
     q = np.empty((1, 4))
     for i in range(f.shape[0]):
         if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
             raise Rejected(i)
         _rot_to_quat(f, i, q, 0)
         _write_axis_angle(o, i, q[0, 0], q[0, 1], q[0, 2], q[0, 3], rotvec)
-    return o
 
 
 @kernel
@@ -540,8 +526,8 @@ def quat_slerp(q0, q1, t, out):
     normalised lerp takes over below 1e-6 rad where sin(Ω) would divide rounding noise."""
     fa = q0.reshape((-1, 4))
     fb = q1.reshape((-1, 4))
-    ft = t.reshape(-1)
-    o = _view(out, max(fa.shape[0], fb.shape[0], ft.shape[0]), (4,))
+    ft = _flat(t)
+    o = out.reshape((-1, 4))
     s0 = 1 if fa.shape[0] > 1 else 0
     s1 = 1 if fb.shape[0] > 1 else 0
     st = 1 if ft.shape[0] > 1 else 0
@@ -580,13 +566,12 @@ def quat_slerp(q0, q1, t, out):
 
 
 # ---------------------------------------------------------------- exp / log on SO(3)
-    return o
 
 
 @kernel
 def exp_so3(rv, out):
     f = rv.reshape((-1, 3))
-    o = _view(out, f.shape[0], (3, 3))
+    o = out.reshape((-1, 3, 3))
     for i in range(f.shape[0]):
         x, y, z = f[i, 0], f[i, 1], f[i, 2]
         theta = math.sqrt(x * x + y * y + z * z)
@@ -597,7 +582,6 @@ def exp_so3(rv, out):
 
 
 # ---------------------------------------------------------------- Euler Z-Y-X
-    return o
 
 
 @kernel
@@ -642,16 +626,15 @@ def _euler_parallel(fy, fp, fr, o):
 
 @kernel
 def euler_zyx_to_matrix(yaw, pitch, roll, out):
-    fy = yaw.reshape(-1)
-    fp = pitch.reshape(-1)
-    fr = roll.reshape(-1)
-    o = _view(out, max(fy.shape[0], fp.shape[0], fr.shape[0]), (3, 3))
+    fy = _flat(yaw)
+    fp = _flat(pitch)
+    fr = _flat(roll)
+    o = out.reshape((-1, 3, 3))
     if o.shape[0] >= PARALLEL_MIN and _euler_parallel(fy, fp, fr, o) == 0:
-        return o
+        return
     for i in range(o.shape[0]):
         if not _euler_row(fy, fp, fr, o, i):
             raise Rejected(i)
-    return o
 
 
 @kernel
@@ -670,7 +653,7 @@ def matrix_to_euler_zyx(R, out):
     first column), so the angles reproduce R to rounding even where cos(pitch) is tiny. At gimbal
     lock (cos(pitch) ≤ GIMBAL_EPS) roll is 0 by convention and yaw takes the whole angle."""
     f = R.reshape((-1, 3, 3))
-    o = _view(out, f.shape[0], (3,))
+    o = out.reshape((-1, 3))
     for i in range(f.shape[0]):
         if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
             raise Rejected(i)
@@ -687,14 +670,13 @@ def matrix_to_euler_zyx(R, out):
 
 
 # ---------------------------------------------------------------- SE(3)
-    return o
 
 
 @kernel
 def make_transform(R, t, out):
     fr = R.reshape((-1, 3, 3))
     ft = t.reshape((-1, 3))
-    o = _view(out, max(fr.shape[0], ft.shape[0]), (4, 4))
+    o = out.reshape((-1, 4, 4))
     sr = 1 if fr.shape[0] > 1 else 0
     st = 1 if ft.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -706,13 +688,12 @@ def make_transform(R, t, out):
                 o[i, r, c] = fr[ir, r, c]
             o[i, r, 3] = ft[it, r]
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
-    return o
 
 
 @kernel
 def invert_transform(T, out):
     f = T.reshape((-1, 4, 4))
-    o = _view(out, f.shape[0], (4, 4))
+    o = out.reshape((-1, 4, 4))
     for i in range(f.shape[0]):
         if not _rigid_ok(f, i):
             raise Rejected(i)
@@ -723,7 +704,6 @@ def invert_transform(T, out):
                 acc += f[i, c, r] * f[i, c, 3]
             o[i, r, 3] = -acc
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
-    return o
 
 
 @kernel
@@ -731,7 +711,7 @@ def compose_transforms(A, B, out):
     """A @ B for rigid 4×4 transforms, using their (0, 0, 0, 1) last rows."""
     fa = A.reshape((-1, 4, 4))
     fb = B.reshape((-1, 4, 4))
-    o = _view(out, max(fa.shape[0], fb.shape[0]), (4, 4))
+    o = out.reshape((-1, 4, 4))
     sa = 1 if fa.shape[0] > 1 else 0
     sb = 1 if fb.shape[0] > 1 else 0
     for i in range(o.shape[0]):
@@ -741,7 +721,6 @@ def compose_transforms(A, B, out):
                 o[i, r, c] = fa[ia, r, 0] * fb[ib, 0, c] + fa[ia, r, 1] * fb[ib, 1, c] + fa[ia, r, 2] * fb[ib, 2, c]
             o[i, r, 3] += fa[ia, r, 3]
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
-    return o
 
 
 @kernel
@@ -750,14 +729,14 @@ def transform_points(T, p, out):
     through :func:`_map_points`."""
     ft = T.reshape((-1, 4, 4))
     fp = p.reshape((-1, 3))
-    o = _view(out, max(ft.shape[0], fp.shape[0]), (3,))
+    o = out.reshape((-1, 3))
     if o.shape[0] == 0:
-        return o
+        return
     if ft.shape[0] == 1:
         if not _rigid_ok(ft, 0):
             raise Rejected(0)
         _map_points(ft[0], fp, o)
-        return o
+        return
     sp = 1 if fp.shape[0] > 1 else 0
     for i in range(o.shape[0]):
         if not _rigid_ok(ft, i):
@@ -769,7 +748,6 @@ def transform_points(T, p, out):
             raise Rejected(i)
         for r in range(3):
             o[i, r] = ft[i, r, 0] * x + ft[i, r, 1] * y + ft[i, r, 2] * z + ft[i, r, 3]
-    return o
 
 
 @kernel
@@ -778,16 +756,16 @@ def rotate_points(R, p, out):
     :func:`_map_points`."""
     fr = R.reshape((-1, 3, 3))
     fp = p.reshape((-1, 3))
-    o = _view(out, max(fr.shape[0], fp.shape[0]), (3,))
+    o = out.reshape((-1, 3))
     if o.shape[0] == 0:
-        return o
+        return
     if fr.shape[0] == 1:
         if not (_rotation_error_sq(fr, 0) <= ROT_TOL_SQ):
             raise Rejected(0)
         M = np.zeros((3, 4))
         M[:, :3] = fr[0]
         _map_points(M, fp, o)
-        return o
+        return
     sp = 1 if fp.shape[0] > 1 else 0
     for i in range(o.shape[0]):
         if not (_rotation_error_sq(fr, i) <= ROT_TOL_SQ):
@@ -799,7 +777,6 @@ def rotate_points(R, p, out):
             raise Rejected(i)
         for r in range(3):
             o[i, r] = fr[i, r, 0] * x + fr[i, r, 1] * y + fr[i, r, 2] * z
-    return o
 
 
 @kernel
@@ -822,7 +799,7 @@ def exp_se3(xi, out):
     """Twist (ρ, φ) (translation part first, as Sophus and Barfoot) to a 4×4 transform:
     R = exp(φ^), t = V ρ with V = I + b φ^ + c φ^²."""
     f = xi.reshape((-1, 6))
-    o = _view(out, f.shape[0], (4, 4))
+    o = out.reshape((-1, 4, 4))
     for i in range(f.shape[0]):
         if not _finite_row(f, i):
             raise Rejected(i)
@@ -838,7 +815,6 @@ def exp_se3(xi, out):
         o[i, 1, 3] = ry + b * c1y + c * c2y
         o[i, 2, 3] = rz + b * c1z + c * c2z
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
-    return o
 
 
 @kernel
@@ -846,7 +822,7 @@ def log_se3(T, out):
     """Inverse of :func:`exp_se3`: φ = log R, ρ = V⁻¹ t with V⁻¹ = I − ½ φ^ + d φ^²,
     d = (1 − (θ/2) cot(θ/2)) / θ², by its series below 0.1; finite up to and at θ = π."""
     f = T.reshape((-1, 4, 4))
-    o = _view(out, f.shape[0], (6,))
+    o = out.reshape((-1, 6))
     q = np.empty((1, 4))
     for i in range(f.shape[0]):
         if not _rigid_ok(f, i):
@@ -870,7 +846,6 @@ def log_se3(T, out):
 
 
 # ---------------------------------------------------------------- SE(2)
-    return o
 
 
 @kernel
@@ -883,10 +858,10 @@ def _se2_entries(x, y, t, o, i):
 
 @kernel
 def se2_matrix(x, y, theta, out):
-    fx = x.reshape(-1)
-    fy = y.reshape(-1)
-    ft = theta.reshape(-1)
-    o = _view(out, max(fx.shape[0], fy.shape[0], ft.shape[0]), (3, 3))
+    fx = _flat(x)
+    fy = _flat(y)
+    ft = _flat(theta)
+    o = out.reshape((-1, 3, 3))
     sx = 1 if fx.shape[0] > 1 else 0
     sy = 1 if fy.shape[0] > 1 else 0
     st = 1 if ft.shape[0] > 1 else 0
@@ -896,7 +871,6 @@ def se2_matrix(x, y, theta, out):
         if not (s - s == 0.0):
             raise Rejected(i)
         _se2_entries(a, b, t, o, i)
-    return o
 
 
 @kernel
@@ -911,14 +885,13 @@ def se2_matrix_one(x, y, theta, out):
 @kernel
 def se2_from_matrix(T, out):
     f = T.reshape((-1, 3, 3))
-    o = _view(out, f.shape[0], (3,))
+    o = out.reshape((-1, 3))
     for i in range(f.shape[0]):
         if not _rigid2_ok(f, i):
             raise Rejected(i)
         o[i, 0] = f[i, 0, 2]
         o[i, 1] = f[i, 1, 2]
         o[i, 2] = _atan2(f[i, 1, 0], f[i, 0, 0])
-    return o
 
 
 @kernel
@@ -926,9 +899,9 @@ def transform_points2(T, p, out):
     """2D counterpart of :func:`transform_points`: 3×3 transforms, 2-vectors."""
     ft = T.reshape((-1, 3, 3))
     fp = p.reshape((-1, 2))
-    o = _view(out, max(ft.shape[0], fp.shape[0]), (2,))
+    o = out.reshape((-1, 2))
     if o.shape[0] == 0:
-        return o
+        return
     st = 1 if ft.shape[0] > 1 else 0
     sp = 1 if fp.shape[0] > 1 else 0
     if st == 0 and not _rigid2_ok(ft, 0):
@@ -944,13 +917,12 @@ def transform_points2(T, p, out):
             raise Rejected(i)
         o[i, 0] = ft[k, 0, 0] * x + ft[k, 0, 1] * y + ft[k, 0, 2]
         o[i, 1] = ft[k, 1, 0] * x + ft[k, 1, 1] * y + ft[k, 1, 2]
-    return o
 
 
 @kernel
 def invert_transform2(T, out):
     f = T.reshape((-1, 3, 3))
-    o = _view(out, f.shape[0], (3, 3))
+    o = out.reshape((-1, 3, 3))
     for i in range(f.shape[0]):
         if not _rigid2_ok(f, i):
             raise Rejected(i)
@@ -959,6 +931,3 @@ def invert_transform2(T, out):
             o[i, r, 1] = f[i, 1, r]
             o[i, r, 2] = -(f[i, 0, r] * f[i, 0, 2] + f[i, 1, r] * f[i, 1, 2])
         o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = 0.0, 0.0, 1.0
-    return o
-
-

@@ -16,7 +16,12 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernels as K
-from ._arrays import Rejected, run, unstack
+from ._arrays import Rejected, entry, unstack
+
+_to_matrix = entry(
+    K.euler_zyx_to_matrix, (3, 3), ((), "yaw", "finite"), ((), "pitch", "finite"), ((), "roll", "finite")
+)
+_to_euler = entry(K.matrix_to_euler_zyx, (3,), ((3, 3), "R", "rotation"))
 
 
 def euler_zyx_to_matrix(yaw, pitch, roll):
@@ -29,10 +34,9 @@ def euler_zyx_to_matrix(yaw, pitch, roll):
             pass  # fall through to the array path, which names the bad argument
         else:
             return out
-    return run(K.euler_zyx_to_matrix, (3, 3), (yaw, (), "yaw", "finite"), (pitch, (), "pitch", "finite"),
-               (roll, (), "roll", "finite"))
+    return _to_matrix(yaw, pitch, roll)
 
 
 def matrix_to_euler_zyx(R):
     """``(yaw, pitch, roll)`` arrays (...) of rotation matrices (..., 3, 3); see the module notes."""
-    return unstack(run(K.matrix_to_euler_zyx, (3,), (R, (3, 3), "R", "rotation")))
+    return unstack(_to_euler(R))

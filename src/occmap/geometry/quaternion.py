@@ -10,40 +10,50 @@ ROS messages store ``(x, y, z, w)``: convert with :func:`quat_from_xyzw` / :func
 from __future__ import annotations
 
 from . import _kernels as K
-from ._arrays import batch, run
+from ._arrays import batch, entry
 
 _Q = (4,)
+_multiply = entry(K.quat_multiply, _Q, (_Q, "q1", "finite"), (_Q, "q2", "finite"))
+_conjugate = entry(K.quat_scale, _Q, (_Q, "q", "finite"), args=(0,))
+_inverse = entry(K.quat_scale, _Q, (_Q, "q", "nonzero"), args=(1,))
+_normalize = entry(K.quat_scale, _Q, (_Q, "q", "nonzero"), args=(2,))
+_rotate = entry(K.quat_rotate, (3,), (_Q, "q", "unit"), ((3,), "v", "finite"))
+_to_matrix = entry(K.quat_to_matrix, (3, 3), (_Q, "q", "unit"))
+_from_matrix = entry(K.matrix_to_quat, _Q, ((3, 3), "R", "rotation"))
+_from_axis_angle = entry(K.axis_angle_to_quat, _Q, ((3,), "axis", "nonzero"), ((), "angle", "finite"))
+_to_axis_angle = entry(K.quat_to_axis_angle, _Q, (_Q, "q", "unit"))
+_slerp = entry(K.quat_slerp, _Q, (_Q, "q0", "unit"), (_Q, "q1", "unit"), ((), "t", "finite"))
 
 
 def quat_multiply(q1, q2):
     """Hamilton product ``q1 ⊗ q2`` (rotation by ``q2`` then ``q1``) of any finite quaternions."""
-    return run(K.quat_multiply, _Q, (q1, _Q, "q1", "finite"), (q2, _Q, "q2", "finite"))
+    return _multiply(q1, q2)
 
 
 def quat_conjugate(q):
     """``(w, −x, −y, −z)``: the inverse rotation of a unit quaternion."""
-    return run(K.quat_scale, _Q, (q, _Q, "q", "finite"), args=(0,))
+    return _conjugate(q)
 
 
 def quat_inverse(q):
     """Multiplicative inverse ``q* / ‖q‖²`` of any non-zero finite quaternion."""
-    return run(K.quat_scale, _Q, (q, _Q, "q", "nonzero"), args=(1,))
+    return _inverse(q)
 
 
 def quat_normalize(q):
     """``q / ‖q‖`` for any non-zero finite quaternion (exact also for tiny or huge ones);
     raises NotUnitQuaternionError for a zero quaternion, NonFiniteError for NaN/inf."""
-    return run(K.quat_scale, _Q, (q, _Q, "q", "nonzero"), args=(2,))
+    return _normalize(q)
 
 
 def quat_rotate(q, v):
     """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4): ``q ⊗ (0, v) ⊗ q*``."""
-    return run(K.quat_rotate, (3,), (q, _Q, "q", "unit"), (v, (3,), "v", "finite"))
+    return _rotate(q, v)
 
 
 def quat_to_matrix(q):
     """Rotation matrices (..., 3, 3) of unit quaternions (..., 4)."""
-    return run(K.quat_to_matrix, (3, 3), (q, _Q, "q", "unit"))
+    return _to_matrix(q)
 
 
 def matrix_to_quat(R):
@@ -53,12 +63,12 @@ def matrix_to_quat(R):
     rotations to within ‖RᵀR − I‖ ≤ 1e-6 (else NotARotationError); project noisy ones first with
     :func:`~occmap.geometry.so3.nearest_rotation`.
     """
-    return run(K.matrix_to_quat, _Q, (R, (3, 3), "R", "rotation"))
+    return _from_matrix(R)
 
 
 def axis_angle_to_quat(axis, angle):
     """Quaternions of rotations by ``angle`` (radians, right-handed) about ``axis`` (non-zero, any length)."""
-    return run(K.axis_angle_to_quat, _Q, (axis, (3,), "axis", "nonzero"), (angle, (), "angle", "finite"))
+    return _from_axis_angle(axis, angle)
 
 
 def quat_to_axis_angle(q):
@@ -66,7 +76,7 @@ def quat_to_axis_angle(q):
 
     The angle is ``2·atan2(‖v‖, |w|)``, accurate near 0 and π; the identity gets axis (1, 0, 0).
     """
-    out = run(K.quat_to_axis_angle, _Q, (q, _Q, "q", "unit"))
+    out = _to_axis_angle(q)
     return out[..., :3], out[..., 3]
 
 
@@ -76,7 +86,7 @@ def quat_slerp(q0, q1, t):
     ``q0``, ``q1`` (..., 4) and ``t`` (...) broadcast; ``t`` outside [0, 1] extrapolates along the
     same great circle. The result has unit norm.
     """
-    return run(K.quat_slerp, _Q, (q0, _Q, "q0", "unit"), (q1, _Q, "q1", "unit"), (t, (), "t", "finite"))
+    return _slerp(q0, q1, t)
 
 
 def quat_from_xyzw(q):

@@ -10,8 +10,12 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, index_batch, reject, run, unstack
+from ._arrays import Rejected, entry, index_batch, reject, unstack
 from .so2 import SO2, wrap_angle
+
+_matrix = entry(K.se2_matrix, (3, 3), ((), "x", "finite"), ((), "y", "finite"), ((), "theta", "finite"))
+_from_matrix = entry(K.se2_from_matrix, (3,), ((3, 3), "T", "rigid2"))
+_apply = entry(K.transform_points2, (2,), ((3, 3), "pose", "rigid2"), ((2,), "points", "finite"))
 
 
 def se2_matrix(x, y, theta):
@@ -24,12 +28,12 @@ def se2_matrix(x, y, theta):
             pass  # fall through to the array path, which names the bad argument
         else:
             return out
-    return run(K.se2_matrix, (3, 3), (x, (), "x", "finite"), (y, (), "y", "finite"), (theta, (), "theta", "finite"))
+    return _matrix(x, y, theta)
 
 
 def se2_from_matrix(T):
     """``(x, y, theta)`` arrays (...) of planar rigid transforms (..., 3, 3), θ ∈ (−π, π]."""
-    return unstack(run(K.se2_from_matrix, (3,), (T, (3, 3), "T", "rigid2")))
+    return unstack(_from_matrix(T))
 
 
 class SE2:
@@ -119,7 +123,7 @@ class SE2:
 
     def apply(self, points) -> np.ndarray:
         """Map (..., 2) body-frame points to the world frame (leading shapes broadcast)."""
-        return run(K.transform_points2, (2,), (self.matrix, (3, 3), "pose", "rigid2"), (points, (2,), "points", "finite"))
+        return _apply(self.matrix, points)
 
     def interpolate(self, other: SE2, t) -> SE2:
         """Translation linearly, heading the short way round (``t = 0`` gives ``self``)."""

@@ -14,12 +14,44 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, index_batch, reject, run
+from ._arrays import Rejected, batch, entry, index_batch, reject, run
 from .euler import euler_zyx_to_matrix
 from .se2 import se2_matrix
 from .so2 import so2_angle
 from .quaternion import quat_slerp, quat_to_matrix
 from .so3 import SO3, nearest_rotation
+
+_T, _T2 = ((4, 4), "T", "rigid"), ((3, 3), "T", "rigid2")
+_P, _P2 = ((3,), "points", "finite"), ((2,), "points", "finite")
+
+
+def _invert_any(T):
+    """Batches, 2D transforms and bad input; a single 3D transform goes straight to its kernel."""
+    if _planar(T):
+        return _invert2(T)
+    return run(K.invert_transform, (4, 4), (T, *_T))
+
+
+def _transform_any(T, points):
+    """Batches, 2D transforms and bad input; a single 3D transform and point go straight to the kernel."""
+    if _planar(T):
+        return _transform2(T, points)
+    return run(K.transform_points, (3,), (T, *_T), (points, *_P))
+
+
+def _planar(T) -> bool:
+    m = np.asarray(T)
+    return m.ndim >= 2 and m.shape[-1] == 3
+
+
+_make = entry(K.make_transform, (4, 4), ((3, 3), "R", "rotation"), ((3,), "t", "finite"))
+_invert = entry(K.invert_transform, (4, 4), _T, otherwise=_invert_any)
+_invert2 = entry(K.invert_transform2, (3, 3), _T2)
+_transform = entry(K.transform_points, (3,), _T, _P, otherwise=_transform_any)
+_transform2 = entry(K.transform_points2, (2,), _T2, _P2)
+_compose = entry(K.compose_transforms, (4, 4), ((4, 4), "A", "finite"), ((4, 4), "B", "finite"))
+_exp = entry(K.exp_se3, (4, 4), ((6,), "twist", "finite"))
+_log = entry(K.log_se3, (6,), ((4, 4), "T", "rigid"))
 
 
 def make_transform(R, t):
@@ -31,16 +63,12 @@ def make_transform(R, t):
         if tt.shape[-1:] != (2,):
             raise ShapeError(f"t must have shape (..., 2) to go with 2×2 rotations, got {tt.shape}")
         return se2_matrix(tt[..., 0], tt[..., 1], so2_angle(r))
-    return run(K.make_transform, (4, 4), (r, (3, 3), "R", "rotation"), (t, (3,), "t", "finite"))
+    return _make(r, t)
 
 
 def invert_transform(T):
     """Inverses ``[[Rᵀ, −Rᵀt], [0, 1]]`` of rigid transforms (..., 4, 4) or 2D (..., 3, 3)."""
-    m = np.asarray(T, dtype=np.float64, order="C")
-    planar = m.ndim >= 2 and m.shape[-1] == 3
-    if planar:
-        return run(K.invert_transform2, (3, 3), (m, (3, 3), "T", "rigid2"))
-    return run(K.invert_transform, (4, 4), (m, (4, 4), "T", "rigid"))
+    return _invert(T)
 
 
 def transform_points(T, points):
@@ -48,27 +76,23 @@ def transform_points(T, points):
 
     Leading shapes broadcast; one transform applied to N points is validated once and not copied.
     """
-    m = np.asarray(T, dtype=np.float64, order="C")
-    planar = m.ndim >= 2 and m.shape[-1] == 3
-    if planar:
-        return run(K.transform_points2, (2,), (m, (3, 3), "T", "rigid2"), (points, (2,), "points", "finite"))
-    return run(K.transform_points, (3,), (m, (4, 4), "T", "rigid"), (points, (3,), "points", "finite"))
+    return _transform(T, points)
 
 
 def compose_transforms(A, B):
     """``A @ B`` for rigid transforms (..., 4, 4), broadcasting; faster than ``np.matmul`` on batches.
     The inputs are assumed rigid (only their top three rows are read)."""
-    return run(K.compose_transforms, (4, 4), (A, (4, 4), "A", "finite"), (B, (4, 4), "B", "finite"))
+    return _compose(A, B)
 
 
 def exp_se3(twist):
     """Transforms (..., 4, 4) of twists ``(ρ, φ)`` (..., 6): rotation ``exp(φ^)``, translation ``V ρ``."""
-    return run(K.exp_se3, (4, 4), (twist, (6,), "twist", "finite"))
+    return _exp(twist)
 
 
 def log_se3(T):
     """Twists ``(ρ, φ)`` (..., 6) of rigid transforms, with ‖φ‖ ∈ [0, π]; inverse of :func:`exp_se3`."""
-    return run(K.log_se3, (6,), (T, (4, 4), "T", "rigid"))
+    return _log(T)
 
 
 class SE3:

@@ -13,38 +13,42 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, index_batch, reject, run
+from ._arrays import Rejected, batch, entry, index_batch, reject
 from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
 from .quaternion import axis_angle_to_quat, matrix_to_quat, quat_slerp, quat_to_matrix
+
+_hat = entry(K.hat, (3, 3), ((3,), "w", "finite"))
+_vee = entry(K.vee, (3,), ((3, 3), "W", "finite"))
+_rot = [entry(K.rot_axis, (3, 3), ((), "angle", "finite"), args=(axis,)) for axis in range(3)]
+_exp = entry(K.exp_so3, (3, 3), ((3,), "rotvec", "finite"))
+_axis_angle = entry(K.matrix_to_axis_angle, (4,), ((3, 3), "R", "rotation"), args=(False,))
+_log = entry(K.matrix_to_axis_angle, (3,), ((3, 3), "R", "rotation"), args=(True,))
+_rotate = entry(K.rotate_points, (3,), ((3, 3), "rotation", "rotation"), ((3,), "points", "finite"))
 
 
 def hat(w):
     """Skew-symmetric matrices (..., 3, 3) with ``hat(w) @ v == cross(w, v)``."""
-    return run(K.hat, (3, 3), (w, (3,), "w", "finite"))
+    return _hat(w)
 
 
 def vee(W):
     """Inverse of :func:`hat`; takes the skew-symmetric part ``(W − Wᵀ)/2`` of any 3×3 matrix."""
-    return run(K.vee, (3,), (W, (3, 3), "W", "finite"))
-
-
-def _rot(angle, axis: int):
-    return run(K.rot_axis, (3, 3), (angle, (), "angle", "finite"), args=(axis,))
+    return _vee(W)
 
 
 def rot_x(angle):
     """Rotations (..., 3, 3) by ``angle`` radians about x (counter-clockwise seen from +x)."""
-    return _rot(angle, 0)
+    return _rot[0](angle)
 
 
 def rot_y(angle):
     """Rotations (..., 3, 3) by ``angle`` radians about y."""
-    return _rot(angle, 1)
+    return _rot[1](angle)
 
 
 def rot_z(angle):
     """Rotations (..., 3, 3) by ``angle`` radians about z."""
-    return _rot(angle, 2)
+    return _rot[2](angle)
 
 
 def exp_so3(rotvec):
@@ -53,7 +57,7 @@ def exp_so3(rotvec):
     Computed through the unit quaternion ``(cos θ/2, sin(θ/2)/θ · w)`` with a series for
     sin(θ/2)/θ at small θ, so it is accurate to rounding from θ = 0 upward.
     """
-    return run(K.exp_so3, (3, 3), (rotvec, (3,), "rotvec", "finite"))
+    return _exp(rotvec)
 
 
 def matrix_to_axis_angle(R):
@@ -63,14 +67,14 @@ def matrix_to_axis_angle(R):
     ~1e-15 at angles near 0 and near π, where ``acos((tr R − 1)/2)`` loses half the digits.
     The identity gets axis (1, 0, 0); at exactly π, ``axis`` and ``−axis`` are equally valid.
     """
-    out = run(K.matrix_to_axis_angle, (4,), (R, (3, 3), "R", "rotation"), args=(False,))
+    out = _axis_angle(R)
     return out[..., :3], out[..., 3]
 
 
 def log_so3(R):
     """Rotation vectors (..., 3) (axis · angle, angle ∈ [0, π]) of rotation matrices; accurate to
     rounding relative to the angle from 0 up to π (see :func:`matrix_to_axis_angle`)."""
-    return run(K.matrix_to_axis_angle, (3,), (R, (3, 3), "R", "rotation"), args=(True,))
+    return _log(R)
 
 
 def axis_angle_to_matrix(axis, angle):
@@ -217,7 +221,7 @@ class SO3:
 
     def apply(self, points) -> np.ndarray:
         """Rotate (..., 3) points; their leading shape broadcasts with ``self.shape``."""
-        return run(K.rotate_points, (3,), (self._m, (3, 3), "rotation", "rotation"), (points, (3,), "points", "finite"))
+        return _rotate(self._m, points)
 
     def magnitude(self) -> np.ndarray:
         """Rotation angles in [0, π] (radians)."""
