@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         commands = {"map2d": _map2d, "map3d": _map3d, "info": _info, "convert": _convert, "render": _render}
         if args.command in commands:
             return commands[args.command](args)
-    except OccmapError as e:
+    except (OccmapError, OSError) as e:  # bad input, missing or unreadable files: a message, no traceback
         print(f"occmap {args.command}: error: {e}", file=sys.stderr)
         return 2
     parser.error(f"unknown command {args.command!r}")

@@ -1,0 +1,88 @@
+"""`occmap map3d / info / convert / render` on small clouds written by the test itself."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from occmap.cli import main
+from occmap.geometry import SE3
+from occmap.io.pointclouds import read_ply, write_pcd, write_xyz
+from occmap.octree import OcTree
+from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive
+
+
+@pytest.fixture(scope="module")
+def clouds():
+    return simulate_drive(3, VELODYNE_HDL32.with_azimuth_step(np.radians(2.0)), rng=5)
+
+
+def _write_inputs(folder, clouds):
+    paths = []
+    for i, c in enumerate(clouds):
+        path = folder / f"scan{i}.pcd"
+        write_pcd(path, c.points, viewpoint=c.pose)  # sensor-frame points, pose in VIEWPOINT
+        paths.append(str(path))
+    return paths
+
+
+def test_map3d_builds_the_same_tree_as_the_library(tmp_path, capsys, clouds):
+    inputs = _write_inputs(tmp_path, clouds)
+    out = tmp_path / "map.bt"
+    assert main(["map3d", *inputs, "-o", str(out), "--resolution", "0.2", "--max-range", "30",
+                 "--png", str(tmp_path / "map.png")]) == 0
+    text = capsys.readouterr().out
+    assert "3 scans" in text and "points/s" in text
+    tree = OcTree(0.2)
+    for c in clouds:
+        tree.insert_point_cloud(c.world_points(), c.origin, max_range=30.0)
+    loaded = OcTree.read_binary(out)
+    probe = np.random.default_rng(0).uniform([-5, 0, -1], [60, 40, 8], size=(5000, 3))
+    np.testing.assert_array_equal(loaded.occupancy_at(probe), tree.occupancy_at(probe))
+    assert Image.open(tmp_path / "map.png").size[0] > 100
+
+
+def test_info_convert_render(tmp_path, capsys, clouds):
+    tree = OcTree(0.25)
+    for c in clouds:
+        tree.insert_point_cloud(c.world_points(), c.origin, max_range=30.0)
+    tree.write(tmp_path / "map.ot")
+    assert main(["info", str(tmp_path / "map.ot")]) == 0
+    text = capsys.readouterr().out
+    assert f"{tree.num_nodes():,}" in text and "occupied" in text
+    assert main(["convert", str(tmp_path / "map.ot"), str(tmp_path / "map.bt")]) == 0
+    assert OcTree.load(tmp_path / "map.bt").num_nodes() <= tree.num_nodes()
+    assert main(["convert", str(tmp_path / "map.ot"), str(tmp_path / "map.ply")]) == 0
+    assert len(read_ply(tmp_path / "map.ply")) == len(tree.occupied_centers())
+    assert main(["render", str(tmp_path / "map.ot"), "-o", str(tmp_path / "top.png")]) == 0
+    assert main(["render", str(tmp_path / "map.ot"), "-o", str(tmp_path / "cut.png"), "--slice", "1.0"]) == 0
+    cut = np.asarray(Image.open(tmp_path / "cut.png"))
+    assert (cut == 20).all(axis=-1).any() and (cut == 255).all(axis=-1).any()  # occupied and free pixels
+
+
+def test_map3d_reads_xyz_and_reports_bad_input(tmp_path, capsys, clouds):
+    path = tmp_path / "scan.xyz"
+    write_xyz(path, clouds[0].points)  # sensor at the origin
+    assert main(["map3d", str(path), "-o", str(tmp_path / "a.bt")]) == 0
+    bad = tmp_path / "bad.xyz"
+    bad.write_text("1 2 3\n4 five 6\n")
+    assert main(["map3d", str(bad), "-o", str(tmp_path / "b.bt")]) == 2
+    assert "line 2" in capsys.readouterr().err
+    assert main(["map3d", str(path), "-o", str(tmp_path / "c.xyz")]) == 2
+    assert not (tmp_path / "c.xyz").exists()
+    assert main(["info", str(tmp_path / "missing.bt")]) == 2
+
+
+def test_pose_moves_the_map(tmp_path, clouds):
+    """A cloud written with a pose lands where the pose puts it."""
+    c = clouds[0]
+    shifted = SE3.from_rt(np.eye(3), [100.0, 0.0, 0.0]) @ c.pose
+    write_pcd(tmp_path / "a.pcd", c.points, viewpoint=c.pose)
+    write_pcd(tmp_path / "s.pcd", c.points, viewpoint=shifted)
+    for name in ("a", "s"):
+        assert main(["map3d", str(tmp_path / f"{name}.pcd"), "-o", str(tmp_path / f"{name}.bt"), "--resolution", "0.5"]) == 0
+    lo_a, hi_a = OcTree.read_binary(tmp_path / "a.bt").metric_bounds()
+    lo_s, hi_s = OcTree.read_binary(tmp_path / "s.bt").metric_bounds()
+    np.testing.assert_allclose(lo_s - lo_a, [100, 0, 0], atol=0.5)
+    np.testing.assert_allclose(hi_s - hi_a, [100, 0, 0], atol=0.5)
