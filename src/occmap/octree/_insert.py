@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from ._kernels import DEPTH, FREE, SIZE, TOP, coord_to_key, key_to_coord, settle
+from ._kernels import DEPTH, FREE, MAX_KEY, SIZE, TOP, coord_to_key, key_to_coord, settle
 
 #: Slots one voxel update may allocate at most: a new block at every level.
 _ROOM = 8 * DEPTH
@@ -35,33 +35,40 @@ _ROOM = 8 * DEPTH
 
 
 @kernel
-def ray_ends(points, origins, max_range):
-    """End of every ray as ``computeUpdate`` takes it (float32): the point itself when within
-    ``max_range`` (< 0: unlimited) of its origin (``origins`` (N, 3), or (1, 3) for all), else the
-    point ``max_range`` along the ray; and whether the point is within range (its voxel is then a
-    hit)."""
+def prepare_rays(points, origins, max_range, res):
+    """The rays of a scan as ``computeUpdate`` takes them, in one pass over float64 ``points``
+    (N, 3) from float32 ``origins`` (N, 3), or (1, 3) for all: points with NaN/inf are dropped;
+    each end (float32, as OctoMap's ``point3d``) is the point itself when within ``max_range``
+    (< 0: unlimited) of its origin, else the point ``max_range`` along the ray; ``hit`` says which
+    (the end voxel is then occupied). Returns (ends, hit, dropped, first point whose end lies
+    outside the key range or −1)."""
     n = points.shape[0]
+    inv_res = 1.0 / res
     ends = np.empty((n, 3), np.float32)
     hit = np.empty(n, np.bool_)
     mr = np.float32(max_range)
+    m = 0
+    bad = -1
     for i in range(n):
+        if not (np.isfinite(points[i, 0]) and np.isfinite(points[i, 1]) and np.isfinite(points[i, 2])):
+            continue
         j = i if origins.shape[0] > 1 else 0
         ox, oy, oz = origins[j, 0], origins[j, 1], origins[j, 2]
-        dx = points[i, 0] - ox
-        dy = points[i, 1] - oy
-        dz = points[i, 2] - oz
+        px, py, pz = np.float32(points[i, 0]), np.float32(points[i, 1]), np.float32(points[i, 2])
+        dx, dy, dz = px - ox, py - oy, pz - oz
         norm = math.sqrt(np.float64(dx * dx + dy * dy + dz * dz))
-        hit[i] = max_range < 0.0 or norm <= max_range
-        if hit[i]:
-            ends[i, 0] = points[i, 0]
-            ends[i, 1] = points[i, 1]
-            ends[i, 2] = points[i, 2]
-        else:
+        hit[m] = max_range < 0.0 or norm <= max_range
+        if not hit[m]:
             s = np.float32(norm)
-            ends[i, 0] = ox + (dx / s) * mr
-            ends[i, 1] = oy + (dy / s) * mr
-            ends[i, 2] = oz + (dz / s) * mr
-    return ends, hit
+            px, py, pz = ox + (dx / s) * mr, oy + (dy / s) * mr, oz + (dz / s) * mr
+        ends[m, 0], ends[m, 1], ends[m, 2] = px, py, pz
+        if bad < 0:
+            for c in (px, py, pz):
+                k = coord_to_key(c, inv_res)
+                if k < 0 or k > MAX_KEY:
+                    bad = i
+        m += 1
+    return ends[:m], hit[:m], n - m, bad
 
 
 @kernel

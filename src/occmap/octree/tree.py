@@ -160,11 +160,13 @@ class OcTree:
         keys = np.floor(P * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
         bad = np.flatnonzero(~np.all((keys >= 0) & (keys <= K.MAX_KEY), axis=1))
         if bad.size:
-            i = int(bad[0])
-            raise InvalidArgumentError(
-                f"point {i} {P[i].tolist()} lies outside the octree's key range "
-                f"(±{K.CENTER * self.resolution:g} m at resolution {self.resolution:g} m)")
+            raise self._out_of_range("point", int(bad[0]), P[bad[0]])
         return keys
+
+    def _out_of_range(self, what: str, i: int, p) -> InvalidArgumentError:
+        return InvalidArgumentError(
+            f"{what} {i} {np.asarray(p).tolist()} lies outside the octree's key range "
+            f"(±{K.CENTER * self.resolution:g} m at resolution {self.resolution:g} m)")
 
     def key_to_coord(self, keys, depth: int = 16) -> np.ndarray:
         """Centres (N, 3) of the nodes at ``depth`` that hold the given keys, computed as OctoMap's
@@ -192,25 +194,22 @@ class OcTree:
         :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
         """
         P = _points("points", points)
-        o = _origin(origin)
-        finite = np.all(np.isfinite(P), axis=1)
-        dropped = int(P.shape[0] - np.count_nonzero(finite))
-        if dropped:
-            P = P[finite]
+        o32 = _origin(origin).astype(np.float32)
+        self.coord_to_key(o32.astype(np.float64))
         if discretize and P.shape[0]:
-            keys = self.coord_to_key(P)
+            P = P[np.all(np.isfinite(P), axis=1)]
+            keys = self.coord_to_key(P.astype(np.float32).astype(np.float64))  # OctoMap keys its float32 points
             _, first = np.unique(keys, axis=0, return_index=True)
             P = self.key_to_coord(keys[np.sort(first)])
-        o32 = o.astype(np.float32)
-        self.coord_to_key(o32.astype(np.float64))
-        ends, hit = I.ray_ends(P.astype(np.float32), o32[None, :], float(max_range))
-        self.coord_to_key(ends.astype(np.float64))
+        ends, hit, dropped, bad = I.prepare_rays(P, o32[None, :], float(max_range), self.resolution)
+        if bad >= 0:
+            raise self._out_of_range("point", bad, P[bad])
         keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution))
         self._apply(keys, is_hit, lazy)
         self.stats["scans"] += 1
-        self.stats["points"] += int(P.shape[0])
-        self.stats["dropped"] += dropped
-        return {"points": int(P.shape[0]), "dropped": dropped, "beyond_max_range": int(np.count_nonzero(~hit))}
+        self.stats["points"] += len(ends)
+        self.stats["dropped"] += int(dropped)
+        return {"points": len(ends), "dropped": int(dropped), "beyond_max_range": int(np.count_nonzero(~hit))}
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
                             lazy: bool = False) -> dict:
@@ -244,10 +243,11 @@ class OcTree:
             raise ShapeError(f"origins must be (3,) or ({E.shape[0]}, 3), got {O.shape}")
         if not np.all(np.isfinite(E)) or not np.all(np.isfinite(O)):
             raise InvalidArgumentError("ray origins and ends must be finite")
-        O32, E32 = O.astype(np.float32), E.astype(np.float32)
-        E32, with_end = I.ray_ends(E32, O32, float(max_range) if max_range > 0 else -1.0)
+        O32 = O.astype(np.float32)
         self.coord_to_key(O32.astype(np.float64))
-        self.coord_to_key(E32.astype(np.float64))
+        E32, with_end, _, bad = I.prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution)
+        if bad >= 0:
+            raise self._out_of_range("ray end", bad, E[bad])
         keys, is_hit = I.ray_voxels(O32, E32, with_end, self.resolution)
         self._apply(keys, is_hit, lazy)
 
