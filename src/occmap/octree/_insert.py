@@ -219,33 +219,56 @@ def mark_scan(origin, ends, hit, res, start, stop, table, slots, codes, hits, fr
             kx, ky, kz = okx, oky, okz
         else:
             kx, ky, kz = ekx, eky, ekz
+            sx = sy = sz = 1
         is_hit = not ray  # the end voxel comes last, after the ray's free voxels
+        wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7  # local coordinate on entering a block
+        lookup = True
         while True:
             if is_hit and not hit[i]:
                 break
-            code = _block_code(kx, ky, kz)
-            if code != cur_code:  # find or add the block (the last one is cached)
-                h = _hash(code, mask)
-                while table[h] != 0 and table[h] != code:
-                    h = (h + 1) & mask
-                if table[h] == 0:
-                    if count[0] == cap:
-                        return i
-                    table[h] = code
-                    slots[h] = count[0]
-                    codes[count[0]] = code
-                    count[0] += 1
-                cur = slots[h]
-                cur_code = code
+            if lookup:  # the voxel may lie in another block: find or add it (the last one is cached)
+                code = _block_code(kx, ky, kz)
+                if code != cur_code:
+                    h = _hash(code, mask)
+                    while table[h] != 0 and table[h] != code:
+                        h = (h + 1) & mask
+                    if table[h] == 0:
+                        if count[0] == cap:
+                            return i
+                        table[h] = code
+                        slots[h] = count[0]
+                        codes[count[0]] = code
+                        count[0] += 1
+                    cur = slots[h]
+                    cur_code = code
+                lookup = False
             m = (kx & 7) | ((ky & 7) << 3) | ((kz & 7) << 6)
             if is_hit:
                 hits[cur, m >> 6] |= np.int64(1) << (m & 63)
                 break
             frees[cur, m >> 6] |= np.int64(1) << (m & 63)
-            kx, ky, kz, tx, ty, tz = _step(kx, ky, kz, tx, ty, tz, sx, sy, sz, gx, gy, gz)
+            # next voxel: OctoMap's DDA step, noting when it enters another block
+            if tx < ty:
+                if tx < tz:
+                    kx += sx
+                    tx += gx
+                    lookup = (kx & 7) == wx
+                else:
+                    kz += sz
+                    tz += gz
+                    lookup = (kz & 7) == wz
+            elif ty < tz:
+                ky += sy
+                ty += gy
+                lookup = (ky & 7) == wy
+            else:
+                kz += sz
+                tz += gz
+                lookup = (kz & 7) == wz
             if (kx == ekx and ky == eky and kz == ekz) or min(tx, ty, tz) > length:
                 kx, ky, kz = ekx, eky, ekz
                 is_hit = True
+                lookup = True
     return stop
 
 
