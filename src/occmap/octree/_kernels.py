@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 
 TOP, FREE, SIZE = 0, 1, 2
 DEPTH = 16
@@ -58,19 +58,22 @@ def child_pos(kx, ky, kz, depth):
     return ((kx >> shift) & 1) | (((ky >> shift) & 1) << 1) | (((kz >> shift) & 1) << 2)
 
 
-@kernel
+@inline_kernel
 def settle(value, child, meta, node, set_max, prune):
     """Make inner ``node`` agree with its children: collapse it into a leaf if its eight
     children are leaves with one value (``prune``), else set it to their maximum (``set_max``).
     Returns True when it was pruned."""
     c = child[node]
-    collapsible = prune and child[c] < 0 and not np.isnan(value[c])
-    i = 1
-    while collapsible and i < 8:
-        collapsible = child[c + i] < 0 and value[c + i] == value[c]  # NaN (no child) never equals
-        i += 1
+    first = value[c]
+    m = -np.inf
+    collapsible = prune
+    for j in range(c, c + 8):
+        v = value[j]
+        if v > m:  # false for NaN: missing children do not count
+            m = v
+        collapsible = collapsible and child[j] < 0 and v == first  # NaN (no child) never equals
     if collapsible:
-        value[node] = value[c]
+        value[node] = first
         child[node] = -1
         for j in range(c, c + 8):
             value[j] = np.nan
@@ -80,10 +83,6 @@ def settle(value, child, meta, node, set_max, prune):
         meta[SIZE] -= 8
         return True
     if set_max:
-        m = -np.inf
-        for j in range(c, c + 8):
-            if value[j] > m:  # false for NaN: missing children do not count
-                m = value[j]
         value[node] = m
     return False
 
