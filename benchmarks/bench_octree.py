@@ -57,8 +57,7 @@ def datasets(data: Path | None, quick: bool) -> dict[str, list[tuple[np.ndarray,
 
 def build_occmap(scans, res):
     tree = OcTree(res)
-    for pts, origin in scans:
-        tree.insert_point_cloud(pts, origin)
+    tree.insert_point_clouds([p for p, _ in scans], [o for _, o in scans])
     return tree
 
 

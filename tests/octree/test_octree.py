@@ -374,3 +374,17 @@ def test_real_3d_scans_with_poses_match_octomap(data_dir):
             ours.insert_point_cloud(pts, origin, max_range=40.0)
             ref.insertPointCloud(pts, np.asarray(origin, dtype=np.float64), 40.0)
         assert_same_as_octomap(ours, ref)
+
+
+def test_insert_point_clouds_pipeline_equals_scan_by_scan():
+    """The batched call (next scan traced on another thread) builds the same tree, and counts alike."""
+    rng = np.random.default_rng(11)
+    clouds = [_room_cloud(rng, 2500) for _ in range(5)]
+    clouds[2][7] = np.nan
+    origins = rng.uniform(-0.5, 0.5, size=(5, 3))
+    one, many = OcTree(0.1), OcTree(0.1)
+    for pts, o in zip(clouds, origins):
+        one.insert_point_cloud(pts, o, max_range=4.5)
+    total = many.insert_point_clouds(clouds, origins, max_range=4.5)
+    np.testing.assert_array_equal(_leaf_table(one), _leaf_table(many))
+    assert total["scans"] == 5 and total["dropped"] == 1 and one.stats == many.stats

@@ -26,6 +26,8 @@ _INITIAL_SLOTS = 1 << 12
 #: Scans with at least this many rays are marked by two threads.
 _PARALLEL_RAYS = 20_000
 _POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="occmap-octree")
+#: Traces the next scan of insert_point_clouds while the tree takes the current one.
+_PIPELINE = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occmap-octree-next")
 
 
 def _logodds32(p: float) -> np.float32:
@@ -69,11 +71,11 @@ def _mark_range(origin, ends, hit, res, start, stop):
         storage = I.grow_blocks(*storage)
 
 
-def _mark(origin, ends, hit, res):
-    """The scan's voxels as Morton-sorted blocks of hit and free bits; large scans are marked by
-    two threads (the kernels release the GIL) and merged."""
+def _mark(origin, ends, hit, res, threads: bool):
+    """The scan's voxels as Morton-sorted blocks of hit and free bits; with ``threads``, large
+    scans are marked by two threads (the kernels release the GIL) and merged."""
     n = len(ends)
-    if n < _PARALLEL_RAYS:
+    if not threads or n < _PARALLEL_RAYS:
         parts = [_mark_range(origin, ends, hit, res, 0, n)]
     else:
         half = n // 2
@@ -193,28 +195,16 @@ class OcTree:
         ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
         :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
         """
-        P = _points("points", points)
-        o32 = _origin(origin).astype(np.float32)
-        self.coord_to_key(o32.astype(np.float64))
-        if discretize and P.shape[0]:
-            P = P[np.all(np.isfinite(P), axis=1)]
-            keys = self.coord_to_key(P.astype(np.float32).astype(np.float64))  # OctoMap keys its float32 points
-            _, first = np.unique(keys, axis=0, return_index=True)
-            P = self.key_to_coord(keys[np.sort(first)])
-        ends, hit, dropped, bad = I.prepare_rays(P, o32[None, :], float(max_range), self.resolution)
-        if bad >= 0:
-            raise self._out_of_range("point", bad, P[bad])
-        keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution))
+        keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
         self._apply(keys, is_hit, lazy)
-        self.stats["scans"] += 1
-        self.stats["points"] += len(ends)
-        self.stats["dropped"] += int(dropped)
-        return {"points": len(ends), "dropped": int(dropped), "beyond_max_range": int(np.count_nonzero(~hit))}
+        return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
                             lazy: bool = False) -> dict:
-        """Integrate many scans in order. ``clouds`` holds (N_i, 3) arrays with ``origins`` (S, 3),
-        or objects with ``world_points()`` and ``origin`` (:class:`occmap.cloud.PointCloud`)."""
+        """Integrate many scans in order, each as :meth:`insert_point_cloud`. ``clouds`` holds
+        (N_i, 3) arrays with ``origins`` (S, 3), or objects with ``world_points()`` and ``origin``
+        (:class:`occmap.cloud.PointCloud`). The next scan's rays are traced on the second core
+        while the tree takes the current one. Returns the summed summary."""
         clouds = list(clouds)
         if origins is None:
             pairs = [(c.world_points(), c.origin) for c in clouds]
@@ -224,12 +214,44 @@ class OcTree:
                 raise ShapeError(f"{len(clouds)} clouds but {len(O)} origins")
             pairs = list(zip(clouds, O))
         total = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
-        for pts, o in pairs:
-            summary = self.insert_point_cloud(pts, o, max_range, discretize, lazy)
+        pending = None
+        for k in range(len(pairs)):
+            current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, False)
+            pending = (_PIPELINE.submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
+                       if k + 1 < len(pairs) else None)
+            keys, is_hit, summary = current
+            self._apply(keys, is_hit, lazy)
+            self._count(summary)
             total["scans"] += 1
-            for k in ("points", "dropped", "beyond_max_range"):
-                total[k] += summary[k]
+            for name in ("points", "dropped", "beyond_max_range"):
+                total[name] += summary[name]
         return total
+
+    def _scan_voxels(self, points, origin, max_range: float, discretize: bool, threads: bool):
+        """A scan's voxels, Morton-ordered packed keys with hit flags, and its summary (no change
+        to the tree: scans can be traced ahead on another thread)."""
+        P = _points("points", points)
+        o32 = _origin(origin).astype(np.float32)
+        self.coord_to_key(o32.astype(np.float64))
+        dropped = 0
+        if discretize and P.shape[0]:
+            finite = np.all(np.isfinite(P), axis=1)
+            dropped, P = int(np.count_nonzero(~finite)), P[finite]
+            keys = self.coord_to_key(P.astype(np.float32).astype(np.float64))  # OctoMap keys its float32 points
+            _, first = np.unique(keys, axis=0, return_index=True)
+            P = self.key_to_coord(keys[np.sort(first)])
+        ends, hit, more, bad = I.prepare_rays(P, o32[None, :], float(max_range), self.resolution)
+        if bad >= 0:
+            raise self._out_of_range("point", bad, P[bad])
+        keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution, threads))
+        summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
+        return keys, is_hit, summary
+
+    def _count(self, summary: dict) -> dict:
+        self.stats["scans"] += 1
+        self.stats["points"] += summary["points"]
+        self.stats["dropped"] += summary["dropped"]
+        return summary
 
     def insert_rays(self, origins, ends, max_range: float = -1.0, lazy: bool = False) -> None:
         """OctoMap's ``insertRay`` for each ray in turn: the voxels from ``origins`` (N, 3) or one
