@@ -388,3 +388,65 @@ def test_insert_point_clouds_pipeline_equals_scan_by_scan():
     total = many.insert_point_clouds(clouds, origins, max_range=4.5)
     np.testing.assert_array_equal(_leaf_table(one), _leaf_table(many))
     assert total["scans"] == 5 and total["dropped"] == 1 and one.stats == many.stats
+
+
+def test_bbx_limit_matches_octomap_test():
+    """test_bbx: three points, a ±10.1 m box, max range 8: the x ray hits its point, the y ray stops
+    at unknown space just outside the box, the z ray (point beyond max range) at max range."""
+    res = np.float32(0.2)
+    tree = OcTree(float(res))
+    tree.bbx = ([-10.1] * 3, [10.1] * 3)
+    origin = np.array([res / 2, 5 + res / 2, res / 2], np.float32)
+    pts = origin + np.array([[5, 0, 0], [0, 7, 0], [0, 0, 9]], np.float32)
+    tree.insert_point_cloud(pts.astype(np.float64), origin.astype(np.float64), max_range=8.0)
+    hit, ends = tree.cast_ray(origin.astype(np.float64), np.eye(3))
+    np.testing.assert_array_equal(hit, [True, False, False])
+    np.testing.assert_allclose(ends[0], pts[0], atol=1e-3)
+    np.testing.assert_allclose(ends[1], [pts[1, 0], 10.1 + res, pts[1, 2]], atol=1e-3)
+    np.testing.assert_allclose(ends[2], [pts[2, 0], pts[2, 1], origin[2] + 8.0], atol=1e-3)
+
+
+def test_bbx_limited_scans_match_octomap():
+    rng = np.random.default_rng(12)
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    lo, hi = np.array([-2.0, -1.5, -3.0]), np.array([2.5, 3.0, 1.0])
+    ours.bbx = (lo, hi)
+    ref.setBBXMin(lo)
+    ref.setBBXMax(hi)
+    ref.useBBXLimit(True)
+    origins = [rng.uniform(-0.5, 0.5, 3) for _ in range(3)] + [np.array([3.5, 0.2, 0.1])]  # the last outside
+    for origin in origins:
+        pts = _room_cloud(rng, 3000)
+        ours.insert_point_cloud(pts, origin, max_range=4.0)
+        ref.insertPointCloud(pts, origin, 4.0)
+    assert_same_as_octomap(ours, ref)
+    lo_m, hi_m = ours.metric_bounds()
+    assert np.all(lo_m >= lo - 0.1) and np.all(hi_m <= hi + 0.1)
+    with pytest.raises(InvalidArgumentError):
+        ours.bbx = (hi, lo)
+
+
+def test_iterators_on_geb079(data_dir):
+    """test_iterators: every leaf of geb079 once (143,729 occupied + 284,415 free); leaves down
+    to a coarser depth count the nodes there as leaves; the bbx leaves are those overlapping it."""
+    tree = OcTree.read_binary(data_dir / "octomap" / "geb079.bt")
+    lv = tree.leaves()
+    assert len(lv.sizes) == 143729 + 284415
+    assert (lv.log_odds >= 0).sum() == 143729
+    assert len(np.unique(np.c_[lv.centers, lv.sizes], axis=0)) == len(lv.sizes)
+    coarse = tree.leaves(depth=12)
+    assert coarse.depths.max() == 12 and len(coarse.sizes) < len(lv.sizes)
+    # every finest leaf lies inside exactly one coarse leaf, whose value is the max below it
+    big = coarse.sizes[:, None] / 2
+    inside = np.all(np.abs(lv.centers[:, None, :] - coarse.centers[None, :, :]) < big[None], axis=2) \
+        if len(coarse.sizes) * len(lv.sizes) < 5e7 else None
+    if inside is not None:
+        assert (inside.sum(axis=1) == 1).all()
+    lo, hi = np.array([-5.0, -3.0, 0.0]), np.array([4.0, 6.0, 2.0])
+    box = tree.leaves(lo, hi)
+    half = lv.sizes[:, None] / 2
+    kmin, kmax = tree.coord_to_key(lo)[0], tree.coord_to_key(hi)[0]
+    first = tree.coord_to_key(lv.centers - half + tree.resolution / 2)
+    last = tree.coord_to_key(lv.centers + half - tree.resolution / 2)
+    overlap = np.all((first <= kmax) & (last >= kmin), axis=1)
+    assert len(box.sizes) == overlap.sum() > 0

@@ -35,13 +35,14 @@ _ROOM = 8 * DEPTH
 
 
 @kernel
-def prepare_rays(points, origins, max_range, res):
+def prepare_rays(points, origins, max_range, res, box):
     """The rays of a scan as ``computeUpdate`` takes them, in one pass over float64 ``points``
     (N, 3) from float32 ``origins`` (N, 3), or (1, 3) for all: points with NaN/inf are dropped;
     each end (float32, as OctoMap's ``point3d``) is the point itself when within ``max_range``
     (< 0: unlimited) of its origin, else the point ``max_range`` along the ray; ``hit`` says which
-    (the end voxel is then occupied). Returns (ends, hit, dropped, first point whose end lies
-    outside the key range or −1)."""
+    (the end voxel is then occupied). With a bounding box ``box`` (float32 (2, 3): min, max;
+    (0, 3) for none) a point outside it is no hit. Returns (ends, hit, dropped, first point whose
+    end lies outside the key range or −1)."""
     n = points.shape[0]
     inv_res = 1.0 / res
     ends = np.empty((n, 3), np.float32)
@@ -62,6 +63,9 @@ def prepare_rays(points, origins, max_range, res):
             s = np.float32(norm)
             px, py, pz = ox + (dx / s) * mr, oy + (dy / s) * mr, oz + (dz / s) * mr
         ends[m, 0], ends[m, 1], ends[m, 2] = px, py, pz
+        if hit[m] and box.shape[0]:
+            hit[m] = (box[0, 0] <= px <= box[1, 0] and box[0, 1] <= py <= box[1, 1]
+                      and box[0, 2] <= pz <= box[1, 2])
         if bad < 0:
             for c in (px, py, pz):
                 k = coord_to_key(c, inv_res)
@@ -194,9 +198,10 @@ def grow_blocks(table, slots, codes, hits, frees, count):
 
 
 @kernel
-def mark_scan(origin, ends, hit, res, start, stop, table, slots, codes, hits, frees, count):
+def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hits, frees, count):
     """Set the hit bit of each in-range end voxel and the free bits of every ray's voxels, for rays
-    ``start..stop-1``. Returns ``stop``, or the ray at which the block storage filled up (marking
+    ``start..stop-1`` (only the hits when ``rays`` is false). Returns ``stop``, or the ray at which
+    the block storage filled up (marking
     is idempotent, so the caller grows it and resumes there). Within a block, bit
     ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates (lx, ly, lz)."""
     inv_res = 1.0 / res
@@ -213,7 +218,7 @@ def mark_scan(origin, ends, hit, res, start, stop, table, slots, codes, hits, fr
         ekx = coord_to_key(ex, inv_res)
         eky = coord_to_key(ey, inv_res)
         ekz = coord_to_key(ez, inv_res)
-        ray = not (ekx == okx and eky == oky and ekz == okz)
+        ray = rays and not (ekx == okx and eky == oky and ekz == okz)
         if ray:
             length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _ray_init(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
             kx, ky, kz = okx, oky, okz
@@ -337,9 +342,10 @@ def _compact(m):
 
 
 @kernel
-def block_voxels(codes, hits, frees):
+def block_voxels(codes, hits, frees, kbox):
     """The marked voxels of Morton-sorted blocks as packed keys ``kx | ky << 16 | kz << 32`` in
-    Morton order, with a flag for the hit voxels (a voxel both hit and crossed is a hit)."""
+    Morton order, with a flag for the hit voxels (a voxel both hit and crossed is a hit); only
+    those within the key box ``kbox`` (int64 (2, 3): min, max; (0, 3) for none)."""
     n = 0
     for b in range(codes.shape[0]):
         for w in range(8):
@@ -370,11 +376,16 @@ def block_voxels(codes, hits, frees):
                 word &= word - 1
                 z = (w << 6) | bit
                 lx, ly, lz = _compact(z), _compact(z >> 1), _compact(z >> 2)
+                if kbox.shape[0]:
+                    kx, ky, kz = (base & 0xFFFF) | lx, ((base >> 16) & 0xFFFF) | ly, (base >> 32) | lz
+                    if not (kbox[0, 0] <= kx <= kbox[1, 0] and kbox[0, 1] <= ky <= kbox[1, 1]
+                            and kbox[0, 2] <= kz <= kbox[1, 2]):
+                        continue
                 keys[n] = base | lx | (ly << 16) | (lz << 32)
                 linear = lx | (ly << 3) | (lz << 6)
                 is_hit[n] = (hits[b, linear >> 6] >> (linear & 63)) & 1 == 1
                 n += 1
-    return keys, is_hit
+    return keys[:n], is_hit[:n]
 
 
 @kernel

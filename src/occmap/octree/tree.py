@@ -59,11 +59,11 @@ def _origin(origin) -> np.ndarray:
     return o
 
 
-def _mark_range(origin, ends, hit, res, start, stop):
+def _mark_range(origin, ends, hit, res, rays, start, stop):
     """Block masks of rays ``start..stop-1`` (grown until they fit)."""
     storage = I.new_blocks(max(64, (stop - start) // 8))
     while True:
-        start = I.mark_scan(origin, ends, hit, res, start, stop, *storage)
+        start = I.mark_scan(origin, ends, hit, res, rays, start, stop, *storage)
         if start == stop:
             table, slots, codes, hits, frees, count = storage
             n = int(count[0])
@@ -71,15 +71,15 @@ def _mark_range(origin, ends, hit, res, start, stop):
         storage = I.grow_blocks(*storage)
 
 
-def _mark(origin, ends, hit, res, threads: bool):
-    """The scan's voxels as Morton-sorted blocks of hit and free bits; with ``threads``, large
-    scans are marked by two threads (the kernels release the GIL) and merged."""
+def _mark(origin, ends, hit, res, rays: bool, threads: bool):
+    """The scan's voxels as Morton-sorted blocks of hit and free bits (only hits unless ``rays``);
+    with ``threads``, large scans are marked by two threads (the kernels release the GIL)."""
     n = len(ends)
     if not threads or n < _PARALLEL_RAYS:
-        parts = [_mark_range(origin, ends, hit, res, 0, n)]
+        parts = [_mark_range(origin, ends, hit, res, rays, 0, n)]
     else:
         half = n // 2
-        futures = [_POOL.submit(_mark_range, origin, ends, hit, res, a, b) for a, b in ((0, half), (half, n))]
+        futures = [_POOL.submit(_mark_range, origin, ends, hit, res, rays, a, b) for a, b in ((0, half), (half, n))]
         parts = [f.result() for f in futures]
     return I.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
 
@@ -126,6 +126,7 @@ class OcTree:
         self._l_max = _logodds32(self.clamp[1])
         self._l_occ = _logodds32(self.occupancy_threshold)
         self.stats = {"scans": 0, "points": 0, "dropped": 0}
+        self._bbx = None
         self.clear()
 
     # ------------------------------------------------------------------ storage
@@ -152,6 +153,34 @@ class OcTree:
     def occupancy_log_odds(self) -> float:
         """Log-odds at or above which a node is occupied."""
         return float(self._l_occ)
+
+    # ------------------------------------------------------------------ bounding-box limit
+
+    @property
+    def bbx(self):
+        """Insertion limit (OctoMap's ``useBBXLimit``): ``None``, or ``(min, max)`` corners in metres.
+        While set, scans update only voxels inside the box: a point outside it is no hit, and a ray
+        frees the voxels it crosses until it leaves the box (none when the sensor is outside)."""
+        return self._bbx
+
+    @bbx.setter
+    def bbx(self, box) -> None:
+        if box is None:
+            self._bbx = None
+            return
+        lo, hi = (np.asarray(c, dtype=np.float64).reshape(-1) for c in box)
+        if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
+            raise InvalidArgumentError(f"bbx must be two finite corners (min, max) of 3 values each, got {box!r}")
+        if np.any(lo > hi):
+            raise InvalidArgumentError(f"bbx min {lo.tolist()} exceeds max {hi.tolist()}")
+        self._bbx = (lo.astype(np.float32).astype(np.float64), hi.astype(np.float32).astype(np.float64))
+
+    def _bbx_keys(self) -> np.ndarray:
+        if self._bbx is None:
+            return np.empty((0, 3), np.int64)
+        lo = np.floor(self._bbx[0] * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
+        hi = np.floor(self._bbx[1] * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
+        return np.clip(np.stack([lo, hi]), 0, K.MAX_KEY)
 
     # ------------------------------------------------------------------ keys
 
@@ -240,10 +269,15 @@ class OcTree:
             keys = self.coord_to_key(P.astype(np.float32).astype(np.float64))  # OctoMap keys its float32 points
             _, first = np.unique(keys, axis=0, return_index=True)
             P = self.key_to_coord(keys[np.sort(first)])
-        ends, hit, more, bad = I.prepare_rays(P, o32[None, :], float(max_range), self.resolution)
+        box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
+        ends, hit, more, bad = I.prepare_rays(P, o32[None, :], float(max_range), self.resolution, box)
         if bad >= 0:
             raise self._out_of_range("point", bad, P[bad])
-        keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution, threads))
+        kbox = self._bbx_keys()
+        # with a box, a ray's free voxels are those before it first leaves the box: none from outside
+        rays = not len(kbox) or bool(np.all((kbox[0] <= (k := self.coord_to_key(o32.astype(np.float64))[0]))
+                                            & (k <= kbox[1])))
+        keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution, rays, threads), kbox)
         summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
         return keys, is_hit, summary
 
@@ -267,7 +301,8 @@ class OcTree:
             raise InvalidArgumentError("ray origins and ends must be finite")
         O32 = O.astype(np.float32)
         self.coord_to_key(O32.astype(np.float64))
-        E32, with_end, _, bad = I.prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution)
+        E32, with_end, _, bad = I.prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
+                                               np.empty((0, 3), np.float32))
         if bad >= 0:
             raise self._out_of_range("ray end", bad, E[bad])
         keys, is_hit = I.ray_voxels(O32, E32, with_end, self.resolution)
