@@ -2,7 +2,10 @@
 
 Per-cell state is ``L`` (float32 log-odds) and ``stamp`` (int32): ``stamp == 0`` means never
 observed; within scan ``s`` (s ≥ 1) a free update sets ``2s`` and a hit sets ``2s + 1``, so one
-array says both "already updated in this scan" and "hit wins over miss".
+array says both "already updated in this scan" and "hit wins over miss". The lidar kernels see
+the cells as flat arrays with a column and a row step (see :func:`_flat`), so they serve both two
+separate (H, W) arrays and the grid's interleaved storage (log-odds and stamp of a cell side by
+side in one 8-byte record).
 """
 
 from __future__ import annotations
@@ -10,72 +13,347 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from .._jit import kernel
-from ..raycast import dda_init, dda_step
+from llvmlite import ir
+from numba import get_num_threads, prange, types
+from numba.extending import intrinsic
+
+from .._jit import kernel, kernel_parallel
+from ..raycast import dda_init
+
 
 @kernel
 def _update(L, iy, ix, l_delta, l_min, l_max):
     L[iy, ix] = min(max(L[iy, ix] + l_delta, l_min), l_max)
 
 
+@intrinsic
+def _prefetch(typingctx, arr, idx):
+    """Ask the CPU to bring the cache line of ``arr[idx]`` in, for writing (x86 ``prefetchw``).
+    A hint only: no bounds check, and an address outside the array never faults."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = builder.module.declare_intrinsic("llvm.prefetch", (i8p,), fnty)
+        ptr = builder.bitcast(builder.gep(ary.data, [args[1]]), i8p)
+        builder.call(fn, [ptr, ir.Constant(i32, 1), ir.Constant(i32, 3), ir.Constant(i32, 1)])  # write, keep, data
+        return context.get_dummy_value()
+
+    return types.void(arr, idx), codegen
+
+
+#: How many cells ahead of the walk its cache lines are prefetched.
+_PREFETCH_CELLS = 24
+
+
+# ---------------------------------------------------------------------------------------------
+# lidar: the free update of one cell and the walks along a beam
+#
+# Within one scan every cell gets at most one update, a hit or a miss, so the result of a scan
+# does not depend on the order in which its beams are walked; across scans each cell sees its
+# updates in scan order. The grid is therefore cut into rectangles of cells ("parts": the whole
+# grid, or two halves); each part goes through the scans in order, applies the hits that end in
+# it and walks every beam over its own cells only. Parts own disjoint cells, so they run on
+# separate threads without any synchronisation and still give the serial result bit for bit.
+
+
 @kernel
-def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-                    l_hit, l_miss, l_min, l_max):
-    """Integrate scans ``k = 0..N-1`` (poses (N, 3), ranges (N, n), angles (N, n)) with scan ids
-    ``scan0 + k``. Returns (beams used, readings dropped as NaN/≤ 0, max-range readings)."""
-    H, W = L.shape
+def _free(Lf, Sf, idx, s2, l_miss, l_min, l_max):
+    """Free update of the cell at flat index ``idx`` unless this scan (stamp ``s2`` or ``s2 + 1``)
+    already updated it; written without a branch (stamp and value are stored back either way)."""
+    i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
+    v = Sf[i]
+    l = Lf[i]
+    nl = min(max(l + l_miss, l_min), l_max)
+    Sf[i] = max(v, s2)
+    Lf[i] = nl if v < s2 else l
+
+
+@kernel
+def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max):
+    """Free update along a traversal whose cells all lie in the part: ``rx`` + ``ry`` cells from
+    (ix, iy), the end cell excluded. Amanatides–Woo in two phases: while both axes still move,
+    step along the axis whose next boundary comes first (x on ties); then a straight run."""
+    idx = iy * rs + ix * cs
+    stx = sx * cs
+    sty = sy * rs
+    # the cell about _PREFETCH_CELLS steps ahead lies near the straight line: a fixed offset. The
+    # stamp's line is prefetched; in the grid's interleaved storage it holds the log-odds too
+    n = max(rx + ry, 1)
+    pf = (rx * _PREFETCH_CELLS // n) * stx + (ry * _PREFETCH_CELLS // n) * sty
+    while rx > 0 and ry > 0:
+        _prefetch(Sf, idx + pf)
+        _free(Lf, Sf, idx, s2, l_miss, l_min, l_max)
+        if tmx <= tmy:
+            idx += stx
+            tmx += tdx
+            rx -= 1
+        else:
+            idx += sty
+            tmy += tdy
+            ry -= 1
+    n = rx
+    st = stx
+    if ry > 0:
+        n = ry
+        st = sty
+    pf = _PREFETCH_CELLS * st
+    for _ in range(n):
+        _prefetch(Sf, idx + pf)
+        _free(Lf, Sf, idx, s2, l_miss, l_min, l_max)
+        idx += st
+
+
+@kernel
+def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, inv_res, s2, l_miss, l_min, l_max):
+    """Free update of the cells from (x0, y0) to (x1, y1), end cell excluded, that lie in the part
+    ``[x_lo, x_hi) × [y_lo, y_hi)`` (which lies in the grid). The traversal is monotone in both
+    axes, so its cells in a rectangle are one run: skip to it with per-cell checks, and as soon as
+    the rest of the beam lies in the part, walk it without checks."""
+    steps, st = dda_init(x0, y0, x1, y1, ox, oy, inv_res)
+    ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = st
+    if max(ix, ex) < x_lo or min(ix, ex) >= x_hi or max(iy, ey) < y_lo or min(iy, ey) >= y_hi:
+        return
+    entered = False
+    for _ in range(steps):
+        if x_lo <= ix < x_hi and y_lo <= iy < y_hi:
+            if not entered:
+                entered = True
+                if x_lo <= ex < x_hi and y_lo <= ey < y_hi:  # both ends inside: all of it
+                    _walk_inside(Lf, Sf, cs, rs, ix, iy, abs(ex - ix), abs(ey - iy), sx, sy, tmx, tmy, tdx, tdy,
+                                 s2, l_miss, l_min, l_max)
+                    return
+            _free(Lf, Sf, iy * rs + ix * cs, s2, l_miss, l_min, l_max)
+        elif entered:
+            return
+        if iy == ey or (ix != ex and tmx <= tmy):
+            ix += sx
+            tmx += tdx
+        else:
+            iy += sy
+            tmy += tdy
+
+
+@kernel
+def _beam_end(x0, y0, th, r, a, max_range):
+    """``(kind, x, y)`` of one reading: kind 0 unusable (NaN, ≤ 0), 1 hit, 2 no return (cleared
+    up to ``max_range``, marks nothing); (x, y) the end point for kinds 1 and 2."""
+    if not (r > 0.0):  # NaN, zero and negative readings carry no information
+        return 0, 0.0, 0.0
+    kind = 1
+    if not (r < max_range):
+        r = max_range
+        kind = 2
+    b = th + a
+    return kind, x0 + r * math.cos(b), y0 + r * math.sin(b)
+
+
+@kernel
+def _part(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+          l_hit, l_miss, l_min, l_max):
+    """All scans' updates of the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
+    first the scan's hits, each cell once (stamp ``2s + 1``), then the free cells along each of its
+    beams (stamp ``2s``)."""
     n_scans, n_beams = ranges.shape
     ex = np.empty(n_beams)
     ey = np.empty(n_beams)
-    hit = np.empty(n_beams, dtype=np.bool_)
+    kind = np.empty(n_beams, dtype=np.int8)
+    for k in range(n_scans):
+        s = scan0 + k
+        x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
+        for b in range(n_beams):
+            kind[b], ex[b], ey[b] = _beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
+            if kind[b] == 1:
+                ix = int(math.floor((ex[b] - ox) * inv_res))
+                iy = int(math.floor((ey[b] - oy) * inv_res))
+                if x_lo <= ix < x_hi and y_lo <= iy < y_hi:
+                    idx = iy * rs + ix * cs
+                    if Sf[idx] != 2 * s + 1:
+                        Sf[idx] = 2 * s + 1
+                        Lf[idx] = min(max(Lf[idx] + l_hit, l_min), l_max)
+        for b in range(n_beams):
+            if kind[b] != 0:
+                _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, ex[b], ey[b], ox, oy, inv_res, 2 * s,
+                           l_miss, l_min, l_max)
+
+
+@kernel_parallel
+def _parts(Lf, Sf, cs, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+           l_hit, l_miss, l_min, l_max):
+    """:func:`_part` for each row ``(x_lo, x_hi, y_lo, y_hi)`` of ``parts`` (disjoint), one
+    thread each, with no synchronisation until all are done."""
+    for p in prange(parts.shape[0]):
+        _part(Lf, Sf, cs, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, ranges, angles,
+              max_range, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
+
+
+@kernel
+def _balanced_cut(density, n):
+    """Index ``c`` in [0, n] where the running sum of the difference array ``density`` (n + 1
+    entries) integrated over [0, c) first reaches half its total."""
+    total = 0.0
+    d = 0.0
+    for i in range(n):
+        d += density[i]
+        total += d
+    acc = 0.0
+    d = 0.0
+    for i in range(n):
+        d += density[i]
+        acc += d
+        if acc >= 0.5 * total:
+            return i + 1
+    return n
+
+
+#: Beams looked at (evenly spread over the call's scans) to choose where to cut the grid.
+_SPLIT_SAMPLE = 4096
+
+
+@kernel
+def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_cells, parts):
+    """Fill ``parts`` with the cell rectangles the work is split into and return how many: one
+    (the whole grid) for less than ``min_cells`` cells of work (estimated from a sample of the
+    beams), else two halves of the grid cut across x or y where they share the cells to walk
+    evenly; of the two cuts, the one fewer beams' cells cross (the far half walks those without
+    updating them)."""
+    n_scans, n_beams = ranges.shape
+    parts[0, 0], parts[0, 1], parts[0, 2], parts[0, 3] = 0, W, 0, H
+    n = n_scans * n_beams
+    if min_cells < 0 or n == 0:
+        return 1
+    step = max(1, n // _SPLIT_SAMPLE)
+    m = (n + step - 1) // step
+    u0 = np.empty(m, dtype=np.int64)
+    v0 = np.empty(m, dtype=np.int64)
+    u1 = np.empty(m, dtype=np.int64)
+    v1 = np.empty(m, dtype=np.int64)
+    dx = np.zeros(W + 1)
+    dy = np.zeros(H + 1)
+    total = 0.0
+    j = 0
+    for i in range(0, n, step):
+        k, b = i // n_beams, i % n_beams
+        x0, y0 = poses[k, 0], poses[k, 1]
+        kind, x1, y1 = _beam_end(x0, y0, poses[k, 2], ranges[k, b], angles[k, b], max_range)
+        if kind == 0:
+            continue
+        u0[j] = int(math.floor((x0 - ox) * inv_res))
+        v0[j] = int(math.floor((y0 - oy) * inv_res))
+        u1[j] = int(math.floor((x1 - ox) * inv_res))
+        v1[j] = int(math.floor((y1 - oy) * inv_res))
+        c = abs(u1[j] - u0[j]) + abs(v1[j] - v0[j]) + 1.0
+        total += c
+        lo, hi = max(min(u0[j], u1[j]), 0), min(max(u0[j], u1[j]), W - 1)
+        if lo <= hi:  # spread the beam's cells evenly over its columns (rows)
+            dx[lo] += c / (hi - lo + 1)
+            dx[hi + 1] -= c / (hi - lo + 1)
+        lo, hi = max(min(v0[j], v1[j]), 0), min(max(v0[j], v1[j]), H - 1)
+        if lo <= hi:
+            dy[lo] += c / (hi - lo + 1)
+            dy[hi + 1] -= c / (hi - lo + 1)
+        j += 1
+    if total * step < min_cells:
+        return 1
+    cx = _balanced_cut(dx, W)
+    cy = _balanced_cut(dy, H)
+    cross_x = 0.0  # cells of the beams that start on one side of the cut and cross it
+    cross_y = 0.0
+    for i in range(j):
+        if (u0[i] < cx) != (u1[i] < cx):
+            cross_x += abs(cx - u0[i])
+        if (v0[i] < cy) != (v1[i] < cy):
+            cross_y += abs(cy - v0[i])
+    if cross_x <= cross_y:
+        parts[0, 1] = cx
+        parts[1, 0], parts[1, 1], parts[1, 2], parts[1, 3] = cx, W, 0, H
+    else:
+        parts[0, 3] = cy
+        parts[1, 0], parts[1, 1], parts[1, 2], parts[1, 3] = 0, W, cy, H
+    return 2
+
+
+#: Calls with fewer cells to walk than this run on one thread.
+SPLIT_MIN_CELLS = 20_000
+
+
+def _flat(L, stamp):
+    """Flat views ``(Lf, Sf, cs, rs)`` of the grid's cells: cell (iy, ix) is ``Lf[iy·rs + ix·cs]``
+    and ``Sf[iy·rs + ix·cs]``. Two C-contiguous (H, W) arrays, or the two halves of one
+    interleaved (H, W, 2) buffer (float32 log-odds then int32 stamp, so one cache line holds both
+    of a cell: what :class:`OccupancyGrid2D` stores)."""
+    H, W = L.shape
+    if L.flags.c_contiguous and stamp.flags.c_contiguous:
+        return L.reshape(-1), stamp.reshape(-1), 1, W
+    n = 2 * H * W
+    if (L.dtype == np.float32 and stamp.dtype == np.int32 and stamp.shape == (H, W) and n > 0
+            and L.strides == (8 * W, 8) and stamp.strides == (8 * W, 8)
+            and stamp.ctypes.data == L.ctypes.data + 4 and L.flags.writeable and stamp.flags.writeable):
+        Lf = np.lib.stride_tricks.as_strided(L, shape=(n,), strides=(4,))
+        Sf = np.lib.stride_tricks.as_strided(stamp, shape=(n - 1,), strides=(4,))
+        return Lf, Sf, 2, 2 * W
+    raise ValueError("L and stamp must be C-contiguous (H, W) arrays or the halves of one interleaved buffer")
+
+
+def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                    l_hit, l_miss, l_min, l_max, split_min_cells=None):
+    """Integrate scans ``k = 0..N-1`` (poses (N, 3), ranges (N, n), angles (N, n)) into the grid
+    ``L`` (float32 log-odds), ``stamp`` (int32), both (H, W), with scan ids ``scan0 + k``.
+    Returns (beams used, readings dropped as NaN/≤ 0, max-range readings).
+
+    With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` where Numba
+    has two threads or more, else never; negative: never) the grid is cut in two halves updated
+    by two threads; the result is the same either way."""
+    if split_min_cells is None:
+        split_min_cells = SPLIT_MIN_CELLS if get_num_threads() >= 2 else -1
+    Lf, Sf, cs, rs = _flat(L, stamp)
+    H, W = L.shape
+    return _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                            l_hit, l_miss, l_min, l_max, split_min_cells)
+
+
+@kernel
+def _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                     l_hit, l_miss, l_min, l_max, split_min_cells):
+    n_scans, n_beams = ranges.shape
     used = 0
     dropped = 0
     maxed = 0
     for k in range(n_scans):
-        s = scan0 + k
-        x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
-        # pass 1: beam ends; hits update their cell once and claim it for this scan
         for b in range(n_beams):
             r = ranges[k, b]
-            if not (r > 0.0):  # NaN, zero and negative readings carry no information
-                hit[b] = False
-                ex[b] = np.nan
+            if not (r > 0.0):
                 dropped += 1
-                continue
-            hit[b] = r < max_range
-            if not hit[b]:
-                r = max_range
-                maxed += 1
-            a = th + angles[k, b]
-            ex[b] = x0 + r * math.cos(a)
-            ey[b] = y0 + r * math.sin(a)
-            used += 1
-            if hit[b]:
-                ix = int(math.floor((ex[b] - ox) * inv_res))
-                iy = int(math.floor((ey[b] - oy) * inv_res))
-                if 0 <= ix < W and 0 <= iy < H and stamp[iy, ix] != 2 * s + 1:
-                    stamp[iy, ix] = 2 * s + 1
-                    _update(L, iy, ix, l_hit, l_min, l_max)
-        # pass 2: free cells along each beam, end cell excluded, each once, never over a hit
-        for b in range(n_beams):
-            if not (ex[b] == ex[b]):
-                continue
-            steps, state = dda_init(x0, y0, ex[b], ey[b], ox, oy, inv_res)
-            for _ in range(steps):  # every cell but the end one
-                ix, iy = state[0], state[1]
-                if 0 <= ix < W and 0 <= iy < H and stamp[iy, ix] < 2 * s:
-                    stamp[iy, ix] = 2 * s
-                    _update(L, iy, ix, l_miss, l_min, l_max)
-                state = dda_step(state)
+            else:
+                used += 1
+                if not (r < max_range):
+                    maxed += 1
+    parts = np.empty((2, 4), dtype=np.int64)
+    if _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, split_min_cells, parts) == 1:
+        _part(Lf, Sf, cs, rs, 0, W, 0, H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+              l_hit, l_miss, l_min, l_max)
+    else:
+        _parts(Lf, Sf, cs, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+               l_hit, l_miss, l_min, l_max)
     return used, dropped, maxed
 
 
 @kernel
-def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, half_width, max_range, arc, ox, oy, res,
-                    l_occ, l_free, l_min, l_max):
-    """Cone updates for N readings rings (poses (N, 3), ranges (N, k), bearings (k,)): each reading
-    updates every cell whose centre lies in its cone, once, weighted by 1 − (φ/half_width)².
-    Returns (readings used, readings dropped as NaN/≤ 0, max-range readings)."""
+def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_hi, half_width, wrap, uniform,
+                    min_range, max_range, ignore_max, arc, ox, oy, res, l_occ, l_free, l_min, l_max):
+    """Cone updates for N readings rings (poses (N, 3), ranges (N, k), bearings (k,)).
+
+    For reading b a cell's angle from the transducer axis is φ = atan2(cell − robot) − θ − bearing,
+    wrapped into [−π, π) when ``wrap``. The reading updates, once, every cell within its reach whose
+    φ satisfies |φ| ≤ half_width and sector_lo[b] ≤ φ < sector_hi[b] (±inf: no sector limit),
+    weighted by 1 − (φ/half_width)², or by 1 when ``uniform``. Readings that are NaN, ≤ 0 or below
+    ``min_range`` are dropped; those at or beyond ``max_range`` clear their cone up to it, except
+    that with ``ignore_max`` those beyond it are skipped. No cell beyond ``max_range`` is touched (an arc near it is cut
+    there). Returns (readings used, readings dropped, max-range readings)."""
     H, W = L.shape
     n_scans, n_beams = ranges.shape
     used = 0
@@ -86,16 +364,20 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, half_width, max_ra
         x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
         for b in range(n_beams):
             r = ranges[k, b]
-            if not (r > 0.0):
+            if not (r > 0.0) or r < min_range:
                 dropped += 1
                 continue
             hit = r < max_range
             reach = r if hit else max_range
             if not hit:
                 maxed += 1
+                if ignore_max and r > max_range:
+                    continue
             used += 1
             axis = th + bearings[b]
-            outer = reach + 0.5 * arc if hit else reach
+            lo = sector_lo[b]
+            hi = sector_hi[b]
+            outer = min(reach + 0.5 * arc, max_range)  # nothing beyond max_range (Table 9.2)
             ix0 = max(0, int(math.floor((x0 - outer - ox) / res)))
             ix1 = min(W - 1, int(math.floor((x0 + outer - ox) / res)))
             iy0 = max(0, int(math.floor((y0 - outer - oy) / res)))
@@ -108,10 +390,11 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, half_width, max_ra
                     if d > outer:
                         continue
                     phi = math.atan2(cy, cx) - axis
-                    phi = (phi + math.pi) % (2.0 * math.pi) - math.pi
-                    if abs(phi) > half_width:
+                    if wrap:
+                        phi = (phi + math.pi) % (2.0 * math.pi) - math.pi
+                    if abs(phi) > half_width or phi < lo or phi >= hi:
                         continue
-                    w = 1.0 - (phi / half_width) ** 2
+                    w = 1.0 if uniform else 1.0 - (phi / half_width) ** 2
                     if hit and d >= reach - 0.5 * arc:
                         _update(L, iy, ix, w * l_occ, l_min, l_max)
                         stamp[iy, ix] = 2 * s + 1

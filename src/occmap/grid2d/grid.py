@@ -20,6 +20,19 @@ from .sensor_models import LidarModel, SonarModel, logit
 _GROW_MARGIN_CELLS = 64
 
 
+def _new_cells(shape, l_prior: float) -> np.ndarray:
+    """Cell storage (H, W, 2) float32: per cell the log-odds, then the int32 stamp in the second
+    slot (one 8-byte record, so a ray's update of both touches one cache line). Every cell at the
+    prior and never observed (stamp 0); with prior 0 the buffer comes zeroed from the OS and is
+    only paged in where rays go."""
+    if l_prior == 0.0:
+        return np.zeros((*shape, 2), dtype=np.float32)
+    cells = np.empty((*shape, 2), dtype=np.float32)
+    cells[..., 0] = l_prior
+    cells.view(np.int32)[..., 1] = 0
+    return cells
+
+
 def _beam_bounds(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) -> tuple[float, float, float, float]:
     """World box (xmin, ymin, xmax, ymax) of the sensor positions and of the beam ends that will
     be used (ranges capped at ``max_range``, unusable readings left out)."""
@@ -69,8 +82,7 @@ class OccupancyGrid2D:
                 raise InvalidArgumentError(f"size must be positive (width, height) in metres, got {size!r}")
             self.origin = np.zeros(2) if origin is None else np.array(origin, dtype=np.float64)
             shape = (int(math.ceil(h / self.resolution - 1e-9)), int(math.ceil(w / self.resolution - 1e-9)))
-        self._L = np.full(shape, self.l_prior, dtype=np.float32)
-        self._stamp = np.zeros(shape, dtype=np.int32)
+        self._set_cells(_new_cells(shape, self.l_prior))
 
     # ------------------------------------------------------------------ geometry
 
@@ -94,6 +106,13 @@ class OccupancyGrid2D:
         if c.shape[-1:] != (2,):
             raise ShapeError(f"cells must have shape (..., 2), got {c.shape}")
         return self._origin_or_zero() + (c[..., ::-1] + 0.5) * self.resolution
+
+    def _set_cells(self, cells: np.ndarray) -> None:
+        """Adopt ``cells`` (see :func:`_new_cells`); ``_L`` (float32 log-odds) and ``_stamp``
+        (int32; 0: never observed) are (H, W) views of it."""
+        self._cells = cells
+        self._L = cells[..., 0]
+        self._stamp = cells.view(np.int32)[..., 1]
 
     def _origin_or_zero(self) -> np.ndarray:
         return np.zeros(2) if self.origin is None else self.origin
@@ -199,8 +218,12 @@ class OccupancyGrid2D:
         ``poses`` (3,) or (N, 3) are robot poses; ``ranges`` (k,) or (N, k) in metres, one per
         transducer; ``bearings`` (k,) the transducers' directions relative to the heading. Each
         reading updates each cell of its cone once; overlapping cones of one ring each contribute
-        (the readings are independent measurements). NaN, zero and negative readings are dropped
-        and counted; readings at or beyond ``max_range`` clear their cone up to it.
+        (the readings are independent measurements). NaN, zero and negative readings, and those
+        below ``model.min_range``, are dropped and counted; readings at or beyond ``max_range``
+        clear their cone up to it (with ``model.ignore_max_range``, those beyond it are only
+        counted). Nothing beyond ``max_range`` is touched.
+        ``model.sectors``, ``weighting`` and ``wrap_angles`` choose which cells a reading speaks
+        about and how loudly (see :class:`SonarModel`).
         """
         model = SonarModel() if model is None else model
         P = np.atleast_2d(np.asarray(poses, dtype=np.float64))
@@ -216,9 +239,11 @@ class OccupancyGrid2D:
         if self.growing and len(P):
             reach = max_range + arc
             self._grow_to(P[:, 0].min() - reach, P[:, 1].min() - reach, P[:, 0].max() + reach, P[:, 1].max() + reach)
+        lo, hi = model.sector_bounds(B)
         used, dropped, maxed = K.integrate_sonar(
-            self._L, self._stamp, self._scans + 1, np.ascontiguousarray(P), np.ascontiguousarray(R), B,
-            0.5 * model.beam_width, float(max_range), float(arc), float(self.origin[0]), float(self.origin[1]),
+            self._L, self._stamp, self._scans + 1, np.ascontiguousarray(P), np.ascontiguousarray(R), B, lo, hi,
+            0.5 * model.beam_width, bool(model.wrap_angles), model.weighting == "uniform", float(model.min_range),
+            float(max_range), bool(model.ignore_max_range), float(arc), float(self.origin[0]), float(self.origin[1]),
             self.resolution, model.l_occupied - self.l_prior, model.l_free - self.l_prior, self.l_min, self.l_max,
         )
         return self._record(len(P), used, dropped, maxed)
@@ -251,11 +276,9 @@ class OccupancyGrid2D:
         add_right = hi_x - W + margin_x if hi_x > W else 0
         add_top = hi_y - H + margin_y if hi_y > H else 0
         shape = (H + add_bottom + add_top, W + add_left + add_right)
-        L = np.full(shape, self.l_prior, dtype=np.float32)
-        S = np.zeros(shape, dtype=np.int32)
-        L[add_bottom:add_bottom + H, add_left:add_left + W] = self._L
-        S[add_bottom:add_bottom + H, add_left:add_left + W] = self._stamp
-        self._L, self._stamp = L, S
+        cells = _new_cells(shape, self.l_prior)
+        cells[add_bottom:add_bottom + H, add_left:add_left + W] = self._cells
+        self._set_cells(cells)
         self.origin = self.origin - np.array([add_left, add_bottom]) * res
 
     # ------------------------------------------------------------------ files

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..errors import InvalidArgumentError
 
 
@@ -52,26 +54,72 @@ class SonarModel:
     angle sonar", ICRA 1985, as taught in Thrun et al. §9.2).
 
     An echo at range ``r`` says: some obstacle lies on the arc of the cone at ``r`` (cells within
-    ``arc`` metres of it get occupied evidence), and the cone before the arc is free. Both are
-    weighted by ``w = 1 − (φ / (beam_width/2))²``, ``φ`` the angle of the cell centre from the
-    axis, so the axis speaks loudest and the rim not at all. A reading at or beyond the maximum
-    range clears the cone up to it. ``arc=None`` uses one cell.
+    ``arc`` metres of it, i.e. ``|d − r| ≤ arc/2``, get occupied evidence), and the cone before
+    the arc is free. ``φ`` is the angle of a cell centre from the transducer's axis.
+
+    Parameters
+    ----------
+    beam_width : float
+        Full opening angle of the cone in radians, in (0, π). With ``sectors="nearest"`` it may be
+        up to ``math.inf`` (no limit beyond the transducer's sector).
+    p_occupied, p_free : float
+        P(occupied) for a cell on the arc / inside the cone before it.
+    arc : float or None
+        Thickness of the occupied arc in metres (Thrun's α); ``None``: one cell.
+    weighting : ``"quadratic"`` (default) or ``"uniform"``
+        ``"quadratic"`` weights both updates by ``w = 1 − (φ / (beam_width/2))²``, so the axis
+        speaks loudest and the rim not at all; ``"uniform"`` gives every cell of the cone the full
+        ``l_occupied`` / ``l_free``, as in Thrun's Table 9.2.
+    sectors : ``"cone"`` (default) or ``"nearest"``
+        ``"cone"``: each reading updates every cell of its own cone; overlapping cones of one ring
+        each contribute. ``"nearest"``: a cell is updated only by the transducer whose bearing is
+        nearest to the cell's direction (Table 9.2's ``k = argmin_j |φ − θ_j,sens|``), and only
+        within ``beam_width/2`` of that bearing.
+    wrap_angles : bool
+        True (default): angles are compared modulo 2π. False compares the raw
+        ``atan2(y_i − y, x_i − x) − θ`` with the bearings, unwrapped — what the Udacity exercise
+        behind the shared ``sonar/`` data set does. It matters for ``sectors="nearest"``: with the
+        heading away from 0, some cells go to a transducer on the wrong side of the robot. Only
+        for reproducing that exercise's picture.
+    min_range : float
+        Readings shorter than this (metres) are dropped and counted as dropped (Table 9.2's Zmin).
+    ignore_max_range : bool
+        False (default): a reading at or beyond the ``max_range`` given to
+        :meth:`~occmap.grid2d.OccupancyGrid2D.integrate_sonar` had no echo and clears its cone up
+        to ``max_range``. True: readings *beyond* ``max_range`` are not integrated at all (only
+        counted under ``max_range``); one exactly at ``max_range`` still clears its cone. That is
+        the Udacity exercise's rule (``Z_k > Z_max`` returns ``l0``; ``Z_k = Z_max`` is free space).
+
+    :meth:`udacity_exercise` gives the settings of that exercise.
     """
 
     beam_width: float = math.radians(15.0)
     p_occupied: float = 0.7
     p_free: float = 0.4
     arc: float | None = None
+    weighting: str = "quadratic"
+    sectors: str = "cone"
+    wrap_angles: bool = True
+    min_range: float = 0.0
+    ignore_max_range: bool = False
 
     def __post_init__(self):
-        if not 0.0 < self.beam_width < math.pi:
-            raise InvalidArgumentError(f"beam_width must be in (0, π) radians, got {self.beam_width!r}")
+        if self.sectors not in ("cone", "nearest"):
+            raise InvalidArgumentError(f"sectors must be 'cone' or 'nearest', got {self.sectors!r}")
+        if self.weighting not in ("quadratic", "uniform"):
+            raise InvalidArgumentError(f"weighting must be 'quadratic' or 'uniform', got {self.weighting!r}")
+        widest = math.inf if self.sectors == "nearest" else math.pi
+        if not (0.0 < self.beam_width < widest or self.beam_width == widest == math.inf):
+            raise InvalidArgumentError(
+                f"beam_width must be in (0, π) radians (up to inf with sectors='nearest'), got {self.beam_width!r}")
         if not 0.5 < self.p_occupied < 1.0:
             raise InvalidArgumentError(f"p_occupied must be in (0.5, 1), got {self.p_occupied!r}")
         if not 0.0 < self.p_free < 0.5:
             raise InvalidArgumentError(f"p_free must be in (0, 0.5), got {self.p_free!r}")
         if self.arc is not None and not self.arc > 0:
             raise InvalidArgumentError(f"arc must be a positive thickness in metres, got {self.arc!r}")
+        if not (math.isfinite(self.min_range) and self.min_range >= 0):
+            raise InvalidArgumentError(f"min_range must be a finite number of metres ≥ 0, got {self.min_range!r}")
 
     @property
     def l_occupied(self) -> float:
@@ -80,3 +128,53 @@ class SonarModel:
     @property
     def l_free(self) -> float:
         return logit(self.p_free)
+
+    @classmethod
+    def udacity_exercise(cls) -> "SonarModel":
+        """The inverse sensor model of Udacity's occupancy-grid-mapping exercise (Robotics
+        Software Engineer nanodegree), which produced the shared ``sonar/Map_reference.png``:
+        log-odds ``l_occ = 0.4``, ``l_free = −0.4`` (prior 0) on every cell alike, α = 0.2 m,
+        Z_min = 0.17 m, readings > Z_max not integrated, each cell given to the transducer of
+        nearest (unwrapped) bearing. Its β = 20 is compared with angles in radians, so the beam
+        width never limits anything: ``beam_width=inf``. Integrate with ``max_range=5.0`` (its
+        Z_max) on a grid whose clamping does not bind (the exercise clamps nothing)."""
+        return cls(beam_width=math.inf, p_occupied=1.0 / (1.0 + math.exp(-0.4)), p_free=1.0 / (1.0 + math.exp(0.4)),
+                   arc=0.2, weighting="uniform", sectors="nearest", wrap_angles=False, min_range=0.17,
+                   ignore_max_range=True)
+
+    def sector_bounds(self, bearings):
+        """Per transducer, the angles ``(lo, hi)`` relative to its bearing between which a cell's
+        direction must lie for that transducer to update it (``lo ≤ φ < hi``; ±inf: no limit).
+
+        ``sectors="cone"``: no limit. ``sectors="nearest"``: half-way to the neighbouring bearings
+        (so each direction belongs to the transducer of nearest bearing), around the circle when
+        ``wrap_angles``, else on the open line (the outermost transducers reach out to ±inf). Of
+        transducers sharing a bearing the first takes the sector and the others get none.
+        """
+        B = np.asarray(bearings, dtype=np.float64)
+        k = B.size
+        lo = np.full(k, -np.inf)
+        hi = np.full(k, np.inf)
+        if self.sectors == "cone" or k == 0:
+            return lo, hi
+        two_pi = 2.0 * math.pi
+        b = np.mod(B + math.pi, two_pi) - math.pi if self.wrap_angles else B.copy()
+        # order by angle, then by index, and keep the first of each run of equal angles
+        order = np.lexsort((np.arange(k), b))
+        first = np.ones(k, dtype=bool)
+        first[1:] = b[order[1:]] != b[order[:-1]]
+        lead = order[first]
+        lo[:] = 0.0
+        hi[:] = 0.0
+        angles = b[lead]
+        n = lead.size
+        for j, i in enumerate(lead):
+            if self.wrap_angles:
+                prev = angles[j - 1] - (two_pi if j == 0 else 0.0)
+                nxt = angles[(j + 1) % n] + (two_pi if j == n - 1 else 0.0)
+            else:
+                prev = angles[j - 1] if j > 0 else -np.inf
+                nxt = angles[j + 1] if j < n - 1 else np.inf
+            lo[i] = 0.5 * (prev - angles[j])
+            hi[i] = 0.5 * (nxt - angles[j])
+        return lo, hi
