@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from ._kernels import DEPTH, FREE, MAX_KEY, SIZE, TOP, coord_to_key, key_to_coord, settle
+from ._kernels import DEPTH, FREE, MAX_KEY, SIZE, TOP, alloc_block, coord_to_key, key_to_coord, settle
 
 #: Slots one voxel update may allocate at most: a new block at every level.
 _ROOM = 8 * DEPTH
@@ -447,16 +447,8 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
                     absorbed = v >= hi if hit else v <= lo  # OctoMap's early abort
                     if absorbed:
                         break
-                c = meta[FREE]
-                if c >= 0:
-                    meta[FREE] = child[c]
-                else:
-                    c = meta[TOP]
-                    meta[TOP] = c + 8
-                fill = np.float32(np.nan) if created else value[node]  # expansion: 8 copies
-                for j in range(c, c + 8):
-                    value[j] = fill
-                    child[j] = -1
+                # a new node gets an empty block; a pruned leaf is expanded into eight copies
+                c = alloc_block(value, child, meta, np.float32(np.nan) if created else value[node])
                 if not created:
                     meta[SIZE] += 8
                 child[node] = c

@@ -88,34 +88,10 @@ def settle(value, child, meta, node, set_max, prune):
 
 
 @kernel
-def update_inner(value, child, meta):
-    """Set every inner node to the max of its children, bottom-up (OctoMap's
-    ``updateInnerOccupancy``)."""
-    if np.isnan(value[0]) or child[0] < 0:
-        return
-    nodes = np.empty(DEPTH + 1, np.int64)
-    next_child = np.zeros(DEPTH + 1, np.int64)
-    nodes[0] = 0
-    sp = 0
-    while sp >= 0:
-        c = child[nodes[sp]]
-        i = next_child[sp]
-        while i < 8 and child[c + i] < 0:
-            i += 1
-        if i < 8:
-            next_child[sp] = i + 1
-            sp += 1
-            nodes[sp] = c + i
-            next_child[sp] = 0
-        else:
-            settle(value, child, meta, nodes[sp], True, False)
-            sp -= 1
-
-
-@kernel
-def prune_level(value, child, meta, depth):
-    """Collapse the nodes at ``depth`` whose eight children are leaves of one value; returns how
-    many (one level of OctoMap's ``prune``)."""
+def settle_tree(value, child, meta, depth, set_max, prune):
+    """Post-order walk settling (see :func:`settle`) every inner node (``depth`` < 0: OctoMap's
+    ``updateInnerOccupancy`` with ``set_max``) or only those at ``depth`` (one level of OctoMap's
+    ``prune``). Returns how many nodes were pruned."""
     if np.isnan(value[0]) or child[0] < 0:
         return 0
     nodes = np.empty(DEPTH + 1, np.int64)
@@ -125,23 +101,37 @@ def prune_level(value, child, meta, depth):
     pruned = 0
     while sp >= 0:
         node = nodes[sp]
-        if sp == depth:
-            if settle(value, child, meta, node, False, True):
-                pruned += 1
-            sp -= 1
-            continue
-        c = child[node]
-        i = next_child[sp]
-        while i < 8 and child[c + i] < 0:
-            i += 1
-        if i < 8:
-            next_child[sp] = i + 1
-            sp += 1
-            nodes[sp] = c + i
-            next_child[sp] = 0
-        else:
-            sp -= 1
+        if sp != depth:
+            c = child[node]
+            i = next_child[sp]
+            while i < 8 and child[c + i] < 0:
+                i += 1
+            if i < 8:
+                next_child[sp] = i + 1
+                sp += 1
+                nodes[sp] = c + i
+                next_child[sp] = 0
+                continue
+        if (depth < 0 or sp == depth) and settle(value, child, meta, node, set_max, prune):
+            pruned += 1
+        sp -= 1
     return pruned
+
+
+@inline_kernel
+def alloc_block(value, child, meta, fill):
+    """First slot of a free block of 8 (from the free list, else the unused top), each slot set to
+    ``fill`` with no children. The caller has checked there is room."""
+    c = meta[FREE]
+    if c >= 0:
+        meta[FREE] = child[c]
+    else:
+        c = meta[TOP]
+        meta[TOP] = c + 8
+    for j in range(c, c + 8):
+        value[j] = fill
+        child[j] = -1
+    return c
 
 
 @kernel
@@ -157,16 +147,7 @@ def expand_all(value, child, meta):
     while sp >= 0:
         node = nodes[sp]
         if sp < DEPTH and child[node] < 0:
-            c = meta[FREE]
-            if c >= 0:
-                meta[FREE] = child[c]
-            else:
-                c = meta[TOP]
-                meta[TOP] = c + 8
-            for j in range(c, c + 8):
-                value[j] = value[node]
-                child[j] = -1
-            child[node] = c
+            child[node] = alloc_block(value, child, meta, value[node])
             meta[SIZE] += 8
         i = next_child[sp]
         if sp == DEPTH or i == 8:

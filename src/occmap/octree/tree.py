@@ -333,14 +333,14 @@ class OcTree:
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
-        K.update_inner(self._value, self._child, self._meta)
+        K.settle_tree(self._value, self._child, self._meta, -1, True, False)
 
     def prune(self) -> None:
         """Collapse nodes whose eight children are leaves with equal values, as OctoMap's ``prune``:
         level by level from depth 15 up to depth 1 (never the root), stopping after the first
         level where nothing collapsed."""
         for depth in range(15, 0, -1):
-            if K.prune_level(self._value, self._child, self._meta, depth) == 0:
+            if K.settle_tree(self._value, self._child, self._meta, depth, False, True) == 0:
                 break
 
     def expand(self) -> None:
