@@ -7,11 +7,12 @@ from . import errors, geometry, io
 from .cloud import PointCloud
 from .errors import OccmapError
 from .grid2d import LidarModel, OccupancyGrid2D
+from .local import LocalMap
 from .scan import LaserScan
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "LaserScan", "LidarModel", "OccmapError", "OccupancyGrid2D", "PointCloud", "errors", "geometry", "io",
+    "LaserScan", "LidarModel", "LocalMap", "OccmapError", "OccupancyGrid2D", "PointCloud", "errors", "geometry", "io",
     "__version__",
 ]

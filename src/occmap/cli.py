@@ -55,6 +55,10 @@ def _parser() -> argparse.ArgumentParser:
     ren.add_argument("-o", "--output", required=True, help="PNG to write")
     ren.add_argument("--slice", type=float, metavar="Z", help="draw the horizontal slice at height Z instead")
     ren.add_argument("--pixel", type=float, help="pixel size in metres (default: the octree's resolution)")
+
+    from .local.replay import add_parser as add_local_parser
+
+    add_local_parser(sub)
     return p
 
 
@@ -157,6 +161,12 @@ def _render(args) -> int:
     return 0
 
 
+def _local(args) -> int:
+    from .local.replay import run_cli
+
+    return run_cli(args)
+
+
 def _map2d(args) -> int:
     from .grid2d import LidarModel
     from .io.carmen import read_carmen
@@ -191,7 +201,8 @@ def main(argv: list[str] | None = None) -> int:
             from .demo import run
 
             return run(args.out)
-        commands = {"map2d": _map2d, "map3d": _map3d, "info": _info, "convert": _convert, "render": _render}
+        commands = {"map2d": _map2d, "map3d": _map3d, "info": _info, "convert": _convert, "render": _render,
+                    "local": _local}
         if args.command in commands:
             return commands[args.command](args)
     except (OccmapError, OSError) as e:  # bad input, missing or unreadable files: a message, no traceback

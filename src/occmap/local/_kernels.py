@@ -1,0 +1,684 @@
+"""Numba kernels of the local map: plain arrays in, arrays updated in place.
+
+Storage (see :class:`occmap.local.LocalMap`): ``cells`` float32 (H, W, 2) and ``stamps``, an
+int32 view of the same buffer; per cell ``cells[r, c, 0]`` is the *scaled* log-odds
+``u = (l − l_prior) / g`` (``g`` the map's global decay factor) and ``stamps[r, c, 1]`` the scan
+stamp: 0 never observed (or cleared); within scan ``s`` a free update writes ``2s`` and a hit
+``2s + 1``, so one compare says both "already updated in this scan" and "hit wins over miss".
+``rmark`` (int32, (H, W)) holds, per end cell, the last scan that cast a ray to it.
+
+The storage is a circular buffer: window cell ``(wy, wx)`` (row 0 at the window's origin) lives
+at storage ``((wy + sr) mod H, (wx + sc) mod W)``. Window cell (wy, wx) is the cell
+``(gy0 + wy, gx0 + wx)`` of the world lattice, whose cell (j, i) covers
+``[i·res, (i+1)·res) × [j·res, (j+1)·res)``, indexed as ``floor(x · (1/res))``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from numba import get_num_threads, prange
+
+from .._jit import kernel, kernel_parallel
+from ..edt import _row_envelope
+
+#: Above this many cells of inflation radius the row pass uses the Felzenszwalb–Huttenlocher
+#: lower envelope instead of the direct (2R + 1)-wide window minimum.
+WINDOW_MAX_RADIUS = 24
+
+# ---------------------------------------------------------------------------------------------
+# moving the window
+
+
+@kernel
+def clear_columns(cells, c0, n):
+    """Zero (unknown, never observed) ``n`` storage columns from ``c0`` on (modulo W), all rows.
+    Returns the number of cells written."""
+    H, W = cells.shape[0], cells.shape[1]
+    touched = 0
+    for y in range(H):
+        for k in range(n):
+            c = c0 + k
+            if c >= W:
+                c -= W
+            cells[y, c, 0] = 0.0
+            cells[y, c, 1] = 0.0  # all-zero bits: stamp 0
+            touched += 1
+    return touched
+
+
+@kernel
+def clear_rows(cells, r0, n):
+    """Zero ``n`` storage rows from ``r0`` on (modulo H), all columns. Returns cells written."""
+    H, W = cells.shape[0], cells.shape[1]
+    touched = 0
+    for k in range(n):
+        r = r0 + k
+        if r >= H:
+            r -= H
+        for c in range(W):
+            cells[r, c, 0] = 0.0
+            cells[r, c, 1] = 0.0
+            touched += 1
+    return touched
+
+
+# ---------------------------------------------------------------------------------------------
+# sensing
+
+
+@kernel
+def _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, ex, ey, s2, d_miss, lo, hi):
+    """Free update of the cells from lattice point (u0, v0) (cell units) to the centre of lattice
+    cell (ex, ey), end cell excluded, that lie in the part ``xlo ≤ wx < xhi`` of the window (all
+    rows), each at most once per scan. Amanatides–Woo in the order of :mod:`occmap.raycast` (x
+    first on ties; once an axis reaches the end cell's index only the other moves). Returns
+    (cells updated, cells visited)."""
+    ix = int(math.floor(u0))
+    iy = int(math.floor(v0))
+    du = (ex + 0.5) - u0
+    dv = (ey + 0.5) - v0
+    sx = 1 if ex > ix else -1
+    sy = 1 if ey > iy else -1
+    tmx = np.inf
+    tdx = np.inf
+    tmy = np.inf
+    tdy = np.inf
+    if du != 0.0:
+        tmx = ((ix + (1 if du > 0.0 else 0)) - u0) / du
+        tdx = abs(1.0 / du)
+    if dv != 0.0:
+        tmy = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
+        tdy = abs(1.0 / dv)
+    rx = abs(ex - ix)  # steps left along x and along y
+    ry = abs(ey - iy)
+    wx = ix - gx0
+    wy = iy - gy0
+    updated = 0
+    visited = 0
+    # phase A: step (checked) until the walk is in the part
+    while (rx > 0 or ry > 0) and not (xlo <= wx < xhi and 0 <= wy < H):
+        if ry == 0 or (rx > 0 and tmx <= tmy):
+            wx += sx
+            tmx += tdx
+            rx -= 1
+        else:
+            wy += sy
+            tmy += tdy
+            ry -= 1
+    if rx == 0 and ry == 0:
+        return 0, 0
+    if xlo <= ex - gx0 < xhi and 0 <= ey - gy0 < H:
+        # phase B, fast: here and the end both in the part, so every cell between (the walk is
+        # monotone): no bounds checks, flat storage indices stepped with their wrap-around
+        r = wy + sr
+        if r >= H:
+            r -= H
+        c = wx + sc
+        if c >= W:
+            c -= W
+        rs = sy * W * 2  # flat step of one row in the (H, W, 2) buffer
+        row_wrap = H * W * 2
+        cf = cells.reshape(-1)
+        sf = stamps.reshape(-1)
+        base = r * W * 2  # start of the storage row
+        while rx > 0 and ry > 0:  # both axes still move: step along the one that comes first
+            i = base + 2 * c
+            visited += 1
+            if sf[i + 1] < s2:
+                sf[i + 1] = s2
+                cf[i] = min(max(cf[i] + d_miss, lo), hi)
+                updated += 1
+            bx = tmx <= tmy
+            c += sx if bx else 0
+            c = 0 if c == W else (W - 1 if c < 0 else c)
+            base += 0 if bx else rs
+            base = 0 if base == row_wrap else (row_wrap - 2 * W if base < 0 else base)
+            tmx += tdx if bx else 0.0
+            tmy += 0.0 if bx else tdy
+            rx -= 1 if bx else 0
+            ry -= 0 if bx else 1
+        for _ in range(rx + ry):  # then a straight run
+            i = base + 2 * c
+            visited += 1
+            if sf[i + 1] < s2:
+                sf[i + 1] = s2
+                cf[i] = min(max(cf[i] + d_miss, lo), hi)
+                updated += 1
+            if rx > 0:
+                c += sx
+                c = 0 if c == W else (W - 1 if c < 0 else c)
+            else:
+                base += rs
+                base = 0 if base == row_wrap else (row_wrap - 2 * W if base < 0 else base)
+        return updated, visited
+    # phase B, checked: the end lies outside the part; stop on leaving it (monotone: for good)
+    while rx > 0 or ry > 0:
+        if not (xlo <= wx < xhi and 0 <= wy < H):
+            break
+        visited += 1
+        r = wy + sr
+        if r >= H:
+            r -= H
+        c = wx + sc
+        if c >= W:
+            c -= W
+        if stamps[r, c, 1] < s2:
+            stamps[r, c, 1] = s2
+            cells[r, c, 0] = min(max(cells[r, c, 0] + d_miss, lo), hi)
+            updated += 1
+        if ry == 0 or (rx > 0 and tmx <= tmy):
+            wx += sx
+            tmx += tdx
+            rx -= 1
+        else:
+            wy += sy
+            tmy += tdy
+            ry -= 1
+    return updated, visited
+
+
+#: Lattice indices are packed as 31-bit fields offset by this (so keys stay positive int64);
+#: any index within ±2³⁰ cells (over 100,000 km at 0.1 mm) fits.
+_KEY_OFFSET = 1 << 30
+
+
+@kernel
+def _cell_index(x, inv_res):
+    return int(math.floor(x * inv_res))
+
+
+@kernel
+def _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+          xlo, xhi, split, side, own_rays, counts):
+    """The updates of one part ``xlo ≤ wx < xhi`` of the window: the hits that end in it, and the
+    rays it owns (``side`` 0: end column < ``split``; 1: ≥ ``split``; −1: all), one per distinct end
+    cell, walked over its own cells. Owned rays' end cells go to ``own_rays`` (lattice (gx, gy));
+    ``counts`` gets (hits, rays, free updates, cells visited)."""
+    H, W = rmark.shape
+    n = ends.shape[0]
+    s2 = 2 * s
+    s1 = 2 * s + 1
+    hits = 0
+    for i in range(n):
+        if kinds[i] != 1:
+            continue
+        wx = _cell_index(ends[i, 0], inv_res) - gx0
+        wy = _cell_index(ends[i, 1], inv_res) - gy0
+        if xlo <= wx < xhi and 0 <= wy < H:
+            r = wy + sr
+            if r >= H:
+                r -= H
+            c = wx + sc
+            if c >= W:
+                c -= W
+            if stamps[r, c, 1] != s1:
+                stamps[r, c, 1] = s1
+                cells[r, c, 0] = min(max(cells[r, c, 0] + d_hit, lo), hi)
+                hits += 1
+    rays = 0
+    updated = 0
+    visited = 0
+    far = np.empty(n, dtype=np.int64)  # end cells outside the window, packed, for de-duplication
+    m = 0
+    for i in range(n):
+        if kinds[i] == 0:
+            continue
+        gx = _cell_index(ends[i, 0], inv_res)
+        gy = _cell_index(ends[i, 1], inv_res)
+        wx = gx - gx0
+        wy = gy - gy0
+        if side >= 0 and (wx < split) != (side == 0):
+            continue
+        if 0 <= wx < W and 0 <= wy < H:
+            r = wy + sr
+            if r >= H:
+                r -= H
+            c = wx + sc
+            if c >= W:
+                c -= W
+            if rmark[r, c] == s:
+                continue
+            rmark[r, c] = s
+            own_rays[rays, 0] = gx
+            own_rays[rays, 1] = gy
+            rays += 1
+            a, b = _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, gx, gy, s2, d_miss, lo, hi)
+            updated += a
+            visited += b
+        else:
+            far[m] = ((gx + _KEY_OFFSET) << 32) | (gy + _KEY_OFFSET)
+            m += 1
+    if m > 0:
+        keys = np.sort(far[:m])
+        for k in range(m):
+            if k > 0 and keys[k] == keys[k - 1]:
+                continue
+            gx = (keys[k] >> 32) - _KEY_OFFSET
+            gy = (keys[k] & 0xFFFFFFFF) - _KEY_OFFSET
+            own_rays[rays, 0] = gx
+            own_rays[rays, 1] = gy
+            rays += 1
+            a, b = _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, gx, gy, s2, d_miss, lo, hi)
+            updated += a
+            visited += b
+    counts[0] = hits
+    counts[1] = rays
+    counts[2] = updated
+    counts[3] = visited
+
+
+@kernel_parallel
+def _two_parts(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+               split, rays, counts):
+    W = rmark.shape[1]
+    for p in prange(2):
+        _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+              0 if p == 0 else split, split if p == 0 else W, split, p, rays[p], counts[p])
+
+
+@kernel
+def _serial(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+            rays, counts):
+    W = rmark.shape[1]
+    _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+          0, W, 0, -1, rays, counts)
+
+
+@kernel
+def _split_column_prefixes(cells, stamps, sr, sc, gx0, gy0, u0, v0, rays, n_rays, split, s2, d_miss, lo, hi):
+    """The cells in column ``split`` (the sensor's) of the rays whose end lies left of it: the
+    left part skipped them, the right part never walked those rays."""
+    H, W = cells.shape[0], cells.shape[1]
+    updated = 0
+    visited = 0
+    for k in range(n_rays):
+        a, b = _walk(cells, stamps, sr, sc, gx0, gy0, H, W, split, split + 1, u0, v0, rays[k, 0], rays[k, 1],
+                     s2, d_miss, lo, hi)
+        updated += a
+        visited += b
+    return updated, visited
+
+
+#: Scans with at least this many readings, in windows of at least this many cells, are
+#: integrated by two threads (the window cut at the sensor's column) when Numba has two.
+PARALLEL_MIN_POINTS = 4096
+PARALLEL_MIN_CELLS = 40_000
+
+
+def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kinds, s, d_hit, d_miss, lo, hi,
+              parallel=None):
+    """One scan from sensor position (px, py): ``ends`` (N, 2) world end points, ``kinds`` (N,)
+    int8: 0 skip, 1 return (the end cell is hit, the cells before it free), 2 clear only (the
+    cells before the end cell free, nothing marked). Hits first, each cell once (stamp 2s + 1);
+    then one ray per distinct end cell, cast to that cell's centre, freeing each cell not yet
+    updated in this scan (stamp 2s). Returns (hits applied, rays cast, free updates, cells visited).
+
+    In parallel (default: for big enough scans and windows, two Numba threads) the window is cut
+    at the sensor's column: each half takes the hits ending in it and the rays whose end lies on
+    its side, updating only its own cells; the sensor's column cells of the left rays follow,
+    serially. Within a scan each cell's update does not depend on order, so the result is the
+    same as one thread's."""
+    H, W = rmark.shape
+    n = ends.shape[0]
+    u0 = px * inv_res
+    v0 = py * inv_res
+    split = int(math.floor(u0)) - gx0
+    if parallel is None:
+        parallel = n >= PARALLEL_MIN_POINTS and H * W >= PARALLEL_MIN_CELLS and get_num_threads() >= 2
+    counts = np.zeros((2, 4), dtype=np.int64)
+    rays = np.empty((2, n, 2), dtype=np.int64)
+    if parallel and 0 < split < W:
+        _two_parts(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+                   split, rays, counts)
+        a, b = _split_column_prefixes(cells, stamps, sr, sc, gx0, gy0, u0, v0, rays[0], counts[0, 1], split, 2 * s,
+                                      d_miss, lo, hi)
+        counts[0, 2] += a
+        counts[0, 3] += b
+    else:
+        _serial(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+                rays[0], counts[0])
+    t = counts.sum(axis=0)
+    return int(t[0]), int(t[1]), int(t[2]), int(t[3])
+
+
+@kernel
+def scan_ends(pose, ranges, angles, max_range, ends, kinds):
+    """End points and kinds of a planar scan from sensor pose (x, y, θ): NaN/≤ 0 readings kind 0
+    (dropped), readings at or beyond ``max_range`` (or infinite) clear up to it (kind 2), the rest
+    are returns (kind 1). Returns (dropped, max-range readings)."""
+    x0, y0, th = pose[0], pose[1], pose[2]
+    dropped = 0
+    maxed = 0
+    for i in range(ranges.shape[0]):
+        r = ranges[i]
+        a = angles[i]
+        if not (r > 0.0) or not (a == a):
+            kinds[i] = 0
+            dropped += 1
+            ends[i, 0] = 0.0
+            ends[i, 1] = 0.0
+            continue
+        k = 1
+        if not (r < max_range):
+            r = max_range
+            k = 2
+            maxed += 1
+        kinds[i] = k
+        ends[i, 0] = x0 + r * math.cos(th + a)
+        ends[i, 1] = y0 + r * math.sin(th + a)
+    return dropped, maxed
+
+
+@kernel
+def cloud_ends(points, z_min, z_max, ends, kinds):
+    """Kinds of 3D world points: non-finite → 0 (dropped), ``z_min ≤ z ≤ z_max`` → 1 (obstacle),
+    else 2 (clears along its projected ray). Writes the (x, y) into ``ends``. Returns dropped."""
+    dropped = 0
+    for i in range(points.shape[0]):
+        x = points[i, 0]
+        y = points[i, 1]
+        z = points[i, 2]
+        ends[i, 0] = x
+        ends[i, 1] = y
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            kinds[i] = 0
+            dropped += 1
+        elif z_min <= z <= z_max:
+            kinds[i] = 1
+        else:
+            kinds[i] = 2
+    return dropped
+
+
+@kernel
+def rescale(cells, factor):
+    """``u ← u · factor`` for every cell (folds the global decay factor into the cells)."""
+    H, W = cells.shape[0], cells.shape[1]
+    for r in range(H):
+        for c in range(W):
+            cells[r, c, 0] *= factor
+
+
+@kernel
+def restamp(stamps, rmark):
+    """Restart the scan counter: every observed cell gets stamp 1 (below any scan's), marks 0."""
+    H, W = rmark.shape
+    for r in range(H):
+        for c in range(W):
+            if stamps[r, c, 1] != 0:
+                stamps[r, c, 1] = 1
+            rmark[r, c] = 0
+
+
+# ---------------------------------------------------------------------------------------------
+# read-outs
+
+
+@kernel
+def occupancy(cells, stamps, sr, sc, g, l_prior, out):
+    """nav_msgs values into ``out`` (int8, (H, W), window order): −1 never observed, else
+    round(100·p) with ``l = l_prior + g·u``."""
+    H, W = out.shape
+    for y in range(H):
+        r = y + sr
+        if r >= H:
+            r -= H
+        for x in range(W):
+            c = x + sc
+            if c >= W:
+                c -= W
+            if stamps[r, c, 1] == 0:
+                out[y, x] = -1
+            else:
+                l = l_prior + g * cells[r, c, 0]
+                out[y, x] = np.int8(round(100.0 / (1.0 + math.exp(-l))))
+
+
+@kernel
+def log_odds(cells, stamps, sr, sc, g, l_prior, out):
+    """Log-odds (float32, window order) into ``out``; NaN where never observed."""
+    H, W = out.shape
+    for y in range(H):
+        r = y + sr
+        if r >= H:
+            r -= H
+        for x in range(W):
+            c = x + sc
+            if c >= W:
+                c -= W
+            if stamps[r, c, 1] == 0:
+                out[y, x] = np.nan
+            else:
+                out[y, x] = l_prior + g * cells[r, c, 0]
+
+
+@kernel
+def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, out):
+    """The inflated costmap, in window order, into ``out`` (uint8 (H, W)).
+
+    A cell is lethal (254) when observed and ``u ≥ thr_occ``, free when observed and
+    ``u < thr_free``, unknown (255) otherwise. Inflation from the exact squared Euclidean distance
+    ``d²`` (cells, between centres) to the nearest lethal cell, needed only up to ``R`` cells: the
+    column distances (capped at R + 1) then, per row, the minimum over the 2R + 1 columns around
+    (or the lower envelope of parabolas, for large R). Free cells get ``lut[d²]`` (its last
+    entry, 0, stands for every d² beyond the radius; d² ≤ 2R²); unknown cells become 253 within the inscribed radius
+    (``d² ≤ inscribed_d2``) and stay 255 otherwise (Nav2's default, inflate_unknown false).
+    ``g`` is (H, W) integer scratch (uint8 when R < 254). All per-cell work is inline.
+    """
+    H, W = out.shape
+    C = R + 1
+    # pass 1: classes and downward column distances, one window row at a time; the row's storage
+    # columns wrap once, at window column W − sc
+    split = W - sc
+    for y in range(H):
+        r = y + sr
+        if r >= H:
+            r -= H
+        yp = y - 1 if y > 0 else 0
+        for seg in range(2):
+            x0 = 0 if seg == 0 else split
+            x1 = split if seg == 0 else W
+            off = sc if seg == 0 else -split
+            for x in range(x0, x1):  # branch-free, so it vectorises
+                c = x + off
+                u = cells[r, c, 0]
+                seen = stamps[r, c, 1] != 0
+                lethal = seen & (u >= thr_occ)
+                free = seen & (u < thr_free)
+                out[y, x] = 255 - np.uint8(lethal) - 255 * np.uint8(free)
+                gv = min(g[yp, x] + 1, C) if y > 0 else C  # row 0: nothing above
+                g[y, x] = 0 if lethal else gv
+    # pass 2: upward
+    for y in range(H - 2, -1, -1):
+        for x in range(W):
+            g[y, x] = min(np.int32(g[y, x]), np.int32(g[y + 1, x]) + 1)
+    # pass 3: per row, d² to the nearest lethal cell within R, then the cost
+    n_lut = lut.shape[0]
+    big = n_lut - 1  # lut[big] = 0: beyond the inflation radius
+    d2 = np.empty(W, dtype=np.int32)
+    if R <= WINDOW_MAX_RADIUS:
+        gp = np.empty(W + 2 * R, dtype=np.int32)
+        for j in range(R):
+            gp[j] = C * C
+            gp[W + R + j] = C * C
+    else:
+        row = np.empty(W)
+        f = np.empty(W)
+        v = np.empty(W, dtype=np.int64)
+        z = np.empty(W + 1)
+    for y in range(H):
+        near = 0
+        for x in range(W):
+            near += g[y, x] < C
+        if near == 0:  # no lethal cell within R of this row: nothing to inflate
+            continue
+        if R <= WINDOW_MAX_RADIUS:
+            for x in range(W):
+                gv = np.int32(g[y, x])
+                gp[R + x] = gv * gv
+            for x in range(W):
+                d2[x] = gp[x + R]
+            for j in range(2 * R + 1):
+                dd = (j - R) * (j - R)
+                for x in range(W):
+                    d2[x] = min(d2[x], dd + gp[x + j])
+        else:
+            for x in range(W):
+                row[x] = g[y, x] if g[y, x] < C else np.inf
+            _row_envelope(row, f, v, z)
+            for x in range(W):
+                d2[x] = big if row[x] >= big else int(row[x])
+        for x in range(W):
+            cls = out[y, x]
+            dd = min(d2[x], big)
+            if cls == 0:
+                out[y, x] = lut[dd] if dd < n_lut else 0
+            elif cls == 255 and dd <= inscribed_d2:
+                out[y, x] = 253
+
+
+# ---------------------------------------------------------------------------------------------
+# queries
+
+
+@kernel
+def cost_at(cost, gx0, gy0, inv_res, pts, out):
+    """Cost of the cell under each world point (N, 2); 255 outside the window or for a
+    non-finite point. Returns the number of non-finite points."""
+    H, W = cost.shape
+    bad = 0
+    for i in range(pts.shape[0]):
+        x = pts[i, 0]
+        y = pts[i, 1]
+        if not (math.isfinite(x) and math.isfinite(y)):
+            out[i] = 255
+            bad += 1
+            continue
+        wx = _cell_index(x, inv_res) - gx0
+        wy = _cell_index(y, inv_res) - gy0
+        out[i] = cost[wy, wx] if (0 <= wx < W and 0 <= wy < H) else 255
+    return bad
+
+
+@kernel
+def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collides, max_cost):
+    """Per pose (x, y, θ) the maximum cost of the cells under the footprint: for a polygon
+    (``footprint`` (M, 2) in the body frame, ``radius`` < 0) the cells its edges cross and the
+    cells whose centre lies inside; for a disc (``radius`` ≥ 0) the cells whose centre lies
+    within ``radius`` of the pose and the cell under it. Cells outside the window cost 255.
+    Non-finite poses get 255 and are not collisions. Writes ``max_cost`` (N,) uint8; returns
+    (index of the first pose in collision or −1, non-finite poses). A collision is a lethal cell
+    (254), or an unknown one (255) when ``unknown_collides``. Every per-cell step is inline."""
+    H, W = cost.shape
+    n = poses.shape[0]
+    M = footprint.shape[0]
+    us = np.empty(M + 1)
+    vs = np.empty(M + 1)
+    xs = np.empty(M + 2)
+    first = -1
+    bad = 0
+    for i in range(n):
+        px = poses[i, 0]
+        py = poses[i, 1]
+        th = poses[i, 2]
+        if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(th)):
+            max_cost[i] = 255
+            bad += 1
+            continue
+        u = px * inv_res - gx0  # window cell units, the lattice arithmetic of cost_at
+        v = py * inv_res - gy0
+        ix = int(math.floor(u))
+        iy = int(math.floor(v))
+        best = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
+        if radius >= 0.0:
+            rr = radius * inv_res
+            j0 = int(math.floor(v - rr))
+            j1 = int(math.floor(v + rr))
+            for j in range(j0, j1 + 1):
+                dy = j + 0.5 - v
+                h2 = rr * rr - dy * dy
+                if h2 < 0.0:
+                    continue
+                h = math.sqrt(h2)
+                for k in range(int(math.ceil(u - h - 0.5)), int(math.floor(u + h - 0.5)) + 1):
+                    c = cost[j, k] if (0 <= k < W and 0 <= j < H) else 255
+                    if c > best:
+                        best = c
+        else:
+            ct = math.cos(th)
+            st = math.sin(th)
+            vmin = np.inf
+            vmax = -np.inf
+            for k in range(M):
+                bx = footprint[k, 0]
+                by = footprint[k, 1]
+                us[k] = u + (ct * bx - st * by) * inv_res
+                vs[k] = v + (st * bx + ct * by) * inv_res
+                vmin = min(vmin, vs[k])
+                vmax = max(vmax, vs[k])
+            us[M] = us[0]
+            vs[M] = vs[0]
+            for k in range(M):  # the outline: the cells each edge crosses (Amanatides–Woo, inline)
+                u0 = us[k]
+                v0 = vs[k]
+                u1 = us[k + 1]
+                v1 = vs[k + 1]
+                ix = int(math.floor(u0))
+                iy = int(math.floor(v0))
+                ex = int(math.floor(u1))
+                ey = int(math.floor(v1))
+                du = u1 - u0
+                dv = v1 - v0
+                sx = 1 if ex > ix else -1
+                sy = 1 if ey > iy else -1
+                tmx = np.inf
+                tdx = np.inf
+                tmy = np.inf
+                tdy = np.inf
+                if du != 0.0:
+                    tmx = ((ix + (1 if du > 0.0 else 0)) - u0) / du
+                    tdx = abs(1.0 / du)
+                if dv != 0.0:
+                    tmy = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
+                    tdy = abs(1.0 / dv)
+                c = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
+                if c > best:
+                    best = c
+                for _ in range(abs(ex - ix) + abs(ey - iy)):
+                    if iy == ey or (ix != ex and tmx <= tmy):
+                        ix += sx
+                        tmx += tdx
+                    else:
+                        iy += sy
+                        tmy += tdy
+                    c = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
+                    if c > best:
+                        best = c
+            for j in range(int(math.floor(vmin)), int(math.floor(vmax)) + 1):  # the inside, by scanlines
+                yc = j + 0.5
+                m = 0
+                for k in range(M):
+                    va = vs[k]
+                    vb = vs[k + 1]
+                    if (va <= yc < vb) or (vb <= yc < va):
+                        xs[m] = us[k] + (yc - va) * (us[k + 1] - us[k]) / (vb - va)
+                        m += 1
+                for a in range(1, m):  # insertion sort: a handful of crossings
+                    t = xs[a]
+                    b = a - 1
+                    while b >= 0 and xs[b] > t:
+                        xs[b + 1] = xs[b]
+                        b -= 1
+                    xs[b + 1] = t
+                for q in range(0, m - 1, 2):
+                    for k in range(int(math.ceil(xs[q] - 0.5)), int(math.floor(xs[q + 1] - 0.5)) + 1):
+                        c = cost[j, k] if (0 <= k < W and 0 <= j < H) else 255
+                        if c > best:
+                            best = c
+        max_cost[i] = best
+        if first < 0 and (best == 254 or (unknown_collides and best == 255)):
+            first = i
+    return first, bad

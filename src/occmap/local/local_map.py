@@ -1,0 +1,450 @@
+"""The local map: a robot-centred rolling window of log-odds cells that forgets, and its costmap.
+
+Layout (see ``DESIGN.md``): world-aligned cells of side ``resolution`` on the world lattice
+(cell ``(j, i)`` covers ``[i·res, (i+1)·res) × [j·res, (j+1)·res)``, a point's cell is
+``floor(x · (1/res))``); the window is ``H × W`` of them, ``origin`` the world position of the
+outer corner of its cell (0, 0), always a multiple of the resolution, so cells never resample
+when the window moves.
+
+Storage is a circular buffer (after ANYbotics' grid_map): window cell ``(wy, wx)`` lives at
+``((wy + sr) mod H, (wx + sc) mod W)``. :meth:`LocalMap.move_to` shifts ``(sr, sc)`` and clears
+only the rows and columns that left the window (they come back in as the entering cells,
+unknown): a move by k cells writes about ``k · width`` cells and copies nothing.
+
+Sensing follows :class:`~occmap.OccupancyGrid2D`: log-odds ``l ← clamp(l + l_sensor − l_prior)``,
+every cell updated at most once per scan, a hit winning over a miss. One ray is cast per
+distinct end cell of a scan, from the sensor position to the centre of that cell (OctoMap's
+``discretize``), which costs the same cells as any ray into that cell and makes dense 3D clouds
+cheap.
+
+Forgetting: with ``half_life`` (seconds) every cell relaxes toward the prior,
+``l − l_prior ← (l − l_prior) · 2^(−Δt / half_life)``, exactly and at no cost per update: cells
+store ``u = (l − l_prior) / g`` with one global factor ``g`` that the clock multiplies by
+``2^(−Δt / half_life)`` (sensor evidence and clamping bounds are divided by ``g`` as they are
+applied; ``g`` is folded back into the cells, one pass, when it falls below 2⁻³⁰). A cell is
+lethal while ``p ≥ occupied`` (default 0.65) and free while ``p < free`` (default 0.196); so a
+cell at the upper clamp ``l_max`` that is no longer seen leaves lethal after exactly
+``half_life · log2((l_max − l_prior) / (l_occupied − l_prior))`` seconds
+(:meth:`LocalMap.time_to_clear`), and re-observed free space clears faster than that.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
+from ..grid2d.sensor_models import LidarModel, logit
+from . import _kernels as K
+from .costmap import InflationParams, as_footprint, inscribed_radius as _inscribed_radius
+
+__all__ = ["LocalMap", "PathCheck"]
+
+#: The global decay factor is folded into the cells when it falls below this.
+_RESCALE_BELOW = 2.0 ** -30
+#: The scan counter restarts (all stamps set to 1) before stamps 2s + 1 could overflow int32.
+_MAX_SCAN = 2 ** 30 - 2
+
+
+class PathCheck(NamedTuple):
+    """Result of :meth:`LocalMap.check_path`.
+
+    ``max_cost`` (N,) uint8: highest cost under the footprint at each pose (255 for a
+    non-finite pose); ``first_collision``: index of the first pose in collision, −1 if none;
+    ``dropped``: how many poses were non-finite (skipped, never a collision)."""
+
+    max_cost: np.ndarray
+    first_collision: int
+    dropped: int
+
+
+def _finite_number(name, v, positive=False, allow_none=False):
+    if v is None and allow_none:
+        return None
+    if not (isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v)):
+        raise InvalidArgumentError(f"{name} must be a finite number, got {v!r}")
+    if positive and not v > 0:
+        raise InvalidArgumentError(f"{name} must be > 0, got {v!r}")
+    return float(v)
+
+
+class LocalMap:
+    """A rolling, forgetting occupancy window centred on the robot, with a Nav2 costmap.
+
+    Parameters
+    ----------
+    size : (width, height) in metres
+        Extent of the window (rounded up to whole cells).
+    resolution : float
+        Cell side in metres.
+    half_life : float or None
+        Seconds for a cell's log-odds (relative to the prior) to halve when nothing updates it;
+        ``None``: no forgetting.
+    occupied, free : float
+        Probability thresholds: lethal when ``p ≥ occupied``, free when ``p < free``; between
+        them, and where never observed, unknown (map_server's trinary rule).
+    model : LidarModel
+        ``p_hit`` / ``p_miss`` of the beam-end model (OctoMap's 0.7 / 0.4).
+    prior, clamp : as :class:`~occmap.OccupancyGrid2D`.
+    inflation_radius, cost_scaling_factor : float
+        Nav2's inflation parameters (defaults 0.55 m, 10).
+    footprint : (M, 2) polygon or float radius
+        The robot's footprint in the body frame (x forward), used by :meth:`check_path` when none
+        is given and for the inscribed radius; default a 0.1 m radius (Nav2's ``robot_radius``).
+    center : (x, y)
+        Where the window starts, centred (default the world origin).
+    """
+
+    def __init__(self, size=(40.0, 40.0), resolution: float = 0.1, half_life: float | None = None, *,
+                 occupied: float = 0.65, free: float = 0.196, model: LidarModel | None = None, prior: float = 0.5,
+                 clamp=(0.1192, 0.971), inflation_radius: float = 0.55, cost_scaling_factor: float = 10.0,
+                 footprint=0.1, center=(0.0, 0.0)):
+        self.resolution = _finite_number("resolution", resolution, positive=True)
+        self.half_life = _finite_number("half_life", half_life, positive=True, allow_none=True)
+        try:
+            w, h = (float(v) for v in size)
+        except (TypeError, ValueError):
+            raise InvalidArgumentError(f"size must be (width, height) in metres, got {size!r}") from None
+        if not (math.isfinite(w) and math.isfinite(h) and w > 0 and h > 0):
+            raise InvalidArgumentError(f"size must be positive (width, height) in metres, got {size!r}")
+        W = int(math.ceil(w / self.resolution - 1e-9))
+        H = int(math.ceil(h / self.resolution - 1e-9))
+        self.model = LidarModel() if model is None else model
+        self.l_prior = logit(prior)
+        self.l_min, self.l_max = logit(clamp[0]), logit(clamp[1])
+        if not self.l_min < self.l_prior < self.l_max:
+            raise InvalidArgumentError(f"prior {prior!r} must lie strictly between the clamping bounds {clamp!r}")
+        self.l_occupied, self.l_free = logit(occupied), logit(free)
+        if not self.l_free <= self.l_prior < self.l_occupied:
+            raise InvalidArgumentError(f"thresholds must satisfy free ({free}) ≤ prior ({prior}) < occupied ({occupied})")
+        if not self.l_occupied <= self.l_max:
+            raise InvalidArgumentError(f"occupied threshold {occupied} lies above the upper clamp {clamp[1]}: nothing could be lethal")
+        self.footprint = footprint
+        self._footprint = as_footprint(footprint)
+        self.inflation = InflationParams(self.resolution, inflation_radius, cost_scaling_factor,
+                                         _inscribed_radius(footprint))
+        self._cells = np.zeros((H, W, 2), dtype=np.float32)
+        self._stamps = self._cells.view(np.int32)
+        self._rmark = np.zeros((H, W), dtype=np.int32)
+        # column distances of the inflation pass, capped at R + 1: one byte each when that fits
+        self._g_scratch = np.empty((H, W), dtype=np.uint8 if self.inflation.radius_cells < 254 else np.int32)
+        #: Two threads for big scans (None: decided per scan, see ``occmap.local._kernels.integrate``);
+        #: True / False force it. The cells come out the same either way.
+        self.parallel = None
+        self._sr = 0
+        self._sc = 0
+        self._g = 1.0
+        self._scan = 0
+        self._time = None
+        self._version = 0
+        self._cost_cache = None
+        self.stats = {"scans": 0, "points": 0, "dropped_points": 0, "dropped_poses": 0, "max_range": 0,
+                      "rays": 0, "cells_updated": 0, "cells_cleared_by_moves": 0}
+        cx, cy = (_finite_number("center", v) for v in center)
+        self._gx0, self._gy0 = self._corner_for(cx, cy)
+
+    # ------------------------------------------------------------------ geometry
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(height, width) in cells."""
+        return self._rmark.shape
+
+    @property
+    def origin(self) -> np.ndarray:
+        """World position (x, y) of the outer corner of window cell (0, 0)."""
+        return np.array([self._gx0 * self.resolution, self._gy0 * self.resolution])
+
+    @property
+    def center(self) -> np.ndarray:
+        """World position of the window's centre."""
+        H, W = self.shape
+        return self.origin + 0.5 * self.resolution * np.array([W, H])
+
+    @property
+    def time(self) -> float | None:
+        """Stamp of the latest update (seconds), ``None`` before the first."""
+        return self._time
+
+    def _corner_for(self, x: float, y: float) -> tuple[int, int]:
+        """Lattice cell of the window's corner when centred on (x, y)."""
+        H, W = self.shape
+        inv = 1.0 / self.resolution
+        return int(math.floor(x * inv)) - W // 2, int(math.floor(y * inv)) - H // 2
+
+    def world_to_cell(self, points) -> np.ndarray:
+        """Window cells ``(wy, wx)`` (..., 2) of world points (..., 2); not clipped."""
+        p = np.asarray(points, dtype=np.float64)
+        if p.shape[-1:] != (2,):
+            raise ShapeError(f"points must have shape (..., 2), got {p.shape}")
+        c = np.floor(p * (1.0 / self.resolution)).astype(np.int64) - np.array([self._gx0, self._gy0])
+        return c[..., ::-1]
+
+    def cell_to_world(self, cells) -> np.ndarray:
+        """World centres (..., 2) of window cells ``(wy, wx)`` (..., 2)."""
+        c = np.asarray(cells)
+        if c.shape[-1:] != (2,):
+            raise ShapeError(f"cells must have shape (..., 2), got {c.shape}")
+        return self.origin + (c[..., ::-1] + 0.5) * self.resolution
+
+    # ------------------------------------------------------------------ moving
+
+    def move_to(self, x: float, y: float) -> int:
+        """Centre the window on (x, y): the window moves by whole cells, the storage start shifts,
+        and only the rows and columns that left are cleared (they re-enter as unknown cells on
+        the other side). Returns the number of cells cleared (0 when the window stays)."""
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise NonFiniteError(f"move_to needs a finite position, got ({x!r}, {y!r})")
+        gx0, gy0 = self._corner_for(float(x), float(y))
+        dx, dy = gx0 - self._gx0, gy0 - self._gy0
+        if dx == 0 and dy == 0:
+            return 0
+        H, W = self.shape
+        touched = 0
+        if abs(dx) >= W or abs(dy) >= H:
+            self._cells[...] = 0.0  # nothing stays: every cell left
+            touched = H * W
+            self._sr = self._sc = 0
+        else:
+            if dx:
+                # leaving: window columns [0, dx) when moving +x, [W + dx, W) when moving −x;
+                # they are the storage columns that the entering ones take over
+                c0 = self._sc if dx > 0 else (self._sc + W + dx) % W
+                touched += K.clear_columns(self._cells, c0, abs(dx))
+                self._sc = (self._sc + dx) % W
+            if dy:
+                r0 = self._sr if dy > 0 else (self._sr + H + dy) % H
+                touched += K.clear_rows(self._cells, r0, abs(dy))
+                self._sr = (self._sr + dy) % H
+        self._gx0, self._gy0 = gx0, gy0
+        self.stats["cells_cleared_by_moves"] += touched
+        self._changed()
+        return touched
+
+    # ------------------------------------------------------------------ time
+
+    def _advance(self, stamp) -> None:
+        """Move the clock to ``stamp``: check it, and decay by the time passed."""
+        if not (isinstance(stamp, (int, float, np.floating, np.integer)) and math.isfinite(stamp)):
+            raise InvalidArgumentError(f"stamp must be a finite time in seconds, got {stamp!r}")
+        stamp = float(stamp)
+        if self._time is not None:
+            dt = stamp - self._time
+            if dt < 0:
+                raise InvalidArgumentError(
+                    f"stamp {stamp!r} goes backwards: the local map is at {self._time!r} s "
+                    f"({-dt:.6g} s later); updates must come in time order")
+            if self.half_life is not None and dt > 0:
+                self._g *= 2.0 ** (-dt / self.half_life)
+                if self._g < _RESCALE_BELOW:
+                    K.rescale(self._cells, np.float32(self._g))
+                    self._g = 1.0
+        self._time = stamp
+        self._changed()
+
+    def advance_time(self, stamp) -> None:
+        """Let time pass to ``stamp`` without an observation (cells decay)."""
+        self._advance(stamp)
+
+    def _next_scan(self) -> int:
+        if self._scan >= _MAX_SCAN:
+            K.restamp(self._stamps, self._rmark)
+            self._scan = 0
+        self._scan += 1
+        return self._scan
+
+    def _changed(self) -> None:
+        self._version += 1
+        self._cost_cache = None
+
+    # ------------------------------------------------------------------ sensing
+
+    def _integrate(self, px, py, ends, kinds) -> dict:
+        g = self._g
+        lp = self.l_prior
+        hits, rays, updated, visited = K.integrate(
+            self._cells, self._stamps, self._rmark, self._sr, self._sc, self._gx0, self._gy0,
+            1.0 / self.resolution, float(px), float(py), ends, kinds, self._next_scan(),
+            (self.model.l_hit - lp) / g, (self.model.l_miss - lp) / g, (self.l_min - lp) / g, (self.l_max - lp) / g,
+            self.parallel)
+        self.stats["scans"] += 1
+        self.stats["rays"] += rays
+        self.stats["cells_updated"] += hits + updated
+        self._changed()
+        return {"hits": int(hits), "rays": int(rays), "free_updates": int(updated), "cells_visited": int(visited)}
+
+    def integrate_scan(self, pose, ranges, angles, stamp, max_range: float | None = None) -> dict:
+        """Integrate one planar scan from sensor pose ``(x, y, theta)`` taken at ``stamp`` seconds.
+
+        ``ranges`` (n,) metres; ``angles`` (n,) relative to the sensor heading. Readings at or
+        beyond ``max_range`` (or infinite) clear up to it and mark nothing; NaN, zero and negative
+        readings are dropped and counted. Without ``max_range`` every finite reading is a return
+        and infinite ones are dropped. A pose with NaN drops the whole scan (counted in
+        ``stats["dropped_poses"]``; time still advances). Stamps must not go backwards
+        (:class:`~occmap.errors.InvalidArgumentError`). Returns this scan's counts.
+        """
+        P = np.asarray(pose, dtype=np.float64)
+        if P.shape != (3,):
+            raise ShapeError(f"pose must be (x, y, theta), got shape {P.shape}")
+        R = np.ascontiguousarray(ranges, dtype=np.float64)
+        A = np.ascontiguousarray(angles, dtype=np.float64)
+        if R.ndim != 1 or A.shape != R.shape:
+            raise ShapeError(f"ranges and angles must both have shape (n,), got {R.shape} and {A.shape}")
+        self._advance(stamp)
+        if not np.isfinite(P).all():
+            self.stats["dropped_poses"] += 1
+            return {"dropped_pose": True, "dropped": int(R.size), "max_range": 0}
+        if max_range is None:
+            finite = R[np.isfinite(R) & (R > 0)]
+            mr = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
+            if np.isinf(R).any():
+                R = np.where(np.isinf(R), np.nan, R)
+        else:
+            mr = _finite_number("max_range", max_range, positive=True)
+        ends = np.empty((R.size, 2))
+        kinds = np.empty(R.size, dtype=np.int8)
+        dropped, maxed = K.scan_ends(P, R, A, mr, ends, kinds)
+        self.stats["points"] += int(R.size)
+        self.stats["dropped_points"] += int(dropped)
+        self.stats["max_range"] += int(maxed)
+        out = self._integrate(P[0], P[1], ends, kinds)
+        out.update(dropped=int(dropped), max_range=int(maxed))
+        return out
+
+    def integrate_points(self, points_world, sensor_origin, stamp, z_min: float, z_max: float) -> dict:
+        """Integrate a 3D cloud: ``points_world`` (N, 3) in the world frame, seen from
+        ``sensor_origin`` (2 or 3 numbers; z unused) at ``stamp`` seconds.
+
+        Points with ``z_min ≤ z ≤ z_max`` mark their cell as an obstacle and clear the cells
+        before it; the others (ground below the band, overhangs above it) mark nothing and clear
+        the cells along their ray projected on the plane, end cell excluded. Points with NaN or
+        inf are dropped and counted; a non-finite sensor origin drops the cloud (counted as a
+        dropped pose). Returns this cloud's counts.
+        """
+        pts = np.ascontiguousarray(points_world, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ShapeError(f"points_world must have shape (N, 3), got {pts.shape}")
+        o = np.asarray(sensor_origin, dtype=np.float64).reshape(-1)
+        if o.shape not in ((2,), (3,)):
+            raise ShapeError(f"sensor_origin must have 2 or 3 coordinates, got shape {o.shape}")
+        z_min = _finite_number("z_min", z_min)
+        z_max = _finite_number("z_max", z_max)
+        if not z_min <= z_max:
+            raise InvalidArgumentError(f"z_min ({z_min}) must not exceed z_max ({z_max})")
+        self._advance(stamp)
+        if not np.isfinite(o[:2]).all():
+            self.stats["dropped_poses"] += 1
+            return {"dropped_pose": True, "dropped": len(pts)}
+        ends = np.empty((len(pts), 2))
+        kinds = np.empty(len(pts), dtype=np.int8)
+        dropped = K.cloud_ends(pts, z_min, z_max, ends, kinds)
+        self.stats["points"] += len(pts)
+        self.stats["dropped_points"] += int(dropped)
+        out = self._integrate(o[0], o[1], ends, kinds)
+        out["dropped"] = int(dropped)
+        return out
+
+    # ------------------------------------------------------------------ read-outs
+
+    def log_odds(self) -> np.ndarray:
+        """Log-odds per window cell now (float32 (H, W), row 0 at the origin), NaN where unknown."""
+        out = np.empty(self.shape, dtype=np.float32)
+        K.log_odds(self._cells, self._stamps, self._sr, self._sc, self._g, self.l_prior, out)
+        return out
+
+    @property
+    def observed(self) -> np.ndarray:
+        """True for window cells observed since they entered the window (window order)."""
+        s = self._stamps[..., 1] != 0
+        return np.roll(s, (-self._sr, -self._sc), axis=(0, 1))
+
+    def to_occupancy_grid(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(data, origin)``: nav_msgs/OccupancyGrid values (int8 (H, W), row 0 at the origin;
+        −1 unknown, else round(100·p)) and the window origin (x, y)."""
+        out = np.empty(self.shape, dtype=np.int8)
+        K.occupancy(self._cells, self._stamps, self._sr, self._sc, self._g, self.l_prior, out)
+        return out, self.origin
+
+    def costmap(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(cost, origin)``: Nav2 costs (uint8 (H, W), row 0 at the origin; see
+        :mod:`occmap.local.costmap`) and the window origin (x, y). Computed once per change of
+        the map (the array is shared with later calls until then: copy it to keep it)."""
+        if self._cost_cache is None:
+            H, W = self.shape
+            out = np.empty((H, W), dtype=np.uint8)
+            g = self._g
+            p = self.inflation
+            K.costmap(self._cells, self._stamps, self._sr, self._sc, (self.l_occupied - self.l_prior) / g,
+                      (self.l_free - self.l_prior) / g, p.radius_cells, p.table, p.inscribed_d2, self._g_scratch, out)
+            out.flags.writeable = False
+            self._cost_cache = out
+        return self._cost_cache, self.origin
+
+    def lethal(self) -> np.ndarray:
+        """Bool (H, W), window order: cells at or above the occupied threshold."""
+        l = self.log_odds()
+        return np.nan_to_num(l, nan=-np.inf) >= self.l_occupied
+
+    def time_to_clear(self, l_start: float | None = None) -> float:
+        """Seconds after which a cell at log-odds ``l_start`` (default the upper clamp) that
+        nothing updates drops below the occupied threshold: ``half_life · log2(Δl_start / Δl_occ)``
+        (Δ relative to the prior); inf without forgetting."""
+        if self.half_life is None:
+            return math.inf
+        l0 = self.l_max if l_start is None else float(l_start)
+        return self.half_life * math.log2((l0 - self.l_prior) / (self.l_occupied - self.l_prior))
+
+    # ------------------------------------------------------------------ queries
+
+    def cost_at(self, points, frame: str = "world", robot_pose=None) -> np.ndarray:
+        """Costs (uint8, shape (...)) of the cells under points (..., 2): world coordinates, or
+        ``frame="body"`` coordinates in the frame of ``robot_pose`` (x, y, θ). Points outside
+        the window or with NaN get 255 (the NaN ones are counted in ``stats["dropped_points"]``)."""
+        p = np.asarray(points, dtype=np.float64)
+        if p.shape[-1:] != (2,):
+            raise ShapeError(f"points must have shape (..., 2), got {p.shape}")
+        if frame == "body":
+            if robot_pose is None:
+                raise InvalidArgumentError('frame="body" needs robot_pose=(x, y, theta)')
+            rp = np.asarray(robot_pose, dtype=np.float64)
+            if rp.shape != (3,):
+                raise ShapeError(f"robot_pose must be (x, y, theta), got shape {rp.shape}")
+            c, s = math.cos(rp[2]), math.sin(rp[2])
+            p = np.stack([rp[0] + c * p[..., 0] - s * p[..., 1], rp[1] + s * p[..., 0] + c * p[..., 1]], -1)
+        elif frame != "world":
+            raise InvalidArgumentError(f'frame must be "world" or "body", got {frame!r}')
+        cost, _ = self.costmap()
+        flat = np.ascontiguousarray(p.reshape(-1, 2))
+        out = np.empty(len(flat), dtype=np.uint8)
+        bad = K.cost_at(cost, self._gx0, self._gy0, 1.0 / self.resolution, flat, out)
+        self.stats["dropped_points"] += int(bad)
+        return out.reshape(p.shape[:-1])
+
+    def check_path(self, poses, footprint=None, unknown_is_collision: bool = False) -> PathCheck:
+        """Check poses (N, 3) ``(x, y, θ)`` against the costmap with a footprint (a polygon (M, 2)
+        in the body frame, or a radius; default the map's).
+
+        For a polygon the cells under it are those its edges cross and those whose centre lies
+        inside; for a radius, the cell under the pose and those whose centre lies within the
+        radius. Returns :class:`PathCheck`: the maximum cost per pose, the index of the first
+        pose touching a lethal cell (or an unknown one, with ``unknown_is_collision``), −1 if
+        none, and the count of non-finite poses (dropped: cost 255, never a collision)."""
+        P = np.ascontiguousarray(poses, dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] != 3:
+            raise ShapeError(f"poses must have shape (N, 3), got {P.shape}")
+        fp, radius = self._footprint if footprint is None else as_footprint(footprint)
+        cost, _ = self.costmap()
+        out = np.empty(len(P), dtype=np.uint8)
+        first, bad = K.check_path(cost, self._gx0, self._gy0, 1.0 / self.resolution, P,
+                                  np.ascontiguousarray(fp), radius, bool(unknown_is_collision), out)
+        self.stats["dropped_poses"] += int(bad)
+        return PathCheck(out, int(first), int(bad))
+
+    def __repr__(self) -> str:
+        H, W = self.shape
+        o = self.origin
+        hl = "no forgetting" if self.half_life is None else f"half-life {self.half_life} s"
+        return (f"LocalMap({W}×{H} cells at {self.resolution} m, origin ({o[0]:.3f}, {o[1]:.3f}), {hl}, "
+                f"{self.stats['scans']} scans)")
