@@ -403,18 +403,13 @@ def test_bad_input():
 
 
 def test_replay_cli_writes_an_animation(data_dir, tmp_path, capsys):
-    import argparse
-
     from PIL import Image
 
-    from occmap.local.replay import add_parser, run_cli
+    from occmap.cli import main
 
-    parser = argparse.ArgumentParser()
-    add_parser(parser.add_subparsers(dest="command"))
     out = tmp_path / "local.gif"
-    args = parser.parse_args(["local", str(data_dir / "carmen" / "intel-corrected.log.gz"), "-o", str(out),
-                              "--max-frames", "4", "--size", "12"])
-    assert run_cli(args) == 0
+    assert main(["local", str(data_dir / "carmen" / "intel-corrected.log.gz"), "-o", str(out),
+                 "--max-frames", "4", "--size", "12"]) == 0
     with Image.open(out) as im:
         assert im.n_frames == 4 and im.size == (240, 240)
     assert "frames" in capsys.readouterr().out
