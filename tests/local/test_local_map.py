@@ -413,3 +413,16 @@ def test_replay_cli_writes_an_animation(data_dir, tmp_path, capsys):
     with Image.open(out) as im:
         assert im.n_frames == 4 and im.size == (240, 240)
     assert "frames" in capsys.readouterr().out
+
+
+def test_check_path_lethal_collides_even_beside_unknown():
+    """A footprint reaching across a wall covers lethal cells and the unknown space behind them:
+    max_cost reports 255 (unknown ranks highest), but the pose is a collision."""
+    local = LocalMap(size=(20.0, 20.0), resolution=0.1)
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    local.integrate_scan((0.0, 0.0, 0.0), np.full(720, 3.0), angles, stamp=0.0)
+    box = [[0.3, 0.2], [-0.3, 0.2], [-0.3, -0.2], [0.3, -0.2]]
+    check = local.check_path(np.array([[0.0, 0.0, 0.0], [2.9, 0.0, 0.0]]), footprint=box)
+    assert check.max_cost[1] == 255 and check.first_collision == 1
+    disc = local.check_path(np.array([[0.0, 0.0, 0.0], [2.9, 0.0, 0.0]]), footprint=0.3)
+    assert disc.first_collision == 1

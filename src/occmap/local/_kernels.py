@@ -593,6 +593,7 @@ def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collid
         ix = int(math.floor(u))
         iy = int(math.floor(v))
         best = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
+        lethal = best == 254  # a lethal cell collides even where unknown (255) outranks it in max_cost
         if radius >= 0.0:
             rr = radius * inv_res
             j0 = int(math.floor(v - rr))
@@ -605,8 +606,8 @@ def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collid
                 h = math.sqrt(h2)
                 for k in range(int(math.ceil(u - h - 0.5)), int(math.floor(u + h - 0.5)) + 1):
                     c = cost[j, k] if (0 <= k < W and 0 <= j < H) else 255
-                    if c > best:
-                        best = c
+                    best = max(best, c)
+                    lethal = lethal or c == 254
         else:
             ct = math.cos(th)
             st = math.sin(th)
@@ -645,8 +646,8 @@ def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collid
                     tmy = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
                     tdy = abs(1.0 / dv)
                 c = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
-                if c > best:
-                    best = c
+                best = max(best, c)
+                lethal = lethal or c == 254
                 for _ in range(abs(ex - ix) + abs(ey - iy)):
                     if iy == ey or (ix != ex and tmx <= tmy):
                         ix += sx
@@ -655,8 +656,8 @@ def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collid
                         iy += sy
                         tmy += tdy
                     c = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
-                    if c > best:
-                        best = c
+                    best = max(best, c)
+                    lethal = lethal or c == 254
             for j in range(int(math.floor(vmin)), int(math.floor(vmax)) + 1):  # the inside, by scanlines
                 yc = j + 0.5
                 m = 0
@@ -676,9 +677,9 @@ def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collid
                 for q in range(0, m - 1, 2):
                     for k in range(int(math.ceil(xs[q] - 0.5)), int(math.floor(xs[q + 1] - 0.5)) + 1):
                         c = cost[j, k] if (0 <= k < W and 0 <= j < H) else 255
-                        if c > best:
-                            best = c
+                        best = max(best, c)
+                        lethal = lethal or c == 254
         max_cost[i] = best
-        if first < 0 and (best == 254 or (unknown_collides and best == 255)):
+        if first < 0 and (lethal or (unknown_collides and best == 255)):
             first = i
     return first, bad
