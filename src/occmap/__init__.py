@@ -8,11 +8,12 @@ from .cloud import PointCloud
 from .errors import OccmapError
 from .grid2d import LidarModel, OccupancyGrid2D
 from .local import LocalMap
+from .localize import MonteCarloLocalizer
 from .scan import LaserScan
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "LaserScan", "LidarModel", "LocalMap", "OccmapError", "OccupancyGrid2D", "PointCloud", "errors", "geometry", "io",
+    "LaserScan", "LidarModel", "LocalMap", "MonteCarloLocalizer", "OccmapError", "OccupancyGrid2D", "PointCloud", "errors", "geometry", "io",
     "__version__",
 ]

@@ -57,8 +57,10 @@ def _parser() -> argparse.ArgumentParser:
     ren.add_argument("--pixel", type=float, help="pixel size in metres (default: the octree's resolution)")
 
     from .local.replay import add_parser as add_local_parser
+    from .localize.replay import add_parser as add_localize_parser
 
     add_local_parser(sub)
+    add_localize_parser(sub)
     return p
 
 
@@ -167,6 +169,12 @@ def _local(args) -> int:
     return run_cli(args)
 
 
+def _localize(args) -> int:
+    from .localize.replay import run_cli
+
+    return run_cli(args)
+
+
 def _map2d(args) -> int:
     from .grid2d import LidarModel
     from .io.carmen import read_carmen
@@ -202,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
 
             return run(args.out)
         commands = {"map2d": _map2d, "map3d": _map3d, "info": _info, "convert": _convert, "render": _render,
-                    "local": _local}
+                    "local": _local, "localize": _localize}
         if args.command in commands:
             return commands[args.command](args)
     except (OccmapError, OSError) as e:  # bad input, missing or unreadable files: a message, no traceback

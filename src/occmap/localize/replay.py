@@ -1,0 +1,358 @@
+"""Replaying a recorded laser log against a map: the job behind ``occmap localize``.
+
+* :func:`pair_scans` matches the scans of a raw log with those of a SLAM-corrected log of the
+  same run (logger timestamps within a few milliseconds *and* identical ranges), so the corrected
+  poses serve as the reference for the raw run (for Intel: 910 of the raw log's 13,631 scans).
+* :func:`replay` feeds a log's raw odometry and scans to a :class:`MonteCarloLocalizer` and
+  records the track; :func:`track_errors` compares it with reference poses.
+* :func:`save_track_png` draws the track over the map beside the odometry track (anchored at the
+  first estimate), :func:`save_error_png` the error curves, :func:`write_track_csv` the track.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._files import write_atomic
+from ..errors import InvalidArgumentError
+from ..geometry.so2 import wrap_angle
+from .mcl import LocalizationWarning, MonteCarloLocalizer
+
+__all__ = [
+    "ReplayResult", "add_parser", "pair_scans", "replay", "run_cli", "save_error_png", "save_track_png",
+    "track_errors", "write_track_csv",
+]
+
+
+def pair_scans(raw, reference, tolerance: float = 0.01) -> np.ndarray:
+    """For each scan of ``reference``, the index of the scan of ``raw`` with a logger timestamp
+    within ``tolerance`` seconds and identical ranges (−1 where none). Both are sequences of
+    :class:`~occmap.scan.LaserScan`; raw timestamps need not be monotonic (Intel's step back)."""
+    rs = np.array([s.stamp for s in raw], dtype=np.float64)
+    order = np.argsort(rs, kind="stable")
+    sorted_stamps = rs[order]
+    out = np.full(len(reference), -1, dtype=np.int64)
+    for k, ref in enumerate(reference):
+        lo = np.searchsorted(sorted_stamps, ref.stamp - tolerance, side="left")
+        hi = np.searchsorted(sorted_stamps, ref.stamp + tolerance, side="right")
+        best, best_dt = -1, math.inf
+        for j in order[lo:hi]:
+            cand = raw[j]
+            if cand.ranges.shape == ref.ranges.shape and np.array_equal(cand.ranges, ref.ranges):
+                dt = abs(cand.stamp - ref.stamp)
+                if dt < best_dt:
+                    best, best_dt = int(j), dt
+        out[k] = best
+    return out
+
+
+@dataclass
+class ReplayResult:
+    """The track of a replay, one row per scan."""
+
+    stamps: np.ndarray  # (N,)
+    poses: np.ndarray  # (N, 3) estimates
+    odometry: np.ndarray  # (N, 3) raw odometry
+    covariances: np.ndarray  # (N, 3, 3)
+    ess: np.ndarray  # (N,)
+    n_particles: np.ndarray  # (N,)
+    updated: np.ndarray  # (N,) bool
+    seconds: np.ndarray  # (N,) wall time of each update() call
+    warnings: list
+
+    def __len__(self) -> int:
+        return len(self.stamps)
+
+
+def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global_localization: bool = False,
+           progress: bool = False) -> ReplayResult:
+    """Run ``localizer`` over ``scans`` (LaserScan records with ``odom``), starting from ``init``
+    ``(x, y, theta)`` (with ``cov``) or, with ``global_localization``, from particles spread over
+    the free space. Warnings of the filter are collected (``ReplayResult.warnings``), not shown."""
+    scans = list(scans)
+    if not scans:
+        raise InvalidArgumentError("the log holds no scans")
+    if global_localization:
+        localizer.initialize_global()
+    elif init is not None:
+        localizer.initialize(init, cov)
+    else:
+        raise InvalidArgumentError("give an initial pose or ask for global localization")
+    n = len(scans)
+    poses = np.empty((n, 3))
+    odo = np.empty((n, 3))
+    covs = np.empty((n, 3, 3))
+    ess = np.empty(n)
+    count = np.empty(n, dtype=np.int64)
+    updated = np.zeros(n, dtype=bool)
+    secs = np.empty(n)
+    stamps = np.array([s.stamp for s in scans], dtype=np.float64)
+    caught = []
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always", LocalizationWarning)
+        for i, scan in enumerate(scans):
+            o = scan.odom if scan.odom is not None else scan.pose
+            t0 = time.perf_counter()
+            est = localizer.update(o, scan.ranges, scan.angles, scan.max_range)
+            secs[i] = time.perf_counter() - t0
+            poses[i] = est.pose
+            covs[i] = est.covariance
+            ess[i] = est.ess
+            count[i] = est.n_particles
+            updated[i] = est.updated
+            odo[i] = o
+            if progress and (i % 200 == 0 or i == n - 1):
+                print(f"\rscan {i + 1:,}/{n:,}", end="", file=sys.stderr, flush=True)
+        caught = [str(w.message) for w in seen if issubclass(w.category, LocalizationWarning)]
+    if progress:
+        print(file=sys.stderr)
+    return ReplayResult(stamps, poses, odo, covs, ess, count, updated, secs, caught)
+
+
+def track_errors(poses, reference) -> tuple[np.ndarray, np.ndarray]:
+    """Position error (m) and absolute heading error (rad) of ``poses`` (N, 3) against
+    ``reference`` (N, 3)."""
+    p = np.asarray(poses, dtype=np.float64)
+    r = np.asarray(reference, dtype=np.float64)
+    return np.hypot(p[:, 0] - r[:, 0], p[:, 1] - r[:, 1]), np.abs(wrap_angle(p[:, 2] - r[:, 2]))
+
+
+def travelled(poses) -> np.ndarray:
+    """Cumulative path length (m) along poses (N, 3), starting at 0."""
+    p = np.asarray(poses, dtype=np.float64)
+    if len(p) == 0:
+        return np.zeros(0)
+    return np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1])))])
+
+
+def anchor_odometry(odometry, pose) -> np.ndarray:
+    """The odometry track moved rigidly so that its first pose coincides with ``pose``."""
+    o = np.asarray(odometry, dtype=np.float64)
+    p = np.asarray(pose, dtype=np.float64)
+    dt = p[2] - o[0, 2]
+    c, s = math.cos(dt), math.sin(dt)
+    rel = o[:, :2] - o[0, :2]
+    out = np.empty_like(o)
+    out[:, 0] = p[0] + c * rel[:, 0] - s * rel[:, 1]
+    out[:, 1] = p[1] + s * rel[:, 0] + c * rel[:, 1]
+    out[:, 2] = wrap_angle(o[:, 2] + dt)
+    return out
+
+
+def write_track_csv(path, result: ReplayResult):
+    """``stamp,x,y,theta,odom_x,odom_y,odom_theta,std_x,std_y,std_theta,ess,particles,updated``, one row
+    per scan; written atomically."""
+    lines = ["stamp,x,y,theta,odom_x,odom_y,odom_theta,std_x,std_y,std_theta,ess,particles,updated"]
+    sd = np.sqrt(np.maximum(np.diagonal(result.covariances, axis1=1, axis2=2), 0.0))
+    for i in range(len(result)):
+        x, y, t = result.poses[i]
+        ox, oy, ot = result.odometry[i]
+        lines.append(f"{result.stamps[i]:.6f},{x:.6f},{y:.6f},{t:.6f},{ox:.6f},{oy:.6f},{ot:.6f},"
+                     f"{sd[i, 0]:.5f},{sd[i, 1]:.5f},{sd[i, 2]:.5f},{result.ess[i]:.1f},{result.n_particles[i]},"
+                     f"{int(result.updated[i])}")
+    return write_atomic(path, ("\n".join(lines) + "\n").encode())
+
+
+def save_track_png(path, localizer: MonteCarloLocalizer, result: ReplayResult, reference=None, scale: float = 20.0):
+    """The map (free white, obstacles black, unknown grey) with the odometry track (anchored at the
+    first estimate, red), the estimated track (blue) and, when given, reference poses (green)."""
+    from PIL import Image
+
+    from ..canvas import Canvas
+
+    occ, free = localizer.occupied, localizer.free
+    H, W = occ.shape
+    res = localizer.resolution
+    ox, oy = localizer.origin
+    odo = anchor_odometry(result.odometry, result.poses[0])
+    pts = [result.poses[:, :2], np.array([[ox, oy], [ox + W * res, oy + H * res]])]
+    lo = np.min([p.min(axis=0) for p in pts], axis=0)
+    hi = np.max([p.max(axis=0) for p in pts], axis=0)
+    # keep the picture near the map: the odometry may wander far off
+    span = hi - lo
+    olo = np.maximum(odo[:, :2].min(axis=0), lo - 0.5 * span)
+    ohi = np.minimum(odo[:, :2].max(axis=0), hi + 0.5 * span)
+    lo, hi = np.minimum(lo, olo), np.maximum(hi, ohi)
+    canvas = Canvas((lo[0], hi[0], lo[1], hi[1]), scale=scale, background=(205, 205, 205))
+    img = np.full((H, W, 3), 205, dtype=np.uint8)
+    img[free] = 255
+    img[occ] = 0
+    tile = Image.fromarray(img[::-1])
+    tile = tile.resize((max(1, int(round(W * res * scale))), max(1, int(round(H * res * scale)))), Image.NEAREST)
+    u, v = canvas.pixels(np.array([ox, oy + H * res]))
+    canvas.image.paste(tile, (int(round(u)), int(round(v))))
+    canvas.polyline(odo[:, :2], (220, 40, 40), 1)
+    if reference is not None:
+        canvas.points(np.asarray(reference)[:, :2], (0, 160, 0), radius=1.5)
+    canvas.polyline(result.poses[:, :2], (30, 60, 230), 1)
+    canvas.text((lo[0], hi[1]), "blue: estimate   red: raw odometry" + ("   green: reference" if reference is not None else ""))
+    return canvas.save(path)
+
+
+def save_error_png(path, distance, position_error, heading_error, title: str = "", width: int = 900,
+                   height: int = 520, curves=None):
+    """Error curves against distance travelled: position error (m, upper panel) and heading error
+    (degrees, lower panel). ``curves`` adds more ``(label, colour, position_error, heading_error)``
+    series over the same ``distance``."""
+    from PIL import Image, ImageDraw
+
+    series = [("", (30, 60, 230), np.asarray(position_error), np.asarray(heading_error))]
+    if curves:
+        series = list(curves)
+    img = Image.new("RGB", (width, height), (255, 255, 255))
+    draw = ImageDraw.Draw(img)
+    d = np.asarray(distance, dtype=np.float64)
+    left, right, top = 70, 20, 30
+    panel_h = (height - top - 60) // 2
+    xmax = float(d.max()) if d.size and d.max() > 0 else 1.0
+
+    def panel(y0, values, label, unit_scale):
+        vals = [np.asarray(v, dtype=np.float64) * unit_scale for v in values]
+        finite = np.concatenate([v[np.isfinite(v)] for v in vals]) if vals else np.zeros(0)
+        ymax = float(np.percentile(finite, 99.5)) * 1.1 if finite.size else 1.0
+        ymax = ymax if ymax > 0 else 1.0
+        draw.rectangle((left, y0, width - right, y0 + panel_h), outline=(0, 0, 0))
+        for k in range(5):
+            yv = ymax * k / 4
+            yy = y0 + panel_h - panel_h * k / 4
+            draw.line((left, yy, width - right, yy), fill=(230, 230, 230))
+            draw.text((5, yy - 6), f"{yv:.3g}", fill=(0, 0, 0))
+        draw.text((left + 5, y0 + 3), label, fill=(0, 0, 0))
+        return ymax
+
+    def xy(x, y, y0, ymax):
+        u = left + (width - left - right) * x / xmax
+        v = y0 + panel_h - panel_h * min(y, ymax) / ymax
+        return u, v
+
+    y_top, y_bot = top, top + panel_h + 30
+    ym1 = panel(y_top, [s[2] for s in series], "position error (m)", 1.0)
+    ym2 = panel(y_bot, [s[3] for s in series], "heading error (deg)", 180.0 / math.pi)
+    for label, colour, pe, he in series:
+        for vals, y0, ym, sc in ((pe, y_top, ym1, 1.0), (he, y_bot, ym2, 180.0 / math.pi)):
+            pts = [xy(x, v * sc, y0, ym) for x, v in zip(d, vals) if np.isfinite(v)]
+            if len(pts) >= 2:
+                draw.line(pts, fill=colour, width=1)
+    for k in range(6):
+        xv = xmax * k / 5
+        draw.text((left + (width - left - right) * k / 5 - 10, height - 25), f"{xv:.0f}", fill=(0, 0, 0))
+    draw.text((width // 2 - 80, height - 12), "distance travelled (m)", fill=(0, 0, 0))
+    draw.text((left, 8), title, fill=(0, 0, 0))
+    x_leg = width - right - 10
+    for label, colour, _, _ in reversed(series):
+        if label:
+            w = 8 * len(label) + 20
+            x_leg -= w
+            draw.line((x_leg, 14, x_leg + 14, 14), fill=colour, width=3)
+            draw.text((x_leg + 17, 8), label, fill=(0, 0, 0))
+    import io
+
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    return write_atomic(path, buf.getvalue())
+
+
+# ---------------------------------------------------------------------------------- the command
+
+def _pose_arg(text: str) -> tuple[float, float, float]:
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+        raise argparse.ArgumentTypeError(f"expected x,y,theta (metres, metres, radians), got {text!r}")
+    return vals
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``localize`` command to an ``argparse`` sub-parser set; returns its parser."""
+    p = subparsers.add_parser(
+        "localize", help="localize a laser log's scans in a map (Monte Carlo localization, as ROS AMCL)",
+        description="Replay a CARMEN log's raw odometry and scans through a particle filter in a map_server map, "
+                    "write the estimated track as CSV and optionally draw it over the map beside the odometry.")
+    p.add_argument("map", metavar="MAP.yaml", help="map_server YAML (with its image beside it)")
+    p.add_argument("log", metavar="LOG", help="CARMEN log (plain, .gz or .bz2) with odometry in its scan lines")
+    start = p.add_mutually_exclusive_group()
+    start.add_argument("--init", type=_pose_arg, metavar="X,Y,THETA",
+                       help="initial pose in the map (metres, radians); tracking from there")
+    start.add_argument("--global", dest="global_localization", action="store_true",
+                       help="global localization: start from particles over all free space (the default "
+                            "when --init is not given)")
+    p.add_argument("-o", "--output", required=True, help="CSV track to write")
+    p.add_argument("--png", help="also draw the track over the map")
+    p.add_argument("--particles", type=int, default=2000, help="particles (default: %(default)s)")
+    p.add_argument("--beams", type=int, default=60, help="beams per update (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--plain", action="store_true", help="plain AMCL: no roughening, no scan-match refinement")
+    p.add_argument("--reference", metavar="LOG",
+                   help="a corrected log of the same run: report the error against its poses")
+    p.add_argument("--every", type=int, default=1, help="use every N-th scan (default: %(default)s)")
+    return p
+
+
+def make_localizer(grid, *, particles: int = 2000, beams: int = 60, seed=0, plain: bool = False,
+                   global_localization: bool = False, **kwargs) -> MonteCarloLocalizer:
+    """The localizer with the settings measured on the Intel log (see ``BENCHMARKS.md``)."""
+    opts = dict(DEFAULTS if not plain else PLAIN)
+    if global_localization:
+        opts.update(GLOBAL)
+    opts.update(kwargs)
+    return MonteCarloLocalizer(grid, particles, max_beams=beams, seed=seed, **opts)
+
+
+#: Settings of a plain AMCL filter (AMCL's defaults: 0.2 m / 30° between filter runs, no tempering).
+PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05, update_min_d=0.2,
+             update_min_a=math.pi / 6, min_ess=0.0)
+#: Settings that meet the accuracy targets on the Intel log (measured in benchmarks/bench_localize.py):
+#: a filter run every 5 cm / 0.1 rad, the estimate refined by a scan match that also moves the cloud.
+DEFAULTS = dict(PLAIN, update_min_d=0.05, update_min_a=0.1, min_ess=0.1, refine=True, refine_feedback=True)
+#: Extra settings for global localization: KLD-adaptive particle count from 50,000 particles down, and
+#: AMCL's flatter ``1 + Σ pz³`` beam model (the product model locks onto a wrong mode from sparse particles).
+GLOBAL = dict(kld=True, min_particles=2000, max_particles=50_000, model="amcl")
+
+
+def run_cli(args) -> int:
+    """``occmap localize``: replay the log, write the CSV (and PNG), print a summary."""
+    from ..grid2d import OccupancyGrid2D
+    from ..io.carmen import read_carmen
+
+    t0 = time.perf_counter()
+    grid = OccupancyGrid2D.load(args.map)
+    log = read_carmen(args.log, every=args.every)
+    if not len(log):
+        raise InvalidArgumentError(f"{args.log}: no laser scans found")
+    print(f"read {len(log):,} scans from {args.log} and a {grid.shape[1]} × {grid.shape[0]} map in "
+          f"{time.perf_counter() - t0:.2f} s")
+    glob = args.init is None
+    loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain,
+                         global_localization=glob)
+    result = replay(loc, log.scans, init=args.init, cov=np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]),
+                    global_localization=glob, progress=sys.stderr.isatty())
+    write_track_csv(args.output, result)
+    ms = 1000.0 * result.seconds[result.updated]
+    print(f"{len(result):,} scans, {int(result.updated.sum()):,} filter updates "
+          f"({np.median(ms) if ms.size else 0:.2f} ms median), {loc.stats.resamples:,} resamplings, "
+          f"{loc.stats.injected:,} particles injected")
+    for w in sorted(set(result.warnings))[:5]:
+        print(f"warning: {w}")
+    if args.reference:
+        ref = read_carmen(args.reference)
+        pairs = pair_scans(log.scans, ref.scans)
+        ok = pairs >= 0
+        pe, he = track_errors(result.poses[pairs[ok]], np.array([s.pose for s in ref.scans])[ok])
+        print(f"against {int(ok.sum()):,} reference poses: position error mean {pe.mean():.3f} m, "
+              f"max {pe.max():.3f} m; heading error mean {math.degrees(he.mean()):.2f}°, "
+              f"max {math.degrees(he.max()):.2f}°")
+    print(f"wrote {args.output}")
+    if args.png:
+        ref_poses = None
+        print(f"wrote {save_track_png(args.png, loc, result, ref_poses)}")
+    print(f"total {time.perf_counter() - t0:.2f} s")
+    return 0

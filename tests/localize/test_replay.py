@@ -1,0 +1,125 @@
+"""Replaying logs against a map: pairing raw and corrected scans, the replay loop on a stretch of
+the real Intel log, the pictures and the ``localize`` command."""
+
+from __future__ import annotations
+
+import argparse
+import bz2
+import itertools
+import math
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from occmap.io.carmen import iter_carmen, read_carmen
+from occmap.localize.replay import (
+    add_parser, anchor_odometry, make_localizer, pair_scans, replay, save_error_png, save_track_png,
+    track_errors, travelled, write_track_csv,
+)
+from occmap.mapping2d import map_scans
+from occmap.scan import LaserScan
+
+
+def _scan(stamp, ranges, pose=(0.0, 0.0, 0.0)):
+    r = np.asarray(ranges, dtype=np.float64)
+    return LaserScan(pose=np.array(pose, float), ranges=r, angles=np.zeros(len(r)), max_range=81.0, stamp=stamp,
+                     odom=np.array(pose, float))
+
+
+def test_pair_scans_needs_close_stamps_and_identical_ranges():
+    raw = [_scan(1.000, [1, 2]), _scan(1.002, [1, 3]), _scan(0.999, [1, 3]),  # stamps step back, as Intel's do
+           _scan(2.0, [5, 5]), _scan(3.0, [7, 7]), _scan(3.004, [7, 7])]
+    ref = [_scan(1.001, [1, 3]), _scan(2.5, [5, 5]), _scan(3.003, [7, 7]), _scan(4.0, [9])]
+    got = pair_scans(raw, ref, tolerance=0.005)
+    # the nearer of two identical candidates wins; a stamp too far or no equal ranges: -1
+    assert got.tolist() == [1, -1, 5, -1]
+
+
+def test_errors_travel_and_anchor():
+    pe, he = track_errors([[0, 0, math.pi - 0.01], [1, 1, 0]], [[3, 4, -math.pi + 0.01], [1, 1, 0.5]])
+    assert pe.tolist() == [5.0, 0.0]
+    assert he == pytest.approx([0.02, 0.5])
+    assert travelled([[0, 0, 0], [3, 4, 0], [3, 5, 1]]).tolist() == [0.0, 5.0, 6.0]
+    odo = np.array([[10.0, 0.0, math.pi / 2], [10.0, 1.0, math.pi / 2]])
+    a = anchor_odometry(odo, (1.0, 2.0, 0.0))
+    assert a == pytest.approx(np.array([[1.0, 2.0, 0.0], [2.0, 2.0, 0.0]]))
+
+
+@pytest.fixture(scope="module")
+def intel(data_dir):
+    """The Intel map (5 cm, from the corrected log), the corrected scans and the first raw scans."""
+    carmen = data_dir / "carmen"
+    ref = read_carmen(carmen / "intel-corrected.log.gz")
+    grid = map_scans(ref.stack(), 0.05).grid
+    raw = list(itertools.islice(iter_carmen(carmen / "intel-raw.clf.bz2"), 1200))
+    return grid, ref.scans, raw
+
+
+def test_intel_scans_pair_with_the_corrected_log(intel):
+    _, ref, raw = intel
+    pairs = pair_scans(raw, ref)
+    found = pairs[pairs >= 0]
+    assert len(found) >= 40
+    assert np.all(np.diff(found) > 0)  # in order
+    for k in np.flatnonzero(pairs >= 0):
+        assert abs(raw[pairs[k]].stamp - ref[k].stamp) <= 0.005
+        assert np.array_equal(raw[pairs[k]].ranges, ref[k].ranges)
+
+
+def test_intel_stretch_is_tracked(intel, tmp_path):
+    grid, ref, raw = intel
+    pairs = pair_scans(raw, ref)
+    ref_poses = np.array([s.pose for s in ref])
+    loc = make_localizer(grid, seed=3)
+    res = replay(loc, raw, init=ref_poses[0], cov=np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2]))
+    ok = pairs >= 0
+    pe, he = track_errors(res.poses[pairs[ok]], ref_poses[ok])
+    assert pe.mean() < 0.05 and math.degrees(he.mean()) < 1.0
+    assert pe.max() < 0.2
+    odo = anchor_odometry(res.odometry, res.poses[0])
+    assert np.hypot(*(odo[pairs[ok], :2] - ref_poses[ok, :2]).T).max() > 2 * pe.max()  # the odometry drifts more
+    csv = write_track_csv(tmp_path / "t.csv", res)
+    lines = csv.read_text().splitlines()
+    assert lines[0].startswith("stamp,x,y,theta") and len(lines) == len(raw) + 1
+    png = save_track_png(tmp_path / "t.png", loc, res, reference=ref_poses[ok])
+    assert Image.open(png).size[0] > 100
+    png = save_error_png(tmp_path / "e.png", travelled(ref_poses[ok]), pe, he, title="t")
+    assert Image.open(png).size == (900, 520)
+
+
+def test_localize_command(intel, tmp_path, capsys):
+    grid, ref, raw = intel
+    yaml = tmp_path / "intel.yaml"
+    grid.save(yaml)
+    log = tmp_path / "raw.log"
+    with bz2.open(intel_raw_path(), "rt") as f:
+        lines = [line for line in itertools.islice(f, 3000) if line.startswith("FLASER")]
+    log.write_text("".join(lines[:600]))
+    parser = argparse.ArgumentParser(prog="occmap")
+    sub = parser.add_subparsers(dest="command")
+    add_parser(sub)
+    x, y, t = ref[0].pose
+    from occmap.cli import main
+
+    assert main(["localize", str(yaml), str(log), "--init", f"{x},{y},{t}", "-o", str(tmp_path / "o.csv"),
+                 "--png", str(tmp_path / "o.png"), "--particles", "500"]) == 0
+    out = capsys.readouterr().out
+    assert "wrote" in out and (tmp_path / "o.png").exists()
+    rows = np.loadtxt(tmp_path / "o.csv", delimiter=",", skiprows=1)
+    assert np.isfinite(rows).all() and rows.shape[1] == 13
+    pairs = pair_scans(read_carmen(log).scans, ref)
+    ok = pairs >= 0
+    pe, _ = track_errors(rows[pairs[ok], 1:4], np.array([s.pose for s in ref])[ok])
+    assert ok.sum() >= 10 and pe.mean() < 0.1
+    with pytest.raises(SystemExit):
+        parser.parse_args(["localize", str(yaml), str(log), "--init", "1,2", "-o", "x.csv"])
+    with pytest.raises(SystemExit):
+        parser.parse_args(["localize", str(yaml), str(log), "--init", "1,2,3", "--global", "-o", "x.csv"])
+
+
+def intel_raw_path():
+    from occmap._data import find_shared_data
+
+    return find_shared_data() / "carmen" / "intel-raw.clf.bz2"
+
