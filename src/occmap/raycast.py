@@ -37,8 +37,12 @@ def dda_init(x0, y0, x1, y1, ox, oy, inv_res):
     """Start a walk from (x0, y0) to (x1, y1): returns ``(steps, state)`` where ``steps`` is the
     number of :func:`dda_step` calls that reach the end cell and ``state`` starts in the start cell;
     ``state[0], state[1]`` are the current ``(ix, iy)``."""
-    u0, v0 = (x0 - ox) * inv_res, (y0 - oy) * inv_res
-    u1, v1 = (x1 - ox) * inv_res, (y1 - oy) * inv_res
+    return dda_setup((x0 - ox) * inv_res, (y0 - oy) * inv_res, (x1 - ox) * inv_res, (y1 - oy) * inv_res)
+
+
+@kernel
+def dda_setup(u0, v0, u1, v1):
+    """:func:`dda_init` in cell units: cell ``(i, j)`` spans ``[i, i + 1) × [j, j + 1)``."""
     ix, iy = int(math.floor(u0)), int(math.floor(v0))
     ex, ey = int(math.floor(u1)), int(math.floor(v1))
     du, dv = u1 - u0, v1 - v0

@@ -23,6 +23,7 @@ from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
 from ..edt import _row_envelope
+from ..raycast import dda_setup
 
 #: Above this many cells of inflation radius the row pass uses the Felzenszwalb–Huttenlocher
 #: lower envelope instead of the direct (2R + 1)-wide window minimum.
@@ -76,22 +77,7 @@ def _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, ex, ey, s2, d
     rows), each at most once per scan. Amanatides–Woo in the order of :mod:`occmap.raycast` (x
     first on ties; once an axis reaches the end cell's index only the other moves). Returns
     (cells updated, cells visited)."""
-    ix = int(math.floor(u0))
-    iy = int(math.floor(v0))
-    du = (ex + 0.5) - u0
-    dv = (ey + 0.5) - v0
-    sx = 1 if ex > ix else -1
-    sy = 1 if ey > iy else -1
-    tmx = np.inf
-    tdx = np.inf
-    tmy = np.inf
-    tdy = np.inf
-    if du != 0.0:
-        tmx = ((ix + (1 if du > 0.0 else 0)) - u0) / du
-        tdx = abs(1.0 / du)
-    if dv != 0.0:
-        tmy = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
-        tdy = abs(1.0 / dv)
+    _, (ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy) = dda_setup(u0, v0, ex + 0.5, ey + 0.5)
     rx = abs(ex - ix)  # steps left along x and along y
     ry = abs(ey - iy)
     wx = ix - gx0
@@ -627,28 +613,11 @@ def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collid
                 v0 = vs[k]
                 u1 = us[k + 1]
                 v1 = vs[k + 1]
-                ix = int(math.floor(u0))
-                iy = int(math.floor(v0))
-                ex = int(math.floor(u1))
-                ey = int(math.floor(v1))
-                du = u1 - u0
-                dv = v1 - v0
-                sx = 1 if ex > ix else -1
-                sy = 1 if ey > iy else -1
-                tmx = np.inf
-                tdx = np.inf
-                tmy = np.inf
-                tdy = np.inf
-                if du != 0.0:
-                    tmx = ((ix + (1 if du > 0.0 else 0)) - u0) / du
-                    tdx = abs(1.0 / du)
-                if dv != 0.0:
-                    tmy = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
-                    tdy = abs(1.0 / dv)
+                steps, (ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy) = dda_setup(u0, v0, u1, v1)
                 c = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
                 best = max(best, c)
                 lethal = lethal or c == 254
-                for _ in range(abs(ex - ix) + abs(ey - iy)):
+                for _ in range(steps):
                     if iy == ey or (ix != ex and tmx <= tmy):
                         ix += sx
                         tmx += tdx
