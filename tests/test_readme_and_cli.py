@@ -83,3 +83,13 @@ def test_map2d_reports_a_malformed_log_with_its_line(tmp_path, capsys):
     assert main(["map2d", str(log), "-o", str(tmp_path / "m.yaml")]) == 2
     err = capsys.readouterr().err
     assert "bad.log" in err and "line 2" in err
+
+
+def test_map2d_reports_an_empty_log_and_a_missing_file(tmp_path, capsys):
+    empty = tmp_path / "empty.log"
+    empty.write_text("# a comment and nothing else\n")
+    assert main(["map2d", str(empty), "-o", str(tmp_path / "m.yaml")]) == 2
+    assert "no laser scans" in capsys.readouterr().err
+    assert main(["map2d", str(tmp_path / "missing.log"), "-o", str(tmp_path / "m.yaml")]) == 2
+    assert "missing.log" in capsys.readouterr().err
+    assert not (tmp_path / "m.yaml").exists()
