@@ -145,7 +145,8 @@ def test_filter_resamples_when_ess_is_low(sim_map):
 
 
 def test_kld_adapts_the_particle_count(sim_map, world):
-    loc = MonteCarloLocalizer(sim_map, kld=True, min_particles=200, max_particles=20_000, seed=6)
+    loc = MonteCarloLocalizer(sim_map, kld=True, min_particles=200, max_particles=5000, global_particles=20_000,
+                              seed=6)
     loc.initialize_global()
     assert len(loc.particles) == 20_000
     truth = world.default_trajectory(n=600)[:120]
@@ -179,9 +180,12 @@ def test_global_localization_converges_in_simulation(sim_map, world):
     odo = _drifting_odometry(truth, rng)
     loc = MonteCarloLocalizer(sim_map, kld=True, min_particles=500, max_particles=30_000, refine=True, seed=22)
     loc.initialize_global()
+    with pytest.warns(LocalizationWarning):  # a scan without a reading: not converged yet
+        assert not loc.update(odo[0], np.full(10, np.inf), np.zeros(10), 10.0).converged
     est = _track(loc, world, truth, odo, rng)
     err = np.hypot(*(est[:, :2] - truth[:, :2]).T)
     assert err[-50:].max() < 0.1
+    assert loc.estimate.converged and loc.stats.converged_after is not None
 
 
 def test_kidnapped_robot_recovers(sim_map, world):
@@ -244,6 +248,10 @@ def test_bad_arguments(sim_map):
         MonteCarloLocalizer(sim_map, model="beam")
     with pytest.raises(InvalidArgumentError):
         MonteCarloLocalizer(sim_map, sigma_hit=0.0)
+    with pytest.raises(InvalidArgumentError):
+        MonteCarloLocalizer(sim_map, global_particles=0)
+    with pytest.raises(InvalidArgumentError):
+        MonteCarloLocalizer(sim_map, converged_weight=0.0)
     with pytest.raises(InvalidArgumentError):
         MonteCarloLocalizer(3.0)
 

@@ -14,7 +14,7 @@ from PIL import Image
 
 from occmap.io.carmen import iter_carmen, read_carmen
 from occmap.localize.replay import (
-    add_parser, anchor_odometry, make_localizer, pair_scans, replay, save_error_png, save_track_png,
+    add_parser, anchor_odometry, convergence_distance, make_localizer, pair_scans, replay, save_error_png, save_track_png,
     track_errors, travelled, write_track_csv,
 )
 from occmap.mapping2d import map_scans
@@ -41,6 +41,10 @@ def test_errors_travel_and_anchor():
     assert pe.tolist() == [5.0, 0.0]
     assert he == pytest.approx([0.02, 0.5])
     assert travelled([[0, 0, 0], [3, 4, 0], [3, 5, 1]]).tolist() == [0.0, 5.0, 6.0]
+    d = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    assert convergence_distance([5.0, 0.1, 0.3, 0.1, 0.1], d, 0.2) == 3.0  # from the last excursion on
+    assert convergence_distance([0.1, 0.1, 0.1, 0.1, 0.1], d, 0.2) == 0.0
+    assert convergence_distance([0.1, 0.1, 0.1, 0.1, 0.5], d, 0.2) == math.inf
     odo = np.array([[10.0, 0.0, math.pi / 2], [10.0, 1.0, math.pi / 2]])
     a = anchor_odometry(odo, (1.0, 2.0, 0.0))
     assert a == pytest.approx(np.array([[1.0, 2.0, 0.0], [2.0, 2.0, 0.0]]))
@@ -86,6 +90,23 @@ def test_intel_stretch_is_tracked(intel, tmp_path):
     assert Image.open(png).size[0] > 100
     png = save_error_png(tmp_path / "e.png", travelled(ref_poses[ok]), pe, he, title="t")
     assert Image.open(png).size == (900, 520)
+
+
+def test_intel_global_localization_converges_within_30_m(intel):
+    """No initial pose: the coarse-to-fine global phase finds the robot during its first turn on
+    the spot and the estimate stays within 0.2 m of the reference afterwards (about 45 m)."""
+    grid, ref, raw = intel
+    pairs = pair_scans(raw, ref)
+    ok = pairs >= 0
+    ref_poses = np.array([s.pose for s in ref])[ok]
+    loc = make_localizer(grid, seed=5)
+    res = replay(loc, raw, global_localization=True)
+    pe, _ = track_errors(res.poses[pairs[ok]], ref_poses)
+    dist = travelled(ref_poses)
+    assert dist[-1] > 40.0
+    assert convergence_distance(pe, dist, 0.2) <= 30.0
+    assert loc.stats.converged_after is not None and loc.estimate.converged
+    assert len(loc.particles) == 2000 < res.n_particles[0]  # the global cloud shrank once converged
 
 
 def test_localize_command(intel, tmp_path, capsys):

@@ -153,3 +153,41 @@ def systematic_indices(cum, u0, out):
             i += 1
         out[k] = i
 
+
+
+@kernel
+def weighted_moments(p, w, mean, cov):
+    """Weighted mean (circular for the heading) and covariance (heading residuals wrapped about
+    the mean) of poses ``p`` (N, 3) under weights ``w`` (N,) summing to 1; fills ``mean`` (3,)
+    and ``cov`` (3, 3)."""
+    n = p.shape[0]
+    sx = 0.0
+    sy = 0.0
+    ss = 0.0
+    sc = 0.0
+    for i in range(n):
+        sx += w[i] * p[i, 0]
+        sy += w[i] * p[i, 1]
+        ss += w[i] * math.sin(p[i, 2])
+        sc += w[i] * math.cos(p[i, 2])
+    mean[0] = sx
+    mean[1] = sy
+    mean[2] = math.atan2(ss, sc)
+    for a in range(3):
+        for b in range(3):
+            cov[a, b] = 0.0
+    for i in range(n):
+        dx = p[i, 0] - sx
+        dy = p[i, 1] - sy
+        dt = p[i, 2] - mean[2]
+        dt -= 2.0 * math.pi * math.floor((dt + math.pi) / (2.0 * math.pi))
+        wi = w[i]
+        cov[0, 0] += wi * dx * dx
+        cov[0, 1] += wi * dx * dy
+        cov[0, 2] += wi * dx * dt
+        cov[1, 1] += wi * dy * dy
+        cov[1, 2] += wi * dy * dt
+        cov[2, 2] += wi * dt * dt
+    cov[1, 0] = cov[0, 1]
+    cov[2, 0] = cov[0, 2]
+    cov[2, 1] = cov[1, 2]

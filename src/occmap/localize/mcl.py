@@ -35,6 +35,17 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
 * **estimate** — the weighted mean of the dominant mode of the cloud (circular mean for the
   heading), its covariance and the effective sample size. A multi-modal cloud (global
   localization before it converges) reports its heaviest mode and the share of weight in it.
+* **global localization** — :meth:`MonteCarloLocalizer.initialize_global` spreads
+  ``global_particles`` over the free space and runs the filter coarse to fine: until the dominant
+  mode holds ``converged_weight`` of the weight, beams score with the wider ``global_sigma_hit``
+  (a particle a few decimetres and degrees off the true pose still scores well, so the few that
+  land near it survive until the robot's motion and more scans sharpen the cloud), the filter
+  runs only every ``global_update_min_d`` / ``global_update_min_a`` (AMCL's spacing: scans taken
+  a few centimetres apart repeat each other, and counting them as independent evidence locks
+  the cloud onto a wrong mode within a few updates while the robot turns on the spot), the
+  particle count stays, and there is no scan-match refinement (a correction fed back to a
+  multi-modal cloud would drag every other mode with it). Once converged, the filter tracks
+  with its own settings and resamples down to ``n_particles`` (or the KLD count).
 
 Two additions beat plain AMCL's accuracy on real logs (measured in ``BENCHMARKS.md``):
 
@@ -94,6 +105,8 @@ class PoseEstimate:
         Particles in the filter now.
     mode_weight : float
         Share of the total weight in the dominant mode (1 for a single compact cloud).
+    converged : bool
+        False while a global localization has not converged (the pose is the heaviest mode's).
     updated : bool
         Whether the filter ran on this call (else the pose followed the odometry only).
     beams : int
@@ -107,6 +120,7 @@ class PoseEstimate:
     mode_weight: float = 1.0
     updated: bool = False
     beams: int = 0
+    converged: bool = True
 
 
 @dataclass
@@ -119,6 +133,7 @@ class _Stats:
     refined: int = 0
     refine_rejected: int = 0
     tempered: int = 0
+    converged_after: int | None = None  # filter runs of a global localization until it converged
     extra: dict = field(default_factory=dict)
 
 
@@ -202,6 +217,15 @@ class MonteCarloLocalizer:
         the moments a real log fits its map poorly must not scatter a tracking filter.
     reset_averages : bool
         Reset ``w_slow`` and ``w_fast`` after each injection, as AMCL's code does.
+    global_particles : int
+        Particles :meth:`initialize_global` spreads over the free space; their count stays until
+        the cloud converges.
+    global_sigma_hit : float
+        The hit term's standard deviation (m) until a global localization converges.
+    global_update_min_d, global_update_min_a : float
+        ``update_min_d`` / ``update_min_a`` until a global localization converges.
+    converged_weight : float
+        A global localization has converged once its dominant mode holds this share of the weight.
     seed : int or numpy.random.Generator, optional
         Source of randomness (reproducible runs).
     """
@@ -217,7 +241,9 @@ class MonteCarloLocalizer:
                  alpha_slow: float = 0.0, alpha_fast: float = 0.0, update_min_d: float = 0.0,
                  update_min_a: float = 0.0, roughening: float = 0.0, refine: bool = False,
                  refine_feedback: bool = False, refine_cutoff: float = 0.3, max_odom_jump=(1.0, 1.0),
-                 sensor_offset=(0.0, 0.0, 0.0), min_ess: float = 0.1, recovery_threshold: float = 0.5, reset_averages: bool = False, seed=None):
+                 sensor_offset=(0.0, 0.0, 0.0), min_ess: float = 0.1, recovery_threshold: float = 0.5, reset_averages: bool = False,
+                 global_particles: int = 20_000, global_sigma_hit: float = 1.0, global_update_min_d: float = 0.2,
+                 global_update_min_a: float = math.pi / 6, converged_weight: float = 0.98, seed=None):
         if isinstance(grid, (str, os.PathLike)):
             grid = OccupancyGrid2D.load(grid)
         if not isinstance(grid, OccupancyGrid2D):
@@ -271,6 +297,15 @@ class MonteCarloLocalizer:
             raise InvalidArgumentError(f"recovery_threshold must lie in [0, 1], got {recovery_threshold!r}")
         self.refine_feedback = bool(refine_feedback)
         self.refine_cutoff = _positive("refine_cutoff", refine_cutoff)
+        self.global_particles = int(global_particles)
+        if self.global_particles < 1:
+            raise InvalidArgumentError(f"global_particles must be at least 1, got {global_particles!r}")
+        self.global_sigma_hit = _positive("global_sigma_hit", global_sigma_hit)
+        self.global_update_min_d = _positive("global_update_min_d", global_update_min_d, allow_zero=True)
+        self.global_update_min_a = _positive("global_update_min_a", global_update_min_a, allow_zero=True)
+        self.converged_weight = float(converged_weight)
+        if not 0.0 < self.converged_weight <= 1.0:
+            raise InvalidArgumentError(f"converged_weight must lie in (0, 1], got {converged_weight!r}")
         jd, ja = max_odom_jump
         self.max_odom_jump = (_positive("max_odom_jump[0]", jd), _positive("max_odom_jump[1]", ja))
         off = np.asarray(sensor_offset, dtype=np.float64)
@@ -289,6 +324,8 @@ class MonteCarloLocalizer:
         self._last_odom = None  # odometry pose at the last call
         self._estimate: PoseEstimate | None = None
         self._force = True
+        self._global = False  # a global localization that has not converged yet
+        self._count = self.n_particles  # particles drawn at each resampling (without KLD)
 
     # ------------------------------------------------------------------ the map
 
@@ -324,25 +361,26 @@ class MonteCarloLocalizer:
         np.minimum(dist, self.max_dist, out=dist)
         #: distance (m) from each cell's centre to the nearest obstacle, clamped at ``max_dist``
         self.distance = dist
-        self._tables: dict[float, tuple[np.ndarray, float]] = {}
+        self._tables: dict[tuple[float, float], tuple[np.ndarray, float]] = {}
 
-    def _table(self, max_range: float) -> tuple[np.ndarray, float]:
-        """Per-cell beam score for scans of this max range, and the score off the map."""
-        hit = self._tables.get(max_range)
+    def _table(self, max_range: float, sigma: float) -> tuple[np.ndarray, float]:
+        """Per-cell beam score for scans of this max range with a hit term of this standard
+        deviation, and the score off the map."""
+        hit = self._tables.get((max_range, sigma))
         if hit is not None:
             return hit
         if len(self._tables) > 8:
             self._tables.clear()
         rand = self.z_rand / max_range
         d = np.concatenate([self.distance.ravel(), [self.max_dist]])
-        pz = self.z_hit * np.exp(-(d * d) / (2.0 * self.sigma_hit ** 2)) + rand
+        pz = self.z_hit * np.exp(-(d * d) / (2.0 * sigma ** 2)) + rand
         if self.model == "product":
             score = self.beam_exponent * np.log(np.maximum(pz, 1e-300))
         else:
             score = pz ** 3
         table = score[:-1].reshape(self.distance.shape).astype(np.float32)
         out = (table, float(score[-1]))
-        self._tables[max_range] = out
+        self._tables[(max_range, sigma)] = out
         return out
 
     # ------------------------------------------------------------------ initialization
@@ -371,15 +409,16 @@ class MonteCarloLocalizer:
         z = self.rng.standard_normal((n, 3))
         parts = p + (z * np.sqrt(np.maximum(vals, 0.0))) @ vecs.T
         parts[:, 2] = wrap_angle(parts[:, 2])
-        self._reset(parts)
+        self._reset(parts, global_phase=False)
 
     def initialize_global(self, n: int | None = None) -> None:
-        """Global localization: ``n`` particles (default ``max_particles`` with ``kld``, else
-        ``n_particles``) uniformly over the free cells, headings uniform."""
-        n = (self.max_particles if self.kld else self.n_particles) if n is None else int(n)
+        """Global localization: ``n`` particles (default ``global_particles``) uniformly over the
+        free cells, headings uniform; the filter runs coarse to fine until it converges (see the
+        module's notes)."""
+        n = self.global_particles if n is None else int(n)
         if n < 1:
             raise InvalidArgumentError(f"n must be at least 1, got {n!r}")
-        self._reset(self._uniform_free(n))
+        self._reset(self._uniform_free(n), global_phase=True)
 
     def _uniform_free(self, n: int) -> np.ndarray:
         cells = self._free_cells[self.rng.integers(0, self._free_cells.size, n)]
@@ -392,9 +431,11 @@ class MonteCarloLocalizer:
         out[:, 2] = wrap_angle(-np.pi + 2.0 * np.pi * u[:, 2])
         return out
 
-    def _reset(self, particles: np.ndarray) -> None:
+    def _reset(self, particles: np.ndarray, global_phase: bool) -> None:
         self.particles = np.ascontiguousarray(particles)
         self.weights = np.full(len(particles), 1.0 / len(particles))
+        self._global = global_phase
+        self._count = len(particles)
         self.w_slow = self.w_fast = 0.0
         self._filter_odom = None
         self._last_odom = None
@@ -445,13 +486,16 @@ class MonteCarloLocalizer:
         self._last_odom = odom.copy()
 
         rot1, trans, rot2 = odometry_delta(self._filter_odom, odom, min_trans=self.motion.min_trans)
-        moved = float(trans) >= self.update_min_d and self.update_min_d > 0
-        turned = abs(_wrap(float(rot1 + rot2))) >= self.update_min_a and self.update_min_a > 0
-        run = self._force or moved or turned or (self.update_min_d == 0 and self.update_min_a == 0)
+        min_d, min_a = ((self.global_update_min_d, self.global_update_min_a) if self._global
+                        else (self.update_min_d, self.update_min_a))
+        moved = float(trans) >= min_d and min_d > 0
+        turned = abs(_wrap(float(rot1 + rot2))) >= min_a and min_a > 0
+        run = self._force or moved or turned or (min_d == 0 and min_a == 0)
         if not run:
             est = self._estimate
             pose = apply_odometry(est.pose, (rot1, trans, rot2))
-            return PoseEstimate(pose, est.covariance, est.ess, len(self.particles), est.mode_weight, False, 0)
+            return PoseEstimate(pose, est.covariance, est.ess, len(self.particles), est.mode_weight, False, 0,
+                                est.converged)
 
         # motion
         if float(trans) > 0 or float(rot1) != 0 or float(rot2) != 0:
@@ -473,9 +517,15 @@ class MonteCarloLocalizer:
                           stacklevel=2)
         self.stats.updates += 1
         pose, cov, mode_w = self._mean()
-        if self.refine and bx_all.size:
+        if self._global and mode_w >= self.converged_weight:
+            # one mode left: track from here on, and shrink the cloud at the next resampling
+            self._global = False
+            self._count = self.n_particles
+            self.stats.converged_after = self.stats.updates
+        if self.refine and not self._global and bx_all.size:
             pose = self._refine(pose, bx_all, by_all)
-        self._estimate = PoseEstimate(pose, cov, ess, len(self.particles), mode_w, True, int(bx.size))
+        self._estimate = PoseEstimate(pose, cov, ess, len(self.particles), mode_w, True, int(bx.size),
+                                      not self._global)
         return self._estimate
 
     @property
@@ -520,7 +570,7 @@ class MonteCarloLocalizer:
         return x_all, y_all, x_all, y_all
 
     def _score(self, particles: np.ndarray, bx: np.ndarray, by: np.ndarray, mr: float) -> np.ndarray:
-        table, outside = self._table(mr)
+        table, outside = self._table(mr, self.global_sigma_hit if self._global else self.sigma_hit)
         out = np.empty(len(particles))
         big = len(particles) * bx.size >= self.parallel_min and get_num_threads() > 1
         fn = K.score_particles_parallel if big else K.score_particles
@@ -578,10 +628,9 @@ class MonteCarloLocalizer:
     # ------------------------------------------------------------------ resampling
 
     def _resample(self) -> None:
-        n_old = len(self.particles)
         cum = np.cumsum(self.weights)
         cum /= cum[-1]
-        if self.kld:
+        if self.kld and not self._global:
             m = self.max_particles
             idx = np.empty(m, dtype=np.int64)
             K.systematic_indices(cum, float(self.rng.random()), idx)
@@ -589,7 +638,7 @@ class MonteCarloLocalizer:
             n = self._kld_count(self.particles[idx])
             idx = idx[:n]
         else:
-            idx = np.empty(self.n_particles if n_old == self.n_particles else n_old, dtype=np.int64)
+            idx = np.empty(self._count, dtype=np.int64)
             K.systematic_indices(cum, float(self.rng.random()), idx)
         parts = self.particles[idx]
         p_inject = self._inject_probability()
@@ -660,12 +709,8 @@ class MonteCarloLocalizer:
         s = w.sum()
         w = w / s if s > 0 else np.full(len(w), 1.0 / len(w))
         mean = np.empty(3)
-        mean[0] = w @ p[:, 0]
-        mean[1] = w @ p[:, 1]
-        mean[2] = math.atan2(w @ np.sin(p[:, 2]), w @ np.cos(p[:, 2]))
-        d = p - mean
-        d[:, 2] = wrap_angle(d[:, 2])
-        cov = (d * w[:, None]).T @ d
+        cov = np.empty((3, 3))
+        K.weighted_moments(np.ascontiguousarray(p), w, mean, cov)
         return mean, cov
 
     # ------------------------------------------------------------------ scan-match refinement

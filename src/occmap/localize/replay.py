@@ -4,7 +4,8 @@
   same run (logger timestamps within a few milliseconds *and* identical ranges), so the corrected
   poses serve as the reference for the raw run (for Intel: 910 of the raw log's 13,631 scans).
 * :func:`replay` feeds a log's raw odometry and scans to a :class:`MonteCarloLocalizer` and
-  records the track; :func:`track_errors` compares it with reference poses.
+  records the track; :func:`track_errors` compares it with reference poses and
+  :func:`convergence_distance` says how far a global localization travelled until it converged.
 * :func:`save_track_png` draws the track over the map beside the odometry track (anchored at the
   first estimate), :func:`save_error_png` the error curves, :func:`write_track_csv` the track.
 """
@@ -26,8 +27,8 @@ from ..geometry.so2 import wrap_angle
 from .mcl import LocalizationWarning, MonteCarloLocalizer
 
 __all__ = [
-    "ReplayResult", "add_parser", "pair_scans", "replay", "run_cli", "save_error_png", "save_track_png",
-    "track_errors", "write_track_csv",
+    "ReplayResult", "add_parser", "convergence_distance", "pair_scans", "replay", "run_cli", "save_error_png",
+    "save_track_png", "track_errors", "write_track_csv",
 ]
 
 
@@ -122,6 +123,17 @@ def track_errors(poses, reference) -> tuple[np.ndarray, np.ndarray]:
     p = np.asarray(poses, dtype=np.float64)
     r = np.asarray(reference, dtype=np.float64)
     return np.hypot(p[:, 0] - r[:, 0], p[:, 1] - r[:, 1]), np.abs(wrap_angle(p[:, 2] - r[:, 2]))
+
+
+def convergence_distance(position_error, distance, tolerance: float = 0.2) -> float:
+    """How far a global localization travelled before it converged: ``distance[k]`` for the first
+    ``k`` from which every ``position_error`` is within ``tolerance`` to the end (``inf`` when
+    the last one is not). Both arrays are per reference pose, in travel order."""
+    bad = np.flatnonzero(np.asarray(position_error) > tolerance)
+    if bad.size == 0:
+        return float(distance[0]) if len(distance) else 0.0
+    k = int(bad[-1]) + 1
+    return float(distance[k]) if k < len(distance) else math.inf
 
 
 def travelled(poses) -> np.ndarray:
@@ -298,11 +310,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def make_localizer(grid, *, particles: int = 2000, beams: int = 60, seed=0, plain: bool = False,
-                   global_localization: bool = False, **kwargs) -> MonteCarloLocalizer:
-    """The localizer with the settings measured on the Intel log (see ``BENCHMARKS.md``)."""
+                   **kwargs) -> MonteCarloLocalizer:
+    """The localizer with the settings measured on the Intel log (see ``BENCHMARKS.md``); global
+    localization (``initialize_global``) runs with the filter's own coarse-to-fine defaults."""
     opts = dict(DEFAULTS if not plain else PLAIN)
-    if global_localization:
-        opts.update(GLOBAL)
     opts.update(kwargs)
     return MonteCarloLocalizer(grid, particles, max_beams=beams, seed=seed, **opts)
 
@@ -313,9 +324,6 @@ PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05
 #: Settings that meet the accuracy targets on the Intel log (measured in benchmarks/bench_localize.py):
 #: a filter run every 5 cm / 0.1 rad, the estimate refined by a scan match that also moves the cloud.
 DEFAULTS = dict(PLAIN, update_min_d=0.05, update_min_a=0.1, min_ess=0.1, refine=True, refine_feedback=True)
-#: Extra settings for global localization: KLD-adaptive particle count from 50,000 particles down, and
-#: AMCL's flatter ``1 + Σ pz³`` beam model (the product model locks onto a wrong mode from sparse particles).
-GLOBAL = dict(kld=True, min_particles=2000, max_particles=50_000, model="amcl")
 
 
 def run_cli(args) -> int:
@@ -331,8 +339,7 @@ def run_cli(args) -> int:
     print(f"read {len(log):,} scans from {args.log} and a {grid.shape[1]} × {grid.shape[0]} map in "
           f"{time.perf_counter() - t0:.2f} s")
     glob = args.init is None
-    loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain,
-                         global_localization=glob)
+    loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain)
     result = replay(loc, log.scans, init=args.init, cov=np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]),
                     global_localization=glob, progress=sys.stderr.isatty())
     write_track_csv(args.output, result)
