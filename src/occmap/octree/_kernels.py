@@ -18,7 +18,9 @@ import math
 
 import numpy as np
 
-from .._jit import inline_kernel, kernel
+from numba import prange
+
+from .._jit import inline_kernel, kernel, kernel_parallel
 
 TOP, FREE, SIZE = 0, 1, 2
 DEPTH = 16
@@ -268,24 +270,36 @@ def collect_nodes(value, child, max_depth, kmin, kmax, leaves_only, count_only, 
     return m
 
 
-@kernel
+@kernel_parallel
 def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown, occ):
     """OctoMap's ``castRay`` for each ray (float32 origins and directions as its ``point3d``):
     walk the voxels from the origin's until an occupied one (hit), an unknown one (a miss unless
-    ``ignore_unknown``), ``max_range`` (> 0) or the tree's border. Returns hit flags, the centre of
-    the voxel where each ray stopped (float32, NaN where the ray could not be cast: origin outside
-    the tree or zero direction)."""
-    inv_res = 1.0 / res
+    ``ignore_unknown``), ``max_range`` (> 0) or the tree's border. Returns hit flags and the centre
+    of the voxel where each ray stopped (float32, NaN where the ray could not be cast: origin
+    outside the tree or zero direction). Spans of rays run in parallel."""
     n = max(origins.shape[0], directions.shape[0])
     hit = np.zeros(n, np.bool_)
     ends = np.full((n, 3), np.nan, np.float32)
+    span = 256
+    for k in prange((n + span - 1) // span):
+        _cast_span(value, child, origins, directions, res, max_range, ignore_unknown, occ,
+                   k * span, min(n, (k + 1) * span), hit, ends)
+    return hit, ends
+
+
+@kernel
+def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown, occ, start, stop, hit, ends):
+    """:func:`cast_rays` for rays ``start..stop-1``, into ``hit`` and ``ends``."""
+    inv_res = 1.0 / res
+    n = hit.shape[0]
     path = np.zeros(DEPTH + 1, np.int64)
     known = -1
     px = py = pz = 0
     max_range_set = max_range > 0.0
     max_range_sq = max_range * max_range
+    reach = 0.87 * res + 1e-3  # half a voxel diagonal, and then some for float32 rounding
     big = np.finfo(np.float64).max
-    for r in range(n):
+    for r in range(start, stop):
         o = origins[r] if origins.shape[0] == n else origins[0]
         ox, oy, oz = o[0], o[1], o[2]
         kx, ky, kz = coord_to_key(ox, inv_res), coord_to_key(oy, inv_res), coord_to_key(oz, inv_res)
@@ -310,6 +324,7 @@ def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown,
             tz = (key_to_coord(kz, res) + sz * res * 0.5 - np.float64(oz)) / np.float64(dz)
             gz = res / abs(np.float64(dz))
         first = True
+        cast = True
         while True:
             # ---- search (kx, ky, kz), restarting from the node shared with the previous search
             d = 0
@@ -333,9 +348,6 @@ def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown,
                     d += 1
                     path[d] = node
             known = d  # path[0..d] holds existing nodes whether or not the search found one
-            ends[r, 0] = key_to_coord(kx, res)
-            ends[r, 1] = key_to_coord(ky, res)
-            ends[r, 2] = key_to_coord(kz, res)
             if node >= 0:
                 if value[node] >= occ:
                     hit[r] = True
@@ -345,7 +357,7 @@ def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown,
             if first:
                 first = False
                 if sx == 0 and sy == 0 and sz == 0:
-                    ends[r, :] = np.nan
+                    cast = False
                     break
             # ---- next voxel, unless the ray leaves the tree or passes max_range
             if tx < ty:
@@ -367,15 +379,17 @@ def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown,
                     break
                 kz += sz
                 tz += gz
-            if max_range_set:
+            # OctoMap's range test (float32 voxel centre) only near max_range: the centre lies within
+            # half a diagonal of the point where the ray leaves the voxel, min(t) from the origin
+            if max_range_set and min(tx, ty, tz) + reach >= max_range:
                 ex = np.float32(key_to_coord(kx, res))
                 ey = np.float32(key_to_coord(ky, res))
                 ez = np.float32(key_to_coord(kz, res))
                 dist_sq = (np.float64((ex - ox) * (ex - ox)) + np.float64((ey - oy) * (ey - oy))
                            + np.float64((ez - oz) * (ez - oz)))
                 if dist_sq > max_range_sq:
-                    ends[r, 0] = ex
-                    ends[r, 1] = ey
-                    ends[r, 2] = ez
                     break
-    return hit, ends
+        if cast:
+            ends[r, 0] = key_to_coord(kx, res)
+            ends[r, 1] = key_to_coord(ky, res)
+            ends[r, 2] = key_to_coord(kz, res)
