@@ -246,7 +246,7 @@ class OcTree:
         total = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         pending = None
         for k in range(len(pairs)):
-            current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, False)
+            current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, True)
             pending = (_PIPELINE.submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
                        if k + 1 < len(pairs) else None)
             keys, is_hit, summary = current
