@@ -262,7 +262,7 @@ class OcTree:
         to the tree: scans can be traced ahead on another thread)."""
         P = _points("points", points)
         o32 = _origin(origin).astype(np.float32)
-        self.coord_to_key(o32.astype(np.float64))
+        origin_key = self.coord_to_key(o32.astype(np.float64))[0]
         dropped = 0
         if discretize and P.shape[0]:
             finite = np.all(np.isfinite(P), axis=1)
@@ -276,8 +276,7 @@ class OcTree:
             raise self._out_of_range("point", bad, P[bad])
         kbox = self._bbx_keys()
         # with a box, a ray's free voxels are those before it first leaves the box: none from outside
-        rays = not len(kbox) or bool(np.all((kbox[0] <= (k := self.coord_to_key(o32.astype(np.float64))[0]))
-                                            & (k <= kbox[1])))
+        rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
         keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution, rays, threads), kbox)
         summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
         return keys, is_hit, summary
