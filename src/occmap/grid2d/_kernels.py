@@ -13,10 +13,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
-from numba import get_num_threads, prange, types
-from numba.extending import intrinsic
+from numba import get_num_threads, prange
 
+from .._intrinsics import prefetch_write
 from .._jit import kernel, kernel_parallel
 from ..raycast import dda_init
 
@@ -24,26 +23,6 @@ from ..raycast import dda_init
 @kernel
 def _update(L, iy, ix, l_delta, l_min, l_max):
     L[iy, ix] = min(max(L[iy, ix] + l_delta, l_min), l_max)
-
-
-@intrinsic
-def _prefetch(typingctx, arr, idx):
-    """Ask the CPU to bring the cache line of ``arr[idx]`` in, for writing (x86 ``prefetchw``).
-    A hint only: no bounds check, and an address outside the array never faults."""
-    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
-        return None
-
-    def codegen(context, builder, signature, args):
-        ary = context.make_array(signature.args[0])(context, builder, args[0])
-        i8p = ir.IntType(8).as_pointer()
-        i32 = ir.IntType(32)
-        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
-        fn = builder.module.declare_intrinsic("llvm.prefetch", (i8p,), fnty)
-        ptr = builder.bitcast(builder.gep(ary.data, [args[1]]), i8p)
-        builder.call(fn, [ptr, ir.Constant(i32, 1), ir.Constant(i32, 3), ir.Constant(i32, 1)])  # write, keep, data
-        return context.get_dummy_value()
-
-    return types.void(arr, idx), codegen
 
 
 #: How many cells ahead of the walk its cache lines are prefetched.
@@ -62,15 +41,9 @@ _PREFETCH_CELLS = 24
 
 
 @kernel
-def _free(Lf, Sf, idx, s2, l_miss, l_min, l_max):
-    """Free update of the cell at flat index ``idx`` unless this scan (stamp ``s2`` or ``s2 + 1``)
-    already updated it; written without a branch (stamp and value are stored back either way)."""
-    i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
-    v = Sf[i]
-    l = Lf[i]
-    nl = min(max(l + l_miss, l_min), l_max)
-    Sf[i] = max(v, s2)
-    Lf[i] = nl if v < s2 else l
+def _freed(l, l_miss, l_min, l_max):
+    """A cell's log-odds ``l`` after a free update, clamped."""
+    return min(max(l + l_miss, l_min), l_max)
 
 
 @kernel
@@ -86,8 +59,11 @@ def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, sx, sy, tmx, tmy, tdx, tdy, s2,
     n = max(rx + ry, 1)
     pf = (rx * _PREFETCH_CELLS // n) * stx + (ry * _PREFETCH_CELLS // n) * sty
     while rx > 0 and ry > 0:
-        _prefetch(Sf, idx + pf)
-        _free(Lf, Sf, idx, s2, l_miss, l_min, l_max)
+        prefetch_write(Sf, idx + pf)
+        i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
+        if Sf[i] < s2:  # not yet updated by this scan (stamp s2, or s2 + 1 for a hit)
+            Sf[i] = s2
+            Lf[i] = _freed(Lf[i], l_miss, l_min, l_max)
         if tmx <= tmy:
             idx += stx
             tmx += tdx
@@ -103,8 +79,11 @@ def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, sx, sy, tmx, tmy, tdx, tdy, s2,
         st = sty
     pf = _PREFETCH_CELLS * st
     for _ in range(n):
-        _prefetch(Sf, idx + pf)
-        _free(Lf, Sf, idx, s2, l_miss, l_min, l_max)
+        prefetch_write(Sf, idx + pf)
+        i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
+        if Sf[i] < s2:  # not yet updated by this scan (stamp s2, or s2 + 1 for a hit)
+            Sf[i] = s2
+            Lf[i] = _freed(Lf[i], l_miss, l_min, l_max)
         idx += st
 
 
@@ -127,7 +106,10 @@ def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, i
                     _walk_inside(Lf, Sf, cs, rs, ix, iy, abs(ex - ix), abs(ey - iy), sx, sy, tmx, tmy, tdx, tdy,
                                  s2, l_miss, l_min, l_max)
                     return
-            _free(Lf, Sf, iy * rs + ix * cs, s2, l_miss, l_min, l_max)
+            i = np.uint64(iy * rs + ix * cs)
+            if Sf[i] < s2:
+                Sf[i] = s2
+                Lf[i] = _freed(Lf[i], l_miss, l_min, l_max)
         elif entered:
             return
         if iy == ey or (ix != ex and tmx <= tmy):

@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from .._intrinsics import bit_length
 from .._jit import kernel
 from ._kernels import DEPTH, FREE, MAX_KEY, SIZE, TOP, alloc_block, coord_to_key, key_to_coord, settle
 
@@ -419,11 +420,7 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
         if known >= 0:
             diff = key ^ previous
             diff = (diff | (diff >> 16) | (diff >> 32)) & 0xFFFF
-            top = -1
-            while diff:
-                diff >>= 1
-                top += 1
-            shared = DEPTH - 1 - top  # 16 when it is the same voxel
+            shared = DEPTH - bit_length(diff)  # 16 when it is the same voxel
             if settle_nodes:
                 for s in range(min(dirty, known - 1), shared, -1):
                     settle(value, child, meta, path[s], True, True)

@@ -20,6 +20,7 @@ import numpy as np
 
 from numba import prange
 
+from .._intrinsics import bit_length
 from .._jit import inline_kernel, kernel, kernel_parallel
 
 TOP, FREE, SIZE = 0, 1, 2
@@ -325,29 +326,30 @@ def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown
             gz = res / abs(np.float64(dz))
         first = True
         cast = True
+        node = -1
+        span = -1  # the last answer holds for every key that agrees with (px, py, pz) above this many low bits
         while True:
-            # ---- search (kx, ky, kz), restarting from the node shared with the previous search
-            d = 0
-            if known >= 0:
-                diff = (kx ^ px) | (ky ^ py) | (kz ^ pz)
-                top = -1
-                while diff:
-                    diff >>= 1
-                    top += 1
-                d = min(DEPTH - 1 - top, known)
-            px, py, pz = kx, ky, kz
-            node = path[d]
-            if d == 0 and np.isnan(value[0]):
-                node = -1
-            while node >= 0 and d < DEPTH and child[node] >= 0:
-                nxt = child[node] + child_pos(kx, ky, kz, d)
-                if np.isnan(value[nxt]):
+            diff = (kx ^ px) | (ky ^ py) | (kz ^ pz)
+            if span < 0 or (diff >> span) != 0:
+                # ---- search (kx, ky, kz), restarting from the node shared with the previous search
+                d = 0
+                if known >= 0:
+                    d = min(DEPTH - bit_length(diff), known)
+                px, py, pz = kx, ky, kz
+                node = path[d]
+                if d == 0 and np.isnan(value[0]):
                     node = -1
-                else:
-                    node = nxt
-                    d += 1
-                    path[d] = node
-            known = d  # path[0..d] holds existing nodes whether or not the search found one
+                while node >= 0 and d < DEPTH and child[node] >= 0:
+                    nxt = child[node] + child_pos(kx, ky, kz, d)
+                    if np.isnan(value[nxt]):
+                        node = -1
+                    else:
+                        node = nxt
+                        d += 1
+                        path[d] = node
+                known = d  # path[0..d] holds existing nodes whether or not the search found one
+                # a leaf at depth d covers its whole cube; an unknown child of path[d] the cube one level down
+                span = DEPTH - d if node >= 0 else DEPTH - 1 - d
             if node >= 0:
                 if value[node] >= occ:
                     hit[r] = True
