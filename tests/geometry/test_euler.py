@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from scipy.spatial.transform import Rotation
 
+from occmap.errors import NonFiniteError
 from occmap.geometry import euler_zyx_to_matrix, matrix_to_euler_zyx, quat_to_matrix, rot_x, rot_y, rot_z
 
 EPS = np.finfo(np.float64).eps
@@ -178,6 +179,15 @@ def test_shapes_and_broadcasting(rng):
     # non-contiguous
     Rt = np.swapaxes(np.swapaxes(R, -1, -2).copy(), -1, -2)
     np.testing.assert_array_equal(matrix_to_euler_zyx(Rt)[2], rr)
+    # columns of an (N, 3) array are read in place (strided), with the same result and the same errors
+    ypr = rng.uniform(-3, 3, (100, 3))
+    np.testing.assert_array_equal(euler_zyx_to_matrix(ypr[:, 0], ypr[:, 1], ypr[:, 2]),
+                                  euler_zyx_to_matrix(*ypr.T.copy()))
+    np.testing.assert_array_equal(euler_zyx_to_matrix(ypr[::-2, 0], 0.5, ypr[::-2, 2]),
+                                  euler_zyx_to_matrix(ypr[::-2, 0].copy(), 0.5, ypr[::-2, 2].copy()))
+    ypr[7, 1] = np.nan
+    with pytest.raises(NonFiniteError, match=r"pitch\[7\]"):
+        euler_zyx_to_matrix(ypr[:, 0], ypr[:, 1], ypr[:, 2])
 
 
 def test_yaw_roll_range_excludes_minus_pi():

@@ -31,14 +31,18 @@ __all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "entry"
 def batch(x, trailing: tuple[int, ...], name: str) -> tuple[np.ndarray, tuple[int, ...]]:
     """Return ``x`` as a C-contiguous float64 array whose shape ends in ``trailing``, and its leading shape."""
     a = np.asarray(x, dtype=_F64, order="C")
-    shape = a.shape
-    if shape == trailing:  # one element: the common single call, kept to one comparison
+    if a.shape == trailing:  # one element: the common single call, kept to one comparison
         return a, ()
+    return a, _leading(a.shape, trailing, name)
+
+
+def _leading(shape: tuple[int, ...], trailing: tuple[int, ...], name: str) -> tuple[int, ...]:
+    """The leading part of ``shape``, which must end in ``trailing``."""
     cut = len(shape) - len(trailing)
     if cut < 0 or shape[cut:] != trailing:
         want = "(..., " + ", ".join(map(str, trailing)) + ")" if trailing else "a number or array of numbers"
         raise ShapeError(f"{name} must have shape {want}, got {shape}")
-    return a, shape[:cut]
+    return shape[:cut]
 
 
 def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
@@ -46,16 +50,19 @@ def broadcast(*args) -> tuple[list[np.ndarray], tuple[int, ...]]:
 
     Arguments whose leading shape equals the result's, or is ``()``, are returned as they are (the
     kernels broadcast single elements with stride 0); others are copied to the broadcast shape.
+    Arrays are made C-contiguous, except 1-D arrays of scalars, which the kernels read strided.
     """
     arrays = []
     single = True
     for arg in args:
-        a = np.asarray(arg[0], dtype=_F64, order="C")
+        a = np.asarray(arg[0], dtype=_F64)
+        if not a.flags.c_contiguous and (arg[1] or a.ndim != 1):  # scalars' 1-D columns are read in place
+            a = np.ascontiguousarray(a)
         arrays.append(a)
         single = single and a.shape == arg[1]
     if single:
         return arrays, ()
-    leads = [batch(a, arg[1], arg[2])[1] for a, arg in zip(arrays, args)]
+    leads = [_leading(a.shape, arg[1], arg[2]) for a, arg in zip(arrays, args)]
     shape = max(leads, key=len)
     if all(lead == shape or not lead for lead in leads):
         return arrays, shape
@@ -96,9 +103,10 @@ def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (
     ``Rejected`` into the error that names the bad argument and element. :func:`entry` builds
     the faster path single elements take before they come here."""
     arrays, lead = broadcast(*operands)
+    flat = [a.reshape(-1) if a.ndim > 1 and not op[1] else a for a, op in zip(arrays, operands)]  # scalars: 1-D
     out = _empty(lead + out_trailing)
     try:
-        kernel(*args, *arrays, out)
+        kernel(*args, *flat, out)
     except Rejected as e:
         reject(e.args[0], lead, *[(a, op[1], op[2], op[3]) for a, op in zip(arrays, operands)])
     return out

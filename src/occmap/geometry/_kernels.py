@@ -145,8 +145,10 @@ def _atan2(y, x):
 
 @kernel
 def _flat(x):
-    """A scalar operand as a 1-D array: single calls pass Python floats as they are (``_arrays.entry``)."""
-    return np.asarray(x).reshape(-1)
+    """A scalar operand as a 1-D array: single calls pass Python floats or 0-d arrays as they are
+    (``_arrays.entry``), batches come 1-D and may be strided (a column of an (N, 3) array is read in
+    place; :func:`._arrays.broadcast` flattens the others)."""
+    return np.atleast_1d(np.asarray(x))
 
 
 # ---------------------------------------------------------------- SO(3) basics
