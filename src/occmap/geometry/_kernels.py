@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .._jit import kernel, kernel_parallel
+from .._jit import inline_kernel, kernel, kernel_parallel
 
 
 class Rejected(Exception):
@@ -86,7 +86,7 @@ def _rigid2_ok(T, i):
     return _rot2_ok(T, i) and last <= UNIT_TOL and t - t == 0.0
 
 
-@kernel
+@inline_kernel
 def _unit_ok(q, i):
     w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
     return abs(w * w + x * x + y * y + z * z - 1.0) <= UNIT_TOL
@@ -204,7 +204,7 @@ def rot_axis(axis, angle, out):
 # ---------------------------------------------------------------- quaternions
 
 
-@kernel
+@inline_kernel
 def _quat_to_rot(w, x, y, z, o, i):
     """Write the rotation of (w, x, y, z) into ``o[i]``; the 2/‖q‖² factor makes it exact for any
     non-zero q, so near-unit input still yields an orthonormal matrix to rounding."""
@@ -224,7 +224,7 @@ def _quat_to_rot(w, x, y, z, o, i):
     o[i, 2, 2] = 1.0 - (xx + yy)
 
 
-@kernel
+@inline_kernel
 def _quat_to_matrix_row(f, o, i):
     """Row i of quat_to_matrix; False for a quaternion that is not of unit norm."""
     if not _unit_ok(f, i):
@@ -586,7 +586,7 @@ def exp_so3(rv, out):
 # ---------------------------------------------------------------- Euler Z-Y-X
 
 
-@kernel
+@inline_kernel
 def _euler_zyx_entries(a, b, g, o, i):
     """Write R = Rz(a) Ry(b) Rx(g) into ``o[i]``, entry by entry."""
     cy, sy = math.cos(a), math.sin(a)
@@ -603,7 +603,7 @@ def _euler_zyx_entries(a, b, g, o, i):
     o[i, 2, 2] = cp * cr
 
 
-@kernel
+@inline_kernel
 def _euler_row(fy, fp, fr, o, i):
     """Row i of Rz(yaw) Ry(pitch) Rx(roll), single-element operands broadcast; False for NaN/inf."""
     a = fy[i if fy.shape[0] > 1 else 0]
