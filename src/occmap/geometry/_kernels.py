@@ -42,7 +42,7 @@ GIMBAL_EPS = 4.0 * 2.220446049250313e-16
 # ---------------------------------------------------------------- checks
 
 
-@kernel
+@inline_kernel
 def _rotation_error_sq(R, i):
     """‖RᵀR − I‖²_F of the 3×3 block ``R[i]``, +inf when its determinant is ≤ 0, NaN if non-finite."""
     a00, a01, a02 = R[i, 0, 0], R[i, 0, 1], R[i, 0, 2]
@@ -253,7 +253,7 @@ def quat_to_matrix(q, out):
             raise Rejected(i)
 
 
-@kernel
+@inline_kernel
 def _rot_to_quat(R, i, o, j):
     """Shepperd's pivoted method on ``R[i]`` into ``o[j]``: take the square root of the largest of
     1 + tr R and 1 + 2R_kk − tr R, so no division by a small number; exact for 180° turns.
@@ -293,7 +293,7 @@ def _rot_to_quat(R, i, o, j):
     o[j, 3] = z * inv
 
 
-@kernel
+@inline_kernel
 def _matrix_to_quat_row(f, o, i):
     """Row i of matrix_to_quat; False for a matrix that is not a rotation."""
     if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
