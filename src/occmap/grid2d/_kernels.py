@@ -30,60 +30,80 @@ _PREFETCH_CELLS = 24
 
 
 # ---------------------------------------------------------------------------------------------
-# lidar: the free update of one cell and the walks along a beam
+# lidar: the walks along a beam
 #
 # Within one scan every cell gets at most one update, a hit or a miss, so the result of a scan
 # does not depend on the order in which its beams are walked; across scans each cell sees its
 # updates in scan order. The grid is therefore cut into rectangles of cells ("parts": the whole
-# grid, or two halves); each part goes through the scans in order, applies the hits that end in
-# it and walks every beam over its own cells only. Parts own disjoint cells, so they run on
+# grid, or strips of rows); each part goes through the scans in order, applies the hits that end
+# in it and walks every beam over its own cells only. Parts own disjoint cells, so they run on
 # separate threads without any synchronisation and still give the serial result bit for bit.
 
 
 @kernel
-def _freed(l, l_miss, l_min, l_max):
-    """A cell's log-odds ``l`` after a free update, clamped."""
-    return min(max(l + l_miss, l_min), l_max)
-
-
-@kernel
-def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max):
-    """Free update along a traversal whose cells all lie in the part: ``rx`` + ``ry`` cells from
-    (ix, iy), the end cell excluded. Amanatides–Woo in two phases: while both axes still move,
-    step along the axis whose next boundary comes first (x on ties); then a straight run."""
+def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, room_y, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min,
+                 l_max):
+    """Free update along a traversal from (ix, iy), a cell of the part, while it stays in the part:
+    ``rx``, ``ry`` steps are left to the end cell (excluded), of which ``cx``, ``cy`` (≤ rx, ry)
+    stay in the part; ``room_y`` y steps stay in the part's rows. Amanatides–Woo in two phases:
+    while both axes can still step, along the one whose next boundary comes first (x on ties);
+    then a straight run along the other, as long as the walk takes it."""
     idx = iy * rs + ix * cs
     stx = sx * cs
     sty = sy * rs
     # the cell about _PREFETCH_CELLS steps ahead lies near the straight line: a fixed offset. The
-    # stamp's line is prefetched; in the grid's interleaved storage it holds the log-odds too
+    # stamp's line is prefetched (in the grid's interleaved storage it holds the log-odds too),
+    # but only in the part's own rows: prefetching for writing takes a line from the thread that
+    # owns it, so the two threads' caches would fight over the rows along their boundary
     n = max(rx + ry, 1)
-    pf = (rx * _PREFETCH_CELLS // n) * stx + (ry * _PREFETCH_CELLS // n) * sty
-    while rx > 0 and ry > 0:
-        prefetch_write(Sf, idx + pf)
+    pfy = ry * _PREFETCH_CELLS // n
+    pf = (rx * _PREFETCH_CELLS // n) * stx + pfy * sty
+    ahead = room_y - pfy  # > 0: the prefetched row is the part's
+    while cx > 0 and cy > 0:
+        prefetch_write(Sf, idx + (pf if ahead > 0 else 0))
         i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
         if Sf[i] < s2:  # not yet updated by this scan (stamp s2, or s2 + 1 for a hit)
             Sf[i] = s2
-            Lf[i] = _freed(Lf[i], l_miss, l_min, l_max)
+            Lf[i] = min(max(Lf[i] + l_miss, l_min), l_max)
         if tmx <= tmy:
             idx += stx
             tmx += tdx
             rx -= 1
+            cx -= 1
         else:
             idx += sty
             tmy += tdy
             ry -= 1
-    n = rx
-    st = stx
-    if ry > 0:
-        n = ry
-        st = sty
+            cy -= 1
+            ahead -= 1
+    # one axis can no longer step in the part (cx or cy is 0): a straight run along the other, of
+    # all its steps in the part where the first axis has reached the end cell, else of those
+    # before the first one's next crossing (the step that leaves the part)
+    if cx == 0:
+        st, m, more = sty, cy, ry > cy
+        if rx > 0:
+            m, t = 0, tmy
+            while m < cy and t < tmx:
+                t += tdy
+                m += 1
+            more = True
+    else:
+        st, m, more = stx, cx, rx > cx
+        if ry > 0:
+            m, t = 0, tmx
+            while m < cx and t <= tmy:
+                t += tdx
+                m += 1
+            more = True
+    cells = m + (1 if more else 0)  # the walk goes on after the run: its last cell is no end cell
+    last = cells - _PREFETCH_CELLS
     pf = _PREFETCH_CELLS * st
-    for _ in range(n):
-        prefetch_write(Sf, idx + pf)
-        i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
-        if Sf[i] < s2:  # not yet updated by this scan (stamp s2, or s2 + 1 for a hit)
+    for k in range(cells):
+        prefetch_write(Sf, idx + (pf if k < last else 0))
+        i = np.uint64(idx)
+        if Sf[i] < s2:
             Sf[i] = s2
-            Lf[i] = _freed(Lf[i], l_miss, l_min, l_max)
+            Lf[i] = min(max(Lf[i] + l_miss, l_min), l_max)
         idx += st
 
 
@@ -91,33 +111,29 @@ def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, sx, sy, tmx, tmy, tdx, tdy, s2,
 def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, inv_res, s2, l_miss, l_min, l_max):
     """Free update of the cells from (x0, y0) to (x1, y1), end cell excluded, that lie in the part
     ``[x_lo, x_hi) × [y_lo, y_hi)`` (which lies in the grid). The traversal is monotone in both
-    axes, so its cells in a rectangle are one run: skip to it with per-cell checks, and as soon as
-    the rest of the beam lies in the part, walk it without checks."""
+    axes, so its cells in a rectangle are one run: walk to it without touching any cell, then
+    walk it with no more checks than where it ends."""
     steps, st = dda_init(x0, y0, x1, y1, ox, oy, inv_res)
     ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = st
     if max(ix, ex) < x_lo or min(ix, ex) >= x_hi or max(iy, ey) < y_lo or min(iy, ey) >= y_hi:
         return
-    entered = False
-    for _ in range(steps):
-        if x_lo <= ix < x_hi and y_lo <= iy < y_hi:
-            if not entered:
-                entered = True
-                if x_lo <= ex < x_hi and y_lo <= ey < y_hi:  # both ends inside: all of it
-                    _walk_inside(Lf, Sf, cs, rs, ix, iy, abs(ex - ix), abs(ey - iy), sx, sy, tmx, tmy, tdx, tdy,
-                                 s2, l_miss, l_min, l_max)
-                    return
-            i = np.uint64(iy * rs + ix * cs)
-            if Sf[i] < s2:
-                Sf[i] = s2
-                Lf[i] = _freed(Lf[i], l_miss, l_min, l_max)
-        elif entered:
+    rx = abs(ex - ix)
+    ry = abs(ey - iy)
+    while not (x_lo <= ix < x_hi and y_lo <= iy < y_hi):
+        if rx == 0 and ry == 0:
             return
-        if iy == ey or (ix != ex and tmx <= tmy):
+        if ry == 0 or (rx > 0 and tmx <= tmy):
             ix += sx
             tmx += tdx
+            rx -= 1
         else:
             iy += sy
             tmy += tdy
+            ry -= 1
+    room_x = x_hi - 1 - ix if sx > 0 else ix - x_lo
+    room_y = y_hi - 1 - iy if sy > 0 else iy - y_lo
+    _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, min(rx, room_x), min(ry, room_y), room_y, sx, sy, tmx, tmy,
+                 tdx, tdy, s2, l_miss, l_min, l_max)
 
 
 @kernel
@@ -173,90 +189,56 @@ def _parts(Lf, Sf, cs, rs, parts, scan0, poses, ranges, angles, max_range, ox, o
               max_range, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
 
 
-@kernel
-def _balanced_cut(density, n):
-    """Index ``c`` in [0, n] where the running sum of the difference array ``density`` (n + 1
-    entries) integrated over [0, c) first reaches half its total."""
-    total = 0.0
-    d = 0.0
-    for i in range(n):
-        d += density[i]
-        total += d
-    acc = 0.0
-    d = 0.0
-    for i in range(n):
-        d += density[i]
-        acc += d
-        if acc >= 0.5 * total:
-            return i + 1
-    return n
-
-
 #: Beams looked at (evenly spread over the call's scans) to choose where to cut the grid.
 _SPLIT_SAMPLE = 4096
 
 
 @kernel
 def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_cells, parts):
-    """Fill ``parts`` with the cell rectangles the work is split into and return how many: one
-    (the whole grid) for less than ``min_cells`` cells of work (estimated from a sample of the
-    beams), else two halves of the grid cut across x or y where they share the cells to walk
-    evenly; of the two cuts, the one fewer beams' cells cross (the far half walks those without
-    updating them)."""
+    """Fill ``parts`` (k, 4) with the cell rectangles the work is split into and return how many:
+    one (the whole grid) for less than ``min_cells`` cells of work (estimated from a sample of
+    the beams), else up to k strips of whole rows that share the cells to walk evenly. Rows, not
+    columns: a part's cells are then one block of memory, and a walk prefetches only in its own
+    part's rows."""
     n_scans, n_beams = ranges.shape
     parts[0, 0], parts[0, 1], parts[0, 2], parts[0, 3] = 0, W, 0, H
     n = n_scans * n_beams
-    if min_cells < 0 or n == 0:
+    if min_cells < 0 or n == 0 or H < 2:
         return 1
     step = max(1, n // _SPLIT_SAMPLE)
-    m = (n + step - 1) // step
-    u0 = np.empty(m, dtype=np.int64)
-    v0 = np.empty(m, dtype=np.int64)
-    u1 = np.empty(m, dtype=np.int64)
-    v1 = np.empty(m, dtype=np.int64)
-    dx = np.zeros(W + 1)
-    dy = np.zeros(H + 1)
+    density = np.zeros(H + 1)  # difference array of the sampled cells per row
     total = 0.0
-    j = 0
     for i in range(0, n, step):
         k, b = i // n_beams, i % n_beams
         x0, y0 = poses[k, 0], poses[k, 1]
         kind, x1, y1 = _beam_end(x0, y0, poses[k, 2], ranges[k, b], angles[k, b], max_range)
         if kind == 0:
             continue
-        u0[j] = int(math.floor((x0 - ox) * inv_res))
-        v0[j] = int(math.floor((y0 - oy) * inv_res))
-        u1[j] = int(math.floor((x1 - ox) * inv_res))
-        v1[j] = int(math.floor((y1 - oy) * inv_res))
-        c = abs(u1[j] - u0[j]) + abs(v1[j] - v0[j]) + 1.0
-        total += c
-        lo, hi = max(min(u0[j], u1[j]), 0), min(max(u0[j], u1[j]), W - 1)
-        if lo <= hi:  # spread the beam's cells evenly over its columns (rows)
-            dx[lo] += c / (hi - lo + 1)
-            dx[hi + 1] -= c / (hi - lo + 1)
-        lo, hi = max(min(v0[j], v1[j]), 0), min(max(v0[j], v1[j]), H - 1)
-        if lo <= hi:
-            dy[lo] += c / (hi - lo + 1)
-            dy[hi + 1] -= c / (hi - lo + 1)
-        j += 1
+        u0 = int(math.floor((x0 - ox) * inv_res))
+        v0 = int(math.floor((y0 - oy) * inv_res))
+        u1 = int(math.floor((x1 - ox) * inv_res))
+        v1 = int(math.floor((y1 - oy) * inv_res))
+        c = abs(u1 - u0) + abs(v1 - v0) + 1.0
+        lo, hi = max(min(v0, v1), 0), min(max(v0, v1), H - 1)
+        if lo <= hi:  # the beam's cells spread evenly over its rows in the grid
+            total += c
+            density[lo] += c / (hi - lo + 1)
+            density[hi + 1] -= c / (hi - lo + 1)
     if total * step < min_cells:
         return 1
-    cx = _balanced_cut(dx, W)
-    cy = _balanced_cut(dy, H)
-    cross_x = 0.0  # cells of the beams that start on one side of the cut and cross it
-    cross_y = 0.0
-    for i in range(j):
-        if (u0[i] < cx) != (u1[i] < cx):
-            cross_x += abs(cx - u0[i])
-        if (v0[i] < cy) != (v1[i] < cy):
-            cross_y += abs(cy - v0[i])
-    if cross_x <= cross_y:
-        parts[0, 1] = cx
-        parts[1, 0], parts[1, 1], parts[1, 2], parts[1, 3] = cx, W, 0, H
-    else:
-        parts[0, 3] = cy
-        parts[1, 0], parts[1, 1], parts[1, 2], parts[1, 3] = 0, W, cy, H
-    return 2
+    k = min(parts.shape[0], H)
+    m = 0  # rows [parts[m, 2], row) make part m
+    acc = 0.0
+    d = 0.0
+    for row in range(H):
+        d += density[row]
+        acc += d
+        if m < k - 1 and acc >= total * (m + 1) / k:
+            parts[m, 3] = row + 1
+            m += 1
+            parts[m, 0], parts[m, 1], parts[m, 2] = 0, W, row + 1
+    parts[m, 3] = H
+    return m + 1
 
 
 #: Calls with fewer cells to walk than this run on one thread.
@@ -288,19 +270,20 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
     Returns (beams used, readings dropped as NaN/≤ 0, max-range readings).
 
     With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` where Numba
-    has two threads or more, else never; negative: never) the grid is cut in two halves updated
-    by two threads; the result is the same either way."""
+    has two threads or more, else never; negative: never) the grid is cut into strips of rows, one
+    per thread (at least two), updated side by side; the result is the same either way."""
+    threads = get_num_threads()
     if split_min_cells is None:
-        split_min_cells = SPLIT_MIN_CELLS if get_num_threads() >= 2 else -1
+        split_min_cells = SPLIT_MIN_CELLS if threads >= 2 else -1
     Lf, Sf, cs, rs = _flat(L, stamp)
     H, W = L.shape
     return _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-                            l_hit, l_miss, l_min, l_max, split_min_cells)
+                            l_hit, l_miss, l_min, l_max, split_min_cells, max(threads, 2))
 
 
 @kernel
 def _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-                     l_hit, l_miss, l_min, l_max, split_min_cells):
+                     l_hit, l_miss, l_min, l_max, split_min_cells, max_parts):
     n_scans, n_beams = ranges.shape
     used = 0
     dropped = 0
@@ -314,12 +297,13 @@ def _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_ran
                 used += 1
                 if not (r < max_range):
                     maxed += 1
-    parts = np.empty((2, 4), dtype=np.int64)
-    if _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, split_min_cells, parts) == 1:
+    parts = np.empty((max_parts, 4), dtype=np.int64)
+    n_parts = _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, split_min_cells, parts)
+    if n_parts == 1:
         _part(Lf, Sf, cs, rs, 0, W, 0, H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
               l_hit, l_miss, l_min, l_max)
     else:
-        _parts(Lf, Sf, cs, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+        _parts(Lf, Sf, cs, rs, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
                l_hit, l_miss, l_min, l_max)
     return used, dropped, maxed
 
