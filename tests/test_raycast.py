@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from occmap.errors import InvalidArgumentError, NonFiniteError, ShapeError
-from occmap.raycast import traverse_2d
+from occmap.raycast import dda_init, dda_span, dda_step, traverse_2d
 
 
 def segment_hits_cell(a, b, iy, ix, res, origin, tol=1e-9):
@@ -55,11 +55,11 @@ def test_random_segments_visit_exactly_the_crossed_cells(x0, y0, x1, y1, res):
 
 
 def test_hand_computed_walk():
-    # slope 1/3 from (0.05, 0.05) to (0.95, 0.35) at 0.1 m crosses y = 0.1 exactly at the corner
-    # x = 0.2: x steps first there
+    # slope 1/3 from (0.05, 0.05) to (0.95, 0.35) at 0.1 m crosses y = 0.1, 0.2 and 0.3 exactly at
+    # the corners x = 0.2, 0.5 and 0.8: x steps first at each
     iy, ix, _ = traverse_2d([0.05, 0.05], [0.95, 0.35], 0.1)
     assert list(zip(iy.tolist(), ix.tolist())) == [
-        (0, 0), (0, 1), (0, 2), (1, 2), (1, 3), (1, 4), (1, 5), (2, 5), (2, 6), (2, 7), (3, 7), (3, 8), (3, 9)
+        (0, 0), (0, 1), (0, 2), (1, 2), (1, 3), (1, 4), (1, 5), (2, 5), (2, 6), (2, 7), (2, 8), (3, 8), (3, 9)
     ]
 
 
@@ -102,3 +102,30 @@ def test_bad_input():
         traverse_2d([0, np.nan], [1, 1], 0.1)
     with pytest.raises(InvalidArgumentError):
         traverse_2d([0, 0], [1, 1], 0.0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(coord, coord, coord, coord, st.sampled_from([0.05, 0.37, 1.0]),
+       st.integers(-60, 60), st.integers(0, 80), st.integers(-60, 60), st.integers(0, 80))
+def test_span_in_a_rectangle_is_where_the_walk_is_there(x0, y0, x1, y1, res, x_lo, w, y_lo, h):
+    """dda_span finds, without walking, the steps of the walk inside a rectangle and the walk's
+    exact state at the first of them (the additions of a walk and the products agree bit for bit)."""
+    origin = (-3.0, 1.5)
+    steps, state = dda_init(x0, y0, x1, y1, origin[0], origin[1], 1.0 / res)
+    s_in, s_out, jx, jy = dda_span(state, x_lo, x_lo + w, y_lo, y_lo + h)
+    walked = [state]
+    for _ in range(steps):
+        walked.append(dda_step(walked[-1]))
+    inside = [s for s, w_ in enumerate(walked) if x_lo <= w_[0] < x_lo + w and y_lo <= w_[1] < y_lo + h]
+    if not inside:
+        assert s_out <= s_in
+        return
+    assert (s_in, s_out) == (inside[0], inside[-1] + 1)
+    assert inside == list(range(s_in, s_out))  # one run
+    ix, iy, _, _, sx, sy, t_max_x, t_max_y, t_dx, t_dy = state
+    at = walked[s_in]
+    assert (at[0], at[1]) == (ix + sx * jx, iy + sy * jy)
+    if jx:
+        assert at[6] == t_max_x + jx * t_dx
+    if jy:
+        assert at[7] == t_max_y + jy * t_dy

@@ -40,6 +40,18 @@ def dda_init(x0, y0, x1, y1, ox, oy, inv_res):
     return dda_setup((x0 - ox) * inv_res, (y0 - oy) * inv_res, (x1 - ox) * inv_res, (y1 - oy) * inv_res)
 
 
+#: Crossing parameters are multiples of this (2⁻⁵⁰): sums of such numbers below 8 are exact in
+#: float64, so a walk that adds ``t_dx`` crossing after crossing is at ``t_max_x + j·t_dx``
+#: exactly, and where a walk is after any number of steps can be computed (:func:`dda_span`).
+_T_QUANTUM = 2.0 ** -50
+
+
+@kernel
+def _quantize(t):
+    """``t`` rounded down to a multiple of :data:`_T_QUANTUM` (inf stays inf)."""
+    return math.floor(t / _T_QUANTUM) * _T_QUANTUM if t < 8.0 else t
+
+
 @kernel
 def dda_setup(u0, v0, u1, v1):
     """:func:`dda_init` in cell units: cell ``(i, j)`` spans ``[i, i + 1) × [j, j + 1)``."""
@@ -51,12 +63,69 @@ def dda_setup(u0, v0, u1, v1):
     # parameter t ∈ [0, 1] along the segment at which the next x (y) cell boundary is crossed
     t_max_x, t_dx, t_max_y, t_dy = np.inf, np.inf, np.inf, np.inf
     if du != 0.0:
-        t_max_x = ((ix + (1 if du > 0.0 else 0)) - u0) / du
-        t_dx = abs(1.0 / du)
+        t_max_x = _quantize(((ix + (1 if du > 0.0 else 0)) - u0) / du)
+        t_dx = _quantize(abs(1.0 / du))
     if dv != 0.0:
-        t_max_y = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
-        t_dy = abs(1.0 / dv)
+        t_max_y = _quantize(((iy + (1 if dv > 0.0 else 0)) - v0) / dv)
+        t_dy = _quantize(abs(1.0 / dv))
     return abs(ex - ix) + abs(ey - iy), (ix, iy, ex, ey, sx, sy, t_max_x, t_max_y, t_dx, t_dy)
+
+
+@kernel
+def crossings_before(t0, td, n, t, inclusive):
+    """How many of an axis's first ``n`` crossings (at ``t0 + k·td``, k = 0..n−1) come before
+    parameter ``t``, counting one at ``t`` itself when ``inclusive``: the count a walk's own
+    comparisons give, found from an estimate and checked against them."""
+    if n <= 0:
+        return 0
+    q = (t - t0) / td
+    c = 0
+    if q >= 0.0:  # false for NaN too
+        c = n if q >= n else int(q) + 1
+    while c > 0 and not (t0 + (c - 1) * td <= t if inclusive else t0 + (c - 1) * td < t):
+        c -= 1
+    while c < n and (t0 + c * td <= t if inclusive else t0 + c * td < t):
+        c += 1
+    return c
+
+
+@kernel
+def _axis_window(i0, s, n, lo, hi):
+    """Range ``[a, b]`` of step counts ``j`` ∈ [0, n] along one axis (index ``i0 + s·j``) that
+    keep the index in ``[lo, hi)``; empty when a > b."""
+    if s > 0:
+        return max(lo - i0, 0), min(hi - 1 - i0, n)
+    return max(i0 - (hi - 1), 0), min(i0 - lo, n)
+
+
+@kernel
+def dda_span(state, x_lo, x_hi, y_lo, y_hi):
+    """Where a walk (``state`` from :func:`dda_init`, not yet stepped) is in the rectangle
+    ``[x_lo, x_hi) × [y_lo, y_hi)``.
+
+    A walk is monotone in both axes, so its cells in a rectangle are one run. Returns
+    ``(s_in, s_out, jx, jy)``: the run is steps ``s_in ≤ s < s_out`` (step 0 is the start cell,
+    step ``steps`` the end cell; empty when ``s_out ≤ s_in``), and before cell ``s_in`` the walk
+    has made ``jx`` x steps and ``jy`` y steps, so its state there is ``t_max_x + jx·t_dx``,
+    ``t_max_y + jy·t_dy`` (exact, see :data:`_T_QUANTUM`)."""
+    ix, iy, ex, ey, sx, sy, t_max_x, t_max_y, t_dx, t_dy = state
+    rx, ry = abs(ex - ix), abs(ey - iy)
+    ax, bx = _axis_window(ix, sx, rx, x_lo, x_hi)
+    ay, by = _axis_window(iy, sy, ry, y_lo, y_hi)
+    if ax > bx or ay > by:
+        return 0, 0, 0, 0
+    # x step J (its crossing at t_max_x + (J−1)·t_dx) comes after the y crossings strictly before
+    # it (x first on ties), y step K after the x crossings at or before its own
+    in_x = 0 if ax == 0 else ax + crossings_before(t_max_y, t_dy, ry, t_max_x + (ax - 1) * t_dx, False)
+    in_y = 0 if ay == 0 else ay + crossings_before(t_max_x, t_dx, rx, t_max_y + (ay - 1) * t_dy, True)
+    s_out = rx + ry + 1
+    if bx < rx:
+        s_out = min(s_out, bx + 1 + crossings_before(t_max_y, t_dy, ry, t_max_x + bx * t_dx, False))
+    if by < ry:
+        s_out = min(s_out, by + 1 + crossings_before(t_max_x, t_dx, rx, t_max_y + by * t_dy, True))
+    if in_x >= in_y:
+        return in_x, s_out, ax, in_x - ax
+    return in_y, s_out, in_y - ay, ay
 
 
 @kernel

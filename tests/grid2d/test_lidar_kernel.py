@@ -16,10 +16,15 @@ L_HIT, L_MISS = logit(0.7), logit(0.4)
 L_MIN, L_MAX = logit(0.1192), logit(0.971)
 
 
+def _quantize(t):
+    """A crossing parameter rounded down to a multiple of 2⁻⁵⁰ (so that sums of them are exact)."""
+    return math.floor(t * 2.0**50) / 2.0**50 if t < 8.0 else t
+
+
 def _ref_cells(x0, y0, x1, y1, ox, oy, inv_res):
     """Amanatides–Woo from (x0, y0) to (x1, y1): every cell, start first, end last (steps along x
-    first where the segment crosses a corner; once an axis reaches the end index only the other
-    one moves)."""
+    first where the crossings of the next x and y boundaries tie; once an axis reaches the end
+    index only the other one moves)."""
     u0, v0 = (x0 - ox) * inv_res, (y0 - oy) * inv_res
     u1, v1 = (x1 - ox) * inv_res, (y1 - oy) * inv_res
     ix, iy = math.floor(u0), math.floor(v0)
@@ -29,11 +34,11 @@ def _ref_cells(x0, y0, x1, y1, ox, oy, inv_res):
     sy = 1 if ey > iy else -1
     tmx = tmy = tdx = tdy = math.inf
     if du != 0.0:
-        tmx = ((ix + (1 if du > 0.0 else 0)) - u0) / du
-        tdx = abs(1.0 / du)
+        tmx = _quantize(((ix + (1 if du > 0.0 else 0)) - u0) / du)
+        tdx = _quantize(abs(1.0 / du))
     if dv != 0.0:
-        tmy = ((iy + (1 if dv > 0.0 else 0)) - v0) / dv
-        tdy = abs(1.0 / dv)
+        tmy = _quantize(((iy + (1 if dv > 0.0 else 0)) - v0) / dv)
+        tdy = _quantize(abs(1.0 / dv))
     cells = [(ix, iy)]
     for _ in range(abs(ex - ix) + abs(ey - iy)):
         if iy == ey or (ix != ex and tmx <= tmy):

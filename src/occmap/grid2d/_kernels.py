@@ -17,7 +17,7 @@ from numba import get_num_threads, prange
 
 from .._intrinsics import prefetch_write
 from .._jit import kernel, kernel_parallel
-from ..raycast import dda_init
+from ..raycast import dda_init, dda_span
 
 
 @kernel
@@ -111,25 +111,23 @@ def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, room_y, sx, sy, tmx, tm
 def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, inv_res, s2, l_miss, l_min, l_max):
     """Free update of the cells from (x0, y0) to (x1, y1), end cell excluded, that lie in the part
     ``[x_lo, x_hi) × [y_lo, y_hi)`` (which lies in the grid). The traversal is monotone in both
-    axes, so its cells in a rectangle are one run: walk to it without touching any cell, then
-    walk it with no more checks than where it ends."""
+    axes, so its cells in a rectangle are one run: start the walk at its first cell there (see
+    :func:`occmap.raycast.dda_span`) and stop it where it leaves."""
     steps, st = dda_init(x0, y0, x1, y1, ox, oy, inv_res)
     ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = st
     if max(ix, ex) < x_lo or min(ix, ex) >= x_hi or max(iy, ey) < y_lo or min(iy, ey) >= y_hi:
         return
-    rx = abs(ex - ix)
-    ry = abs(ey - iy)
-    while not (x_lo <= ix < x_hi and y_lo <= iy < y_hi):
-        if rx == 0 and ry == 0:
-            return
-        if ry == 0 or (rx > 0 and tmx <= tmy):
-            ix += sx
-            tmx += tdx
-            rx -= 1
-        else:
-            iy += sy
-            tmy += tdy
-            ry -= 1
+    s_in, s_out, jx, jy = dda_span(st, x_lo, x_hi, y_lo, y_hi)
+    if s_out <= s_in or s_in == steps:  # no cell in the part, or only the end cell
+        return
+    rx = abs(ex - ix) - jx
+    ry = abs(ey - iy) - jy
+    if jx > 0:  # (an axis that never steps has infinite t_dx)
+        tmx += jx * tdx
+        ix += sx * jx
+    if jy > 0:
+        tmy += jy * tdy
+        iy += sy * jy
     room_x = x_hi - 1 - ix if sx > 0 else ix - x_lo
     room_y = y_hi - 1 - iy if sy > 0 else iy - y_lo
     _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, min(rx, room_x), min(ry, room_y), room_y, sx, sy, tmx, tmy,
