@@ -15,7 +15,6 @@ import math
 import numpy as np
 from numba import get_num_threads, prange
 
-from .._intrinsics import prefetch_write
 from .._jit import kernel, kernel_parallel
 from ..raycast import dda_init, dda_span
 
@@ -25,8 +24,6 @@ def _update(L, iy, ix, l_delta, l_min, l_max):
     L[iy, ix] = min(max(L[iy, ix] + l_delta, l_min), l_max)
 
 
-#: How many cells ahead of the walk its cache lines are prefetched.
-_PREFETCH_CELLS = 24
 
 
 # ---------------------------------------------------------------------------------------------
@@ -41,26 +38,16 @@ _PREFETCH_CELLS = 24
 
 
 @kernel
-def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, room_y, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min,
-                 l_max):
+def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max):
     """Free update along a traversal from (ix, iy), a cell of the part, while it stays in the part:
     ``rx``, ``ry`` steps are left to the end cell (excluded), of which ``cx``, ``cy`` (≤ rx, ry)
-    stay in the part; ``room_y`` y steps stay in the part's rows. Amanatides–Woo in two phases:
+    stay in the part. Amanatides–Woo in two phases:
     while both axes can still step, along the one whose next boundary comes first (x on ties);
     then a straight run along the other, as long as the walk takes it."""
     idx = iy * rs + ix * cs
     stx = sx * cs
     sty = sy * rs
-    # the cell about _PREFETCH_CELLS steps ahead lies near the straight line: a fixed offset. The
-    # stamp's line is prefetched (in the grid's interleaved storage it holds the log-odds too),
-    # but only in the part's own rows: prefetching for writing takes a line from the thread that
-    # owns it, so the two threads' caches would fight over the rows along their boundary
-    n = max(rx + ry, 1)
-    pfy = ry * _PREFETCH_CELLS // n
-    pf = (rx * _PREFETCH_CELLS // n) * stx + pfy * sty
-    ahead = room_y - pfy  # > 0: the prefetched row is the part's
     while cx > 0 and cy > 0:
-        prefetch_write(Sf, idx + (pf if ahead > 0 else 0))
         i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
         if Sf[i] < s2:  # not yet updated by this scan (stamp s2, or s2 + 1 for a hit)
             Sf[i] = s2
@@ -75,7 +62,6 @@ def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, room_y, sx, sy, tmx, tm
             tmy += tdy
             ry -= 1
             cy -= 1
-            ahead -= 1
     # one axis can no longer step in the part (cx or cy is 0): a straight run along the other, of
     # all its steps in the part where the first axis has reached the end cell, else of those
     # before the first one's next crossing (the step that leaves the part)
@@ -96,10 +82,7 @@ def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, room_y, sx, sy, tmx, tm
                 m += 1
             more = True
     cells = m + (1 if more else 0)  # the walk goes on after the run: its last cell is no end cell
-    last = cells - _PREFETCH_CELLS
-    pf = _PREFETCH_CELLS * st
-    for k in range(cells):
-        prefetch_write(Sf, idx + (pf if k < last else 0))
+    for _ in range(cells):
         i = np.uint64(idx)
         if Sf[i] < s2:
             Sf[i] = s2
@@ -128,10 +111,9 @@ def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, i
     if jy > 0:
         tmy += jy * tdy
         iy += sy * jy
-    room_x = x_hi - 1 - ix if sx > 0 else ix - x_lo
-    room_y = y_hi - 1 - iy if sy > 0 else iy - y_lo
-    _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, min(rx, room_x), min(ry, room_y), room_y, sx, sy, tmx, tmy,
-                 tdx, tdy, s2, l_miss, l_min, l_max)
+    cx = min(rx, x_hi - 1 - ix if sx > 0 else ix - x_lo)  # the steps that stay in the part
+    cy = min(ry, y_hi - 1 - iy if sy > 0 else iy - y_lo)
+    _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max)
 
 
 @kernel
@@ -195,9 +177,8 @@ _SPLIT_SAMPLE = 4096
 def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_cells, parts):
     """Fill ``parts`` (k, 4) with the cell rectangles the work is split into and return how many:
     one (the whole grid) for less than ``min_cells`` cells of work (estimated from a sample of
-    the beams), else up to k strips of whole rows that share the cells to walk evenly. Rows, not
-    columns: a part's cells are then one block of memory, and a walk prefetches only in its own
-    part's rows."""
+    the beams), else up to k strips of whole rows that share the cells to walk evenly (rows, not
+    columns: a part's cells are then one block of memory)."""
     n_scans, n_beams = ranges.shape
     parts[0, 0], parts[0, 1], parts[0, 2], parts[0, 3] = 0, W, 0, H
     n = n_scans * n_beams
