@@ -23,7 +23,7 @@ from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
 from ..edt import _row_envelope
-from ..raycast import dda_setup
+from ..raycast import dda_setup, dda_span
 
 #: Above this many cells of inflation radius the row pass uses the Felzenszwalb–Huttenlocher
 #: lower envelope instead of the direct (2R + 1)-wide window minimum.
@@ -74,96 +74,49 @@ def clear_rows(cells, r0, n):
 def _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, ex, ey, s2, d_miss, lo, hi):
     """Free update of the cells from lattice point (u0, v0) (cell units) to the centre of lattice
     cell (ex, ey), end cell excluded, that lie in the part ``xlo ≤ wx < xhi`` of the window (all
-    rows), each at most once per scan. Amanatides–Woo in the order of :mod:`occmap.raycast` (x
-    first on ties; once an axis reaches the end cell's index only the other moves). Returns
-    (cells updated, cells visited)."""
-    _, (ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy) = dda_setup(u0, v0, ex + 0.5, ey + 0.5)
-    rx = abs(ex - ix)  # steps left along x and along y
-    ry = abs(ey - iy)
-    wx = ix - gx0
-    wy = iy - gy0
-    updated = 0
-    visited = 0
-    # phase A: step (checked) until the walk is in the part
-    while (rx > 0 or ry > 0) and not (xlo <= wx < xhi and 0 <= wy < H):
-        if ry == 0 or (rx > 0 and tmx <= tmy):
-            wx += sx
-            tmx += tdx
-            rx -= 1
-        else:
-            wy += sy
-            tmy += tdy
-            ry -= 1
-    if rx == 0 and ry == 0:
+    rows), each at most once per scan: the walk of :mod:`occmap.raycast`, started at its first
+    cell in the part (:func:`occmap.raycast.dda_span`), with the storage indices stepped with
+    their wrap-around. Returns (cells updated, cells visited)."""
+    steps, state = dda_setup(u0, v0, ex + 0.5, ey + 0.5)
+    ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = state
+    s_in, s_out, jx, jy = dda_span(state, gx0 + xlo, gx0 + xhi, gy0, gy0 + H)
+    n = min(s_out, steps) - s_in
+    if n <= 0:
         return 0, 0
-    if xlo <= ex - gx0 < xhi and 0 <= ey - gy0 < H:
-        # phase B, fast: here and the end both in the part, so every cell between (the walk is
-        # monotone): no bounds checks, flat storage indices stepped with their wrap-around
-        r = wy + sr
-        if r >= H:
-            r -= H
-        c = wx + sc
-        if c >= W:
-            c -= W
-        rs = sy * W * 2  # flat step of one row in the (H, W, 2) buffer
-        row_wrap = H * W * 2
-        cf = cells.reshape(-1)
-        sf = stamps.reshape(-1)
-        base = r * W * 2  # start of the storage row
-        while rx > 0 and ry > 0:  # both axes still move: step along the one that comes first
-            i = base + 2 * c
-            visited += 1
-            if sf[i + 1] < s2:
-                sf[i + 1] = s2
-                cf[i] = min(max(cf[i] + d_miss, lo), hi)
-                updated += 1
-            bx = tmx <= tmy
-            c += sx if bx else 0
-            c = 0 if c == W else (W - 1 if c < 0 else c)
-            base += 0 if bx else rs
-            base = 0 if base == row_wrap else (row_wrap - 2 * W if base < 0 else base)
-            tmx += tdx if bx else 0.0
-            tmy += 0.0 if bx else tdy
-            rx -= 1 if bx else 0
-            ry -= 0 if bx else 1
-        for _ in range(rx + ry):  # then a straight run
-            i = base + 2 * c
-            visited += 1
-            if sf[i + 1] < s2:
-                sf[i + 1] = s2
-                cf[i] = min(max(cf[i] + d_miss, lo), hi)
-                updated += 1
-            if rx > 0:
-                c += sx
-                c = 0 if c == W else (W - 1 if c < 0 else c)
-            else:
-                base += rs
-                base = 0 if base == row_wrap else (row_wrap - 2 * W if base < 0 else base)
-        return updated, visited
-    # phase B, checked: the end lies outside the part; stop on leaving it (monotone: for good)
-    while rx > 0 or ry > 0:
-        if not (xlo <= wx < xhi and 0 <= wy < H):
-            break
-        visited += 1
-        r = wy + sr
-        if r >= H:
-            r -= H
-        c = wx + sc
-        if c >= W:
-            c -= W
-        if stamps[r, c, 1] < s2:
-            stamps[r, c, 1] = s2
-            cells[r, c, 0] = min(max(cells[r, c, 0] + d_miss, lo), hi)
+    rx = abs(ex - ix) - jx  # steps left along x and along y
+    ry = abs(ey - iy) - jy
+    if jx > 0:  # (an axis that never steps has infinite t_dx)
+        tmx += jx * tdx
+    if jy > 0:
+        tmy += jy * tdy
+    r = iy + sy * jy - gy0 + sr
+    if r >= H:
+        r -= H
+    c = ix + sx * jx - gx0 + sc
+    if c >= W:
+        c -= W
+    rs = sy * W * 2  # flat step of one row in the (H, W, 2) buffer
+    row_wrap = H * W * 2
+    cf = cells.reshape(-1)
+    sf = stamps.reshape(-1)
+    base = r * W * 2  # start of the storage row
+    updated = 0
+    for _ in range(n):
+        i = base + 2 * c
+        if sf[i + 1] < s2:
+            sf[i + 1] = s2
+            cf[i] = min(max(cf[i] + d_miss, lo), hi)
             updated += 1
-        if ry == 0 or (rx > 0 and tmx <= tmy):
-            wx += sx
-            tmx += tdx
-            rx -= 1
-        else:
-            wy += sy
-            tmy += tdy
-            ry -= 1
-    return updated, visited
+        bx = ry == 0 or (rx > 0 and tmx <= tmy)
+        c += sx if bx else 0
+        c = 0 if c == W else (W - 1 if c < 0 else c)
+        base += 0 if bx else rs
+        base = 0 if base == row_wrap else (row_wrap - 2 * W if base < 0 else base)
+        tmx += tdx if bx else 0.0
+        tmy += 0.0 if bx else tdy
+        rx -= 1 if bx else 0
+        ry -= 0 if bx else 1
+    return updated, n
 
 
 #: Lattice indices are packed as 31-bit fields offset by this (so keys stay positive int64);
