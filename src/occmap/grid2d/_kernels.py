@@ -100,17 +100,20 @@ def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, i
     ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = st
     if max(ix, ex) < x_lo or min(ix, ex) >= x_hi or max(iy, ey) < y_lo or min(iy, ey) >= y_hi:
         return
-    s_in, s_out, jx, jy = dda_span(st, x_lo, x_hi, y_lo, y_hi)
-    if s_out <= s_in or s_in == steps:  # no cell in the part, or only the end cell
-        return
-    rx = abs(ex - ix) - jx
-    ry = abs(ey - iy) - jy
-    if jx > 0:  # (an axis that never steps has infinite t_dx)
-        tmx += jx * tdx
-        ix += sx * jx
-    if jy > 0:
-        tmy += jy * tdy
-        iy += sy * jy
+    rx = abs(ex - ix)
+    ry = abs(ey - iy)
+    if not (x_lo <= ix < x_hi and y_lo <= iy < y_hi):  # the walk enters the part later
+        s_in, s_out, jx, jy = dda_span(st, x_lo, x_hi, y_lo, y_hi)
+        if s_out <= s_in or s_in == steps:  # no cell in the part, or only the end cell
+            return
+        rx -= jx
+        ry -= jy
+        if jx > 0:  # (an axis that never steps has infinite t_dx)
+            tmx += jx * tdx
+            ix += sx * jx
+        if jy > 0:
+            tmy += jy * tdy
+            iy += sy * jy
     cx = min(rx, x_hi - 1 - ix if sx > 0 else ix - x_lo)  # the steps that stay in the part
     cy = min(ry, y_hi - 1 - iy if sy > 0 else iy - y_lo)
     _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max)
