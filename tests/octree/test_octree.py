@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from occmap.errors import InvalidArgumentError, ShapeError
-from occmap.octree import OcTree
+from occmap.octree import OcTree, formats
 
 octomap = pytest.importorskip("octomap")
 
@@ -206,6 +206,20 @@ def test_random_scans_match_octomap(res):
         ref.insertPointCloud(pts, origin, 5.0)
         assert ours.num_nodes() == ref.size()
     assert_same_as_octomap(ours, ref)
+
+
+@pytest.mark.parametrize("res", [0.1, 0.2])
+def test_large_scans_match_octomap(res):
+    """Scans large enough to be split between two threads and to use the dense cube around the
+    sensor, with rays that leave the cube (a 16 m room) and rays cut at max range."""
+    rng = np.random.default_rng(11)
+    ours, ref = OcTree(res), octomap.OcTree(res)
+    for origin in ((0.3, -0.2, 0.1), (3.1, 2.4, -1.7)):
+        pts = _room_cloud(rng, 21_000, half=8.0)
+        ours.insert_point_cloud(pts, np.array(origin), max_range=9.0)
+        ref.insertPointCloud(pts, np.array(origin), 9.0)
+    assert ours.num_nodes() == ref.size()
+    assert formats.encode_ot(ours) == ref.write()  # every node and value, in OctoMap's own bytes
 
 
 def test_discretize_matches_octomap():

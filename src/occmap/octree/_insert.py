@@ -7,8 +7,10 @@ local coordinates (lx, ly, lz)):
 
 1. :func:`mark_scan` traverses the rays (OctoMap's ``computeRayKeys`` to the bit, float32
    arithmetic included) and sets the bits; a hash of block keys with the last block cached keeps
-   this a few nanoseconds per voxel. Disjoint ranges of rays can be marked in parallel threads and
-   merged (:func:`merge_blocks`).
+   this a few nanoseconds per voxel. Around the sensor, where every voxel is crossed by many rays
+   (at 0.2 m most of a scan's steps lie within ±64 voxels of it), the bits go to a dense cube
+   instead, moved into blocks at the end (:func:`cube_to_blocks`). Disjoint ranges of rays can
+   be marked in parallel threads and merged (:func:`merge_blocks`).
 2. :func:`block_voxels` lists the marked voxels in Morton order (blocks sorted by their Morton
    code) and :func:`apply_voxels` updates them in that order, so consecutive voxels share their
    path from the root except the last level or two. Each
@@ -198,13 +200,45 @@ def grow_blocks(table, slots, codes, hits, frees, count):
     return t2, s2, c2, h2, f2, n2
 
 
+#: The dense cube marked around the sensor: CUBE³ voxels (a multiple of 8), bit
+#: ``x + CUBE·y + CUBE²·z`` of a flat int64 array. Near the sensor every voxel is crossed by many
+#: rays; there a step sets a bit at an index that moves with it, with no block to look up.
+CUBE = 128
+_CUBE_WORDS = CUBE ** 3 // 64
+#: Packed keys in the cube phase: ``kx | ky << 20 | kz << 40``; a step past either end of the
+#: key range cannot carry into the next field.
+_KY, _KZ = 20, 40
+_OUTSIDE = ~((CUBE - 1) | ((CUBE - 1) << _KY) | ((CUBE - 1) << _KZ))
+
+
 @kernel
-def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hits, frees, count):
+def new_cube():
+    """Dense hit and free bits of a cube (zeroed)."""
+    return np.zeros(_CUBE_WORDS, np.int64), np.zeros(_CUBE_WORDS, np.int64)
+
+
+@kernel
+def cube_corner(origin, res):
+    """Packed key of the corner of the cube around the voxel of ``origin`` (block-aligned, that
+    voxel's block in the middle), or −1 where the cube would leave the key range."""
+    inv_res = 1.0 / res
+    cx = ((coord_to_key(origin[0], inv_res) >> 3) - CUBE // 16) << 3
+    cy = ((coord_to_key(origin[1], inv_res) >> 3) - CUBE // 16) << 3
+    cz = ((coord_to_key(origin[2], inv_res) >> 3) - CUBE // 16) << 3
+    if min(cx, cy, cz) < 0 or max(cx, cy, cz) + CUBE > MAX_KEY + 1:
+        return -1
+    return cx | (cy << _KY) | (cz << _KZ)
+
+
+@kernel
+def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hits, frees, count,
+              cube_hits, cube_frees, corner):
     """Set the hit bit of each in-range end voxel and the free bits of every ray's voxels, for rays
     ``start..stop-1`` (only the hits when ``rays`` is false). Returns ``stop``, or the ray at which
-    the block storage filled up (marking
-    is idempotent, so the caller grows it and resumes there). Within a block, bit
-    ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates (lx, ly, lz)."""
+    the block storage filled up (marking is idempotent, so the caller grows it and resumes there).
+    Within a block, bit ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates
+    (lx, ly, lz). Voxels in the cube at ``corner`` (from :func:`cube_corner`; −1: none) are
+    marked in ``cube_hits`` and ``cube_frees`` instead (:func:`cube_to_blocks` moves them)."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
     okx = coord_to_key(ox, inv_res)
@@ -219,14 +253,47 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
         ekx = coord_to_key(ex, inv_res)
         eky = coord_to_key(ey, inv_res)
         ekz = coord_to_key(ez, inv_res)
+        end_key = ekx | (eky << _KY) | (ekz << _KZ)
         ray = rays and not (ekx == okx and eky == oky and ekz == okz)
         if ray:
             length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _ray_init(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
             kx, ky, kz = okx, oky, okz
+            done = False
         else:
             kx, ky, kz = ekx, eky, ekz
             sx = sy = sz = 1
-        is_hit = not ray  # the end voxel comes last, after the ray's free voxels
+            done = True
+        if ray and corner >= 0:
+            # the cube phase (the sensor's voxel lies in the cube): OctoMap's DDA step written
+            # without branches (which axis steps is as good as random: a branch on it would be
+            # mispredicted often), the packed key and the cube index moving together
+            key = kx | (ky << _KY) | (kz << _KZ)
+            d = key - corner
+            idx = (d & (CUBE - 1)) + ((d >> _KY) & (CUBE - 1)) * CUBE + (d >> _KZ) * (CUBE * CUBE)
+            dky, dkz = sy << _KY, sz << _KZ
+            diy, diz = sy * CUBE, sz * CUBE * CUBE
+            while True:
+                cube_frees[idx >> 6] |= np.int64(1) << (idx & 63)
+                mx = tx < ty and tx < tz
+                my = not mx and ty < tz
+                mz = not (mx or my)
+                key += (sx if mx else 0) + (dky if my else 0) + (dkz if mz else 0)
+                idx += (sx if mx else 0) + (diy if my else 0) + (diz if mz else 0)
+                tx += gx if mx else 0.0
+                ty += gy if my else 0.0
+                tz += gz if mz else 0.0
+                if key == end_key or min(tx, ty, tz) > length:
+                    done = True
+                    break
+                if (key - corner) & _OUTSIDE:
+                    break
+            kx, ky, kz = key & 0xFFFFF, (key >> _KY) & 0xFFFFF, key >> _KZ
+        is_hit = done  # the end voxel comes last, after the ray's free voxels
+        if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
+            d = end_key - corner
+            j = (d & (CUBE - 1)) + ((d >> _KY) & (CUBE - 1)) * CUBE + (d >> _KZ) * (CUBE * CUBE)
+            cube_hits[j >> 6] |= np.int64(1) << (j & 63)
+            continue
         wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7  # local coordinate on entering a block
         lookup = True
         while True:
@@ -276,6 +343,52 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
                 is_hit = True
                 lookup = True
     return stop
+
+
+@kernel
+def cube_to_blocks(cube_hits, cube_frees, corner, table, slots, codes, hits, frees, count):
+    """Or the cube's marked voxels into the block storage. Returns False where the storage filled
+    up (the caller grows it and calls again: or-ing twice changes nothing)."""
+    mask = table.shape[0] - 1
+    cap = codes.shape[0]
+    cx, cy, cz = corner & 0xFFFFF, (corner >> _KY) & 0xFFFFF, corner >> _KZ
+    nb = CUBE // 8
+    w_row = CUBE // 64  # words per row of the cube
+    for bz in range(nb):
+        for by in range(nb):
+            for bx in range(nb):
+                # the block's 8×8×8 bits: byte bx % 8 of one word per cube row (y, z)
+                word0 = (bz * 8 * CUBE + by * 8) * w_row + (bx * 8) // 64
+                shift = (bx * 8) % 64
+                any_bits = np.int64(0)
+                for lz in range(8):
+                    for ly in range(8):
+                        w = word0 + (lz * CUBE + ly) * w_row
+                        any_bits |= (cube_hits[w] | cube_frees[w]) >> shift
+                if any_bits & 0xFF == 0:
+                    continue
+                code = _block_code(cx + bx * 8, cy + by * 8, cz + bz * 8)
+                h = _hash(code, mask)
+                while table[h] != 0 and table[h] != code:
+                    h = (h + 1) & mask
+                if table[h] == 0:
+                    if count[0] == cap:
+                        return False
+                    table[h] = code
+                    slots[h] = count[0]
+                    codes[count[0]] = code
+                    count[0] += 1
+                b = slots[h]
+                for lz in range(8):
+                    hw = np.int64(0)
+                    fw = np.int64(0)
+                    for ly in range(8):
+                        w = word0 + (lz * CUBE + ly) * w_row
+                        hw |= ((cube_hits[w] >> shift) & 0xFF) << (8 * ly)
+                        fw |= ((cube_frees[w] >> shift) & 0xFF) << (8 * ly)
+                    hits[b, lz] |= hw
+                    frees[b, lz] |= fw
+    return True
 
 
 @kernel

@@ -25,6 +25,9 @@ from . import views
 _INITIAL_SLOTS = 1 << 12
 #: Scans with at least this many rays are marked by two threads.
 _PARALLEL_RAYS = 20_000
+#: Scans (or halves of one) with at least this many rays mark the voxels near the sensor in a
+#: dense cube (see occmap.octree._insert.CUBE).
+_CUBE_RAYS = 4096
 _POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="occmap-octree")
 #: Traces the next scan of insert_point_clouds while the tree takes the current one.
 _PIPELINE = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occmap-octree-next")
@@ -60,15 +63,21 @@ def _origin(origin) -> np.ndarray:
 
 
 def _mark_range(origin, ends, hit, res, rays, start, stop):
-    """Block masks of rays ``start..stop-1`` (grown until they fit)."""
+    """Block masks of rays ``start..stop-1`` (grown until they fit); with many rays the voxels
+    around the sensor are marked in a dense cube first."""
     storage = I.new_blocks(max(64, (stop - start) // 8))
+    corner = I.cube_corner(origin, res) if rays and stop - start >= _CUBE_RAYS else -1
+    cube = I.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.int64))
     while True:
-        start = I.mark_scan(origin, ends, hit, res, rays, start, stop, *storage)
+        start = I.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
         if start == stop:
-            table, slots, codes, hits, frees, count = storage
-            n = int(count[0])
-            return codes[:n], hits[:n], frees[:n]
+            break
         storage = I.grow_blocks(*storage)
+    while corner >= 0 and not I.cube_to_blocks(*cube, corner, *storage):
+        storage = I.grow_blocks(*storage)
+    table, slots, codes, hits, frees, count = storage
+    n = int(count[0])
+    return codes[:n], hits[:n], frees[:n]
 
 
 def _mark(origin, ends, hit, res, rays: bool, threads: bool):
