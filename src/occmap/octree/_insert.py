@@ -160,6 +160,20 @@ def ray_voxels(origins, ends, with_end, res):
 # ---------------------------------------------------------------------------- marking
 
 @kernel
+def half_work(origin, ends):
+    """The ray at which half of a scan's traversal work (≈ the rays' L1 lengths) is done."""
+    total = 0.0
+    for i in range(ends.shape[0]):
+        total += abs(ends[i, 0] - origin[0]) + abs(ends[i, 1] - origin[1]) + abs(ends[i, 2] - origin[2])
+    acc = 0.0
+    for i in range(ends.shape[0]):
+        acc += abs(ends[i, 0] - origin[0]) + abs(ends[i, 1] - origin[1]) + abs(ends[i, 2] - origin[2])
+        if acc >= 0.5 * total:
+            return i
+    return ends.shape[0]
+
+
+@kernel
 def _block_code(kx, ky, kz):
     """Packed key of the block holding voxel (kx, ky, kz), plus one (0 marks an empty slot)."""
     return (((kx >> 3) << 26) | ((ky >> 3) << 13) | (kz >> 3)) + 1

@@ -86,9 +86,8 @@ def _mark(origin, ends, hit, res, rays: bool, threads: bool):
     n = len(ends)
     if not threads or n < _PARALLEL_RAYS:
         parts = [_mark_range(origin, ends, hit, res, rays, 0, n)]
-    else:  # split where half of the traversal work (≈ the rays' L1 lengths) is done
-        work = np.cumsum(np.abs(ends - origin).sum(axis=1))
-        half = int(np.searchsorted(work, work[-1] / 2))
+    else:
+        half = I.half_work(origin, ends)
         futures = [_POOL.submit(_mark_range, origin, ends, hit, res, rays, a, b) for a, b in ((0, half), (half, n))]
         parts = [f.result() for f in futures]
     return I.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
