@@ -42,11 +42,13 @@ def key_to_coord(k, res):
 
 
 @kernel
-def grow(value, child):
-    """The slot arrays at twice the capacity, contents kept, new slots unused."""
+def grow(value, child, capacity):
+    """The slot arrays with room for ``capacity`` slots, at least twice as many as now, contents
+    kept, new slots unused."""
     n = value.shape[0]
-    v = np.empty(2 * n, np.float32)
-    c = np.empty(2 * n, np.int32)
+    m = max(2 * n, capacity)
+    v = np.empty(m, np.float32)
+    c = np.empty(m, np.int32)
     v[:n] = value
     c[:n] = child
     v[n:] = np.nan

@@ -25,6 +25,8 @@ from . import views
 _INITIAL_SLOTS = 1 << 12
 #: Scans with at least this many rays are marked by two threads.
 _PARALLEL_RAYS = 20_000
+#: Scans with at least this many marked blocks list their voxels on two threads.
+_PARALLEL_BLOCKS = 256
 #: Scans (or halves of one) with at least this many rays mark the voxels near the sensor in a
 #: dense cube (see occmap.octree._insert.CUBE).
 _CUBE_RAYS = 4096
@@ -91,6 +93,17 @@ def _mark(origin, ends, hit, res, rays: bool, threads: bool):
         futures = [_POOL.submit(_mark_range, origin, ends, hit, res, rays, a, b) for a, b in ((0, half), (half, n))]
         parts = [f.result() for f in futures]
     return I.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
+
+
+def _voxels(blocks, kbox, threads: bool):
+    """:func:`occmap.octree._insert.block_voxels` of Morton-sorted blocks; with ``threads``, many
+    blocks are listed by two threads, each a half (Morton order kept)."""
+    n = len(blocks[0])
+    if not threads or n < _PARALLEL_BLOCKS:
+        return I.block_voxels(*blocks, kbox)
+    halves = [_POOL.submit(I.block_voxels, *(b[a:z] for b in blocks), kbox) for a, z in ((0, n // 2), (n // 2, n))]
+    (k0, h0), (k1, h1) = (f.result() for f in halves)
+    return np.concatenate([k0, k1]), np.concatenate([h0, h1])
 
 
 class Leaves(NamedTuple):
@@ -285,7 +298,7 @@ class OcTree:
         kbox = self._bbx_keys()
         # with a box, a ray's free voxels are those before it first leaves the box: none from outside
         rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
-        keys, is_hit = I.block_voxels(*_mark(o32, ends, hit, self.resolution, rays, threads), kbox)
+        keys, is_hit = _voxels(_mark(o32, ends, hit, self.resolution, rays, threads), kbox, threads)
         summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
         return keys, is_hit, summary
 
@@ -332,12 +345,16 @@ class OcTree:
 
     def _apply(self, keys: np.ndarray, is_hit: np.ndarray, lazy: bool) -> None:
         start = 0
+        top = int(self._meta[K.TOP])
         while True:
             start = I.apply_voxels(self._value, self._child, self._meta, keys, is_hit, start,
                                    self._l_hit, self._l_miss, self._l_min, self._l_max, not lazy)
             if start == len(keys):
                 return
-            self._value, self._child = K.grow(self._value, self._child)
+            # out of slots: room for the rest at the rate of slots per voxel so far, and a margin
+            used = int(self._meta[K.TOP])
+            rate = (used - top) / max(start, 1)
+            self._value, self._child = K.grow(self._value, self._child, int(used + 1.25 * rate * (len(keys) - start)))
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
@@ -356,8 +373,8 @@ class OcTree:
         8^(16 − depth) per pruned leaf)."""
         depths = self.leaves().depths
         new_nodes = int(sum(((8 ** (17 - depths) - 8) // 7).tolist()))
-        while self._value.shape[0] < self._meta[K.TOP] + new_nodes:
-            self._value, self._child = K.grow(self._value, self._child)
+        if self._value.shape[0] < self._meta[K.TOP] + new_nodes:
+            self._value, self._child = K.grow(self._value, self._child, int(self._meta[K.TOP]) + new_nodes)
         K.expand_all(self._value, self._child, self._meta)
 
     def to_max_likelihood(self) -> None:
