@@ -9,7 +9,7 @@ local coordinates (lx, ly, lz)):
    arithmetic included) and sets the bits; a hash of block keys with the last block cached keeps
    this a few nanoseconds per voxel. Around the sensor, where every voxel is crossed by many rays
    (at 0.2 m most of a scan's steps lie within ±64 voxels of it), the bits go to a dense cube
-   instead, moved into blocks at the end (:func:`cube_to_blocks`). Disjoint ranges of rays can
+   instead, turned into blocks at the end (:func:`cube_blocks`). Disjoint ranges of rays can
    be marked in parallel threads and merged (:func:`merge_blocks`).
 2. :func:`block_voxels` lists the marked voxels in Morton order (blocks sorted by their Morton
    code) and :func:`apply_voxels` updates them in that order, so consecutive voxels share their
@@ -252,7 +252,7 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
     the block storage filled up (marking is idempotent, so the caller grows it and resumes there).
     Within a block, bit ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates
     (lx, ly, lz). Voxels in the cube at ``corner`` (from :func:`cube_corner`; −1: none) are
-    marked in ``cube_hits`` and ``cube_frees`` instead (:func:`cube_to_blocks` moves them)."""
+    marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`)."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
     okx = coord_to_key(ox, inv_res)
@@ -370,14 +370,16 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
 
 
 @kernel
-def cube_to_blocks(cube_hits, cube_frees, corner, table, slots, codes, hits, frees, count):
-    """Or the cube's marked voxels into the block storage. Returns False where the storage filled
-    up (the caller grows it and calls again: or-ing twice changes nothing)."""
-    mask = table.shape[0] - 1
-    cap = codes.shape[0]
+def cube_blocks(cube_hits, cube_frees, corner):
+    """The cube's marked voxels as blocks: codes, hit masks, free masks (the blocks that have any;
+    :func:`merge_blocks` ors them with the same blocks marked elsewhere)."""
     cx, cy, cz = corner & 0xFFFFF, (corner >> _KY) & 0xFFFFF, corner >> _KZ
     nb = CUBE // 8
     w_row = CUBE // 64  # words per row of the cube
+    codes = np.empty(nb ** 3, np.int64)
+    hits = np.empty((nb ** 3, 8), np.int64)
+    frees = np.empty((nb ** 3, 8), np.int64)
+    n = 0
     for bz in range(nb):
         for by in range(nb):
             for bx in range(nb):
@@ -386,33 +388,19 @@ def cube_to_blocks(cube_hits, cube_frees, corner, table, slots, codes, hits, fre
                 shift = (bx * 8) % 64
                 any_bits = np.int64(0)
                 for lz in range(8):
-                    for ly in range(8):
-                        w = word0 + (lz * CUBE + ly) * w_row
-                        any_bits |= (cube_hits[w] | cube_frees[w]) >> shift
-                if any_bits & 0xFF == 0:
-                    continue
-                code = _block_code(cx + bx * 8, cy + by * 8, cz + bz * 8)
-                h = _hash(code, mask)
-                while table[h] != 0 and table[h] != code:
-                    h = (h + 1) & mask
-                if table[h] == 0:
-                    if count[0] == cap:
-                        return False
-                    table[h] = code
-                    slots[h] = count[0]
-                    codes[count[0]] = code
-                    count[0] += 1
-                b = slots[h]
-                for lz in range(8):
                     hw = np.int64(0)
                     fw = np.int64(0)
                     for ly in range(8):
                         w = word0 + (lz * CUBE + ly) * w_row
                         hw |= ((cube_hits[w] >> shift) & 0xFF) << (8 * ly)
                         fw |= ((cube_frees[w] >> shift) & 0xFF) << (8 * ly)
-                    hits[b, lz] |= hw
-                    frees[b, lz] |= fw
-    return True
+                    hits[n, lz] = hw
+                    frees[n, lz] = fw
+                    any_bits |= hw | fw
+                if any_bits != 0:
+                    codes[n] = _block_code(cx + bx * 8, cy + by * 8, cz + bz * 8)
+                    n += 1
+    return codes[:n], hits[:n], frees[:n]
 
 
 @kernel

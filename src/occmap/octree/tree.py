@@ -65,8 +65,8 @@ def _origin(origin) -> np.ndarray:
 
 
 def _mark_range(origin, ends, hit, res, rays, start, stop):
-    """Block masks of rays ``start..stop-1`` (grown until they fit); with many rays the voxels
-    around the sensor are marked in a dense cube first."""
+    """Block masks of rays ``start..stop-1`` (grown until they fit), a block possibly listed
+    twice; with many rays the voxels around the sensor are marked in a dense cube."""
     storage = I.new_blocks(max(64, (stop - start) // 8))
     corner = I.cube_corner(origin, res) if rays and stop - start >= _CUBE_RAYS else -1
     cube = I.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.int64))
@@ -75,11 +75,12 @@ def _mark_range(origin, ends, hit, res, rays, start, stop):
         if start == stop:
             break
         storage = I.grow_blocks(*storage)
-    while corner >= 0 and not I.cube_to_blocks(*cube, corner, *storage):
-        storage = I.grow_blocks(*storage)
     table, slots, codes, hits, frees, count = storage
     n = int(count[0])
-    return codes[:n], hits[:n], frees[:n]
+    blocks = codes[:n], hits[:n], frees[:n]
+    if corner >= 0:  # and the cube's (merge_blocks ors a block marked in both)
+        blocks = tuple(np.concatenate(pair) for pair in zip(blocks, I.cube_blocks(*cube, corner)))
+    return blocks
 
 
 def _mark(origin, ends, hit, res, rays: bool, threads: bool):
