@@ -288,7 +288,7 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             dky, dkz = sy << _KY, sz << _KZ
             diy, diz = sy * CUBE, sz * CUBE * CUBE
             while True:
-                cube_frees[idx >> 6] |= np.int64(1) << (idx & 63)
+                cube_frees[np.uint64(idx >> 6)] |= np.int64(1) << (idx & 63)  # (unsigned: no wrap-around test)
                 if tx < ty:
                     if tx < tz:
                         key += sx
@@ -343,7 +343,7 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             if is_hit:
                 hits[cur, m >> 6] |= np.int64(1) << (m & 63)
                 break
-            frees[cur, m >> 6] |= np.int64(1) << (m & 63)
+            frees[np.uint64(cur), np.uint64(m >> 6)] |= np.int64(1) << (m & 63)
             # next voxel: OctoMap's DDA step, noting when it enters another block
             if tx < ty:
                 if tx < tz:
