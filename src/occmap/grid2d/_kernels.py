@@ -41,9 +41,9 @@ def _update(L, iy, ix, l_delta, l_min, l_max):
 def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max):
     """Free update along a traversal from (ix, iy), a cell of the part, while it stays in the part:
     ``rx``, ``ry`` steps are left to the end cell (excluded), of which ``cx``, ``cy`` (≤ rx, ry)
-    stay in the part. Amanatides–Woo in two phases:
-    while both axes can still step, along the one whose next boundary comes first (x on ties);
-    then a straight run along the other, as long as the walk takes it."""
+    stay in the part. Amanatides–Woo in two phases: while both axes can still step, along the one
+    whose next boundary comes first (x on ties); then a straight run along the other, as long as
+    the walk takes it."""
     idx = iy * rs + ix * cs
     stx = sx * cs
     sty = sy * rs
