@@ -298,9 +298,9 @@ def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown
     path = np.zeros(DEPTH + 1, np.int64)
     known = -1
     px = py = pz = 0
-    max_range_set = max_range > 0.0
     max_range_sq = max_range * max_range
     reach = 0.87 * res + 1e-3  # half a voxel diagonal, and then some for float32 rounding
+    near = max_range - reach if max_range > 0.0 else np.inf
     big = np.finfo(np.float64).max
     for r in range(start, stop):
         o = origins[r] if origins.shape[0] == n else origins[0]
@@ -326,9 +326,14 @@ def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown
         if sz != 0:
             tz = (key_to_coord(kz, res) + sz * res * 0.5 - np.float64(oz)) / np.float64(dz)
             gz = res / abs(np.float64(dz))
+        # the key at which a step would leave the tree, per axis
+        lim_x = 0 if sx < 0 else MAX_KEY
+        lim_y = 0 if sy < 0 else MAX_KEY
+        lim_z = 0 if sz < 0 else MAX_KEY
         first = True
         cast = True
         node = -1
+        stop_here = False  # the node found: occupied, or unknown where unknown space stops the ray
         span = -1  # the last answer holds for every key that agrees with (px, py, pz) above this many low bits
         while True:
             diff = (kx ^ px) | (ky ^ py) | (kz ^ pz)
@@ -352,40 +357,39 @@ def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown
                 known = d  # path[0..d] holds existing nodes whether or not the search found one
                 # a leaf at depth d covers its whole cube; an unknown child of path[d] the cube one level down
                 span = DEPTH - d if node >= 0 else DEPTH - 1 - d
-            if node >= 0:
-                if value[node] >= occ:
-                    hit[r] = True
-                    break
-            elif not ignore_unknown:
+                stop_here = value[node] >= occ if node >= 0 else not ignore_unknown
+            if stop_here:
+                hit[r] = node >= 0
                 break
             if first:
                 first = False
                 if sx == 0 and sy == 0 and sz == 0:
                     cast = False
                     break
-            # ---- next voxel, unless the ray leaves the tree or passes max_range
-            if tx < ty:
-                dim = 0 if tx < tz else 2
-            else:
-                dim = 1 if ty < tz else 2
-            if dim == 0:
-                if (sx < 0 and kx == 0) or (sx > 0 and kx == MAX_KEY):
+            # ---- next voxel (OctoMap's tie-breaks), unless the ray leaves the tree or passes max_range
+            # (the axis that steps had the smallest t: min(t) reaches `near` only on a step whose
+            # own t does)
+            if tx < ty and tx < tz:
+                if kx == lim_x:
                     break
                 kx += sx
                 tx += gx
-            elif dim == 1:
-                if (sy < 0 and ky == 0) or (sy > 0 and ky == MAX_KEY):
+                far = tx >= near
+            elif ty <= tx and ty < tz:
+                if ky == lim_y:
                     break
                 ky += sy
                 ty += gy
+                far = ty >= near
             else:
-                if (sz < 0 and kz == 0) or (sz > 0 and kz == MAX_KEY):
+                if kz == lim_z:
                     break
                 kz += sz
                 tz += gz
+                far = tz >= near
             # OctoMap's range test (float32 voxel centre) only near max_range: the centre lies within
             # half a diagonal of the point where the ray leaves the voxel, min(t) from the origin
-            if max_range_set and min(tx, ty, tz) + reach >= max_range:
+            if far and min(tx, ty, tz) >= near:
                 ex = np.float32(key_to_coord(kx, res))
                 ey = np.float32(key_to_coord(ky, res))
                 ez = np.float32(key_to_coord(kz, res))
