@@ -8,6 +8,9 @@ world position of the outer corner of cell (0, 0); the index of a point is compu
 lands where OctoMap puts it. Where a segment passes exactly through a
 cell corner, the traversal steps along x first (one of the two side cells is visited, as in
 OctoMap's ``computeRayKeys``). Cells are not clipped to any grid: indices may be negative.
+The crossing parameters are rounded down to multiples of 2⁻⁵⁰ (a shift of the crossings by
+less than 10⁻¹⁵ of the segment), which makes a walk's additions exact: where a walk is after any
+number of steps can then be computed without walking (:func:`dda_span`).
 """
 
 from __future__ import annotations
