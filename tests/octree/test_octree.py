@@ -222,6 +222,21 @@ def test_large_scans_match_octomap(res):
     assert formats.encode_ot(ours) == ref.write()  # every node and value, in OctoMap's own bytes
 
 
+def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
+    """The tree updated on two threads with slot ranges far too small: each thread stops where
+    its range is full and the rest is applied on one thread; the tree is still OctoMap's."""
+    from occmap.octree import tree as tree_module
+    monkeypatch.setattr(tree_module, "_ROOM_PER_VOXEL", 0)
+    monkeypatch.setattr(tree_module, "_PARALLEL_VOXELS", 1000)
+    rng = np.random.default_rng(12)
+    ours, ref = OcTree(0.2), octomap.OcTree(0.2)
+    for origin in ((0.3, -0.2, 0.1), (1.1, 0.4, -0.7)):
+        pts = _room_cloud(rng, 3000, half=6.0)
+        ours.insert_point_cloud(pts, np.array(origin))
+        ref.insertPointCloud(pts, np.array(origin))
+    assert formats.encode_ot(ours) == ref.write()
+
+
 def test_discretize_matches_octomap():
     rng = np.random.default_rng(7)
     pts = _room_cloud(rng, 5000)

@@ -515,18 +515,37 @@ def block_voxels(codes, hits, frees, kbox):
 
 
 @kernel
-def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes):
+def subtree_split(keys, depth, first):
+    """Index in ``keys[first:]`` (packed, Morton order, all below one node at ``depth``) where one
+    child subtree of that node ends and the next begins, nearest the middle."""
+    bit = DEPTH - 1 - depth
+    n = keys.shape[0]
+    best = first
+    for i in range(first + 1, n):
+        a, b = keys[i - 1], keys[i]
+        pa = ((a >> bit) & 1) | (((a >> (16 + bit)) & 1) << 1) | (((a >> (32 + bit)) & 1) << 2)
+        pb = ((b >> bit) & 1) | (((b >> (16 + bit)) & 1) << 1) | (((b >> (32 + bit)) & 1) << 2)
+        if pa != pb and abs(2 * i - n - first) < abs(2 * best - n - first):
+            best = i
+    return best
+
+
+@kernel
+def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, top):
     """Update voxels ``start..`` (packed keys) in order, each as OctoMap's ``updateNode`` with a hit
-    or a miss. Returns the number of voxels, or the one at which the node pool ran out of room
-    (nothing of it applied yet: the caller grows the pool and resumes there). With
-    ``settle_nodes`` false (OctoMap's lazy evaluation) inner nodes are neither updated nor pruned.
+    or a miss. Returns (the number of voxels, or the one at which the slots below ``limit`` ran
+    out — nothing of it applied yet: the caller makes room and resumes there; whether any value
+    changed). With ``settle_nodes`` false (OctoMap's lazy evaluation) inner nodes are neither
+    updated nor pruned. Nodes above depth ``top`` are only passed through, never settled: two
+    threads can update the subtrees below one node side by side (see ``OcTree._apply``).
 
     The walk to a voxel restarts from the deepest node shared with the previous voxel's path, so
     voxels in Morton order cost a level or two instead of sixteen; an inner node is settled once
     the walk leaves it, if anything below it changed. The update step is written once and inline:
     a Numba call passing arrays costs more than the step itself."""
     n = keys.shape[0]
-    cap = value.shape[0]
+    cap = limit
+    changed = False
     path = np.zeros(DEPTH + 1, np.int64)  # path[d]: node at depth d on the last walk
     known = -1  # deepest valid entry of path
     dirty = -1  # path[0..dirty] saw a change since the walk entered them
@@ -534,9 +553,9 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
     for i in range(start, n):
         if meta[FREE] < 0 and meta[TOP] + _ROOM > cap:
             if settle_nodes:
-                for d in range(min(dirty, known - 1), -1, -1):
+                for d in range(min(dirty, known - 1), top - 1, -1):
                     settle(value, child, meta, path[d], True, True)
-            return i
+            return i, changed
         key = keys[i]
         kx, ky, kz = key & 0xFFFF, (key >> 16) & 0xFFFF, key >> 32
         hit = is_hit[i]
@@ -547,7 +566,7 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
             diff = (diff | (diff >> 16) | (diff >> 32)) & 0xFFFF
             shared = DEPTH - bit_length(diff)  # 16 when it is the same voxel
             if settle_nodes:
-                for s in range(min(dirty, known - 1), shared, -1):
+                for s in range(min(dirty, known - 1), max(shared, top - 1), -1):
                     settle(value, child, meta, path[s], True, True)
                 dirty = min(dirty, shared)
             d = min(shared, known)
@@ -596,7 +615,8 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
             v = v + l_miss
         value[node] = lo if v < lo else (hi if v > hi else v)
         dirty = DEPTH
+        changed = True
     if settle_nodes and known >= 0:
-        for d in range(min(dirty, known - 1), -1, -1):
+        for d in range(min(dirty, known - 1), top - 1, -1):
             settle(value, child, meta, path[d], True, True)
-    return n
+    return n, changed

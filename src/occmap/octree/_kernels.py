@@ -93,6 +93,49 @@ def settle(value, child, meta, node, set_max, prune):
 
 
 @kernel
+def path_to(value, child, key, depth):
+    """The nodes from the root down to ``depth`` on the way to the voxel with packed key ``key``
+    when each of them exists and has its block of children, else an empty array."""
+    kx, ky, kz = key & 0xFFFF, (key >> 16) & 0xFFFF, key >> 32
+    path = np.empty(depth + 1, np.int64)
+    node = 0
+    for d in range(depth + 1):
+        if np.isnan(value[node]) or child[node] < 0:
+            return path[:0]
+        path[d] = node
+        node = child[node] + child_pos(kx, ky, kz, d)
+    return path
+
+
+@kernel
+def join_pools(child, meta, meta_a, meta_b, gap_lo, gap_hi):
+    """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``, with the pool's free
+    list) and [gap_hi, ·) (``meta_b``): one pool again, the first range's unused blocks
+    [gap_lo, gap_hi) and the blocks the second freed on the free list, node counts added."""
+    free = meta_a[FREE]
+    for c in range(gap_lo, gap_hi, 8):
+        child[c] = free
+        free = c
+    c = meta_b[FREE]
+    while c >= 0:
+        nxt = child[c]
+        child[c] = free
+        free = c
+        c = nxt
+    meta[TOP] = meta_b[TOP]
+    meta[FREE] = free
+    meta[SIZE] += meta_a[SIZE] + meta_b[SIZE]
+
+
+@kernel
+def settle_path(value, child, meta, path):
+    """Settle (see :func:`settle`: maximum of the children, or pruned) the nodes of ``path``,
+    deepest first."""
+    for d in range(path.shape[0] - 1, -1, -1):
+        settle(value, child, meta, path[d], True, True)
+
+
+@kernel
 def settle_tree(value, child, meta, depth, set_max, prune):
     """Post-order walk settling (see :func:`settle`) every inner node (``depth`` < 0: OctoMap's
     ``updateInnerOccupancy`` with ``set_max``) or only those at ``depth`` (one level of OctoMap's

@@ -27,6 +27,11 @@ _INITIAL_SLOTS = 1 << 12
 _PARALLEL_RAYS = 20_000
 #: Scans with at least this many marked blocks list their voxels on two threads.
 _PARALLEL_BLOCKS = 256
+#: Scans with at least this many voxels update the tree on two threads.
+_PARALLEL_VOXELS = 20_000
+#: Slots a thread's range holds: this many a voxel, and a margin.
+_ROOM_PER_VOXEL = 2
+_ROOM_MARGIN = 8 * 16 * 8
 #: Scans (or halves of one) with at least this many rays mark the voxels near the sensor in a
 #: dense cube (see occmap.octree._insert.CUBE).
 _CUBE_RAYS = 4096
@@ -248,7 +253,7 @@ class OcTree:
         :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
         """
         keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
-        self._apply(keys, is_hit, lazy)
+        self._apply(keys, is_hit, lazy, threads=True)
         return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
@@ -272,7 +277,7 @@ class OcTree:
             pending = (_PIPELINE.submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
                        if k + 1 < len(pairs) else None)
             keys, is_hit, summary = current
-            self._apply(keys, is_hit, lazy)
+            self._apply(keys, is_hit, lazy, threads=pending is None)  # (the second core traces the next scan)
             self._count(summary)
             total["scans"] += 1
             for name in ("points", "dropped", "beyond_max_range"):
@@ -344,18 +349,74 @@ class OcTree:
         k = self.coord_to_key(P.astype(np.float32).astype(np.float64))
         self._apply(k[:, 0] | (k[:, 1] << 16) | (k[:, 2] << 32), np.ascontiguousarray(occ), lazy)
 
-    def _apply(self, keys: np.ndarray, is_hit: np.ndarray, lazy: bool) -> None:
-        start = 0
+    def _apply(self, keys: np.ndarray, is_hit: np.ndarray, lazy: bool, threads: bool = False) -> None:
+        """Update the voxels ``keys`` (packed) in order; with ``threads`` (the keys of one scan:
+        each once, in Morton order) many voxels on two threads."""
+        if threads and len(keys) >= _PARALLEL_VOXELS and self._apply_halves(keys, is_hit, lazy):
+            return
+        self._apply_range(keys, is_hit, lazy, 0, len(keys))
+
+    def _apply_range(self, keys, is_hit, lazy: bool, start: int, stop: int) -> bool:
+        """Voxels ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
+        keys, is_hit = keys[:stop], is_hit[:stop]
         top = int(self._meta[K.TOP])
+        changed = False
         while True:
-            start = I.apply_voxels(self._value, self._child, self._meta, keys, is_hit, start,
-                                   self._l_hit, self._l_miss, self._l_min, self._l_max, not lazy)
+            start, ch = I.apply_voxels(self._value, self._child, self._meta, keys, is_hit, start, self._l_hit,
+                                       self._l_miss, self._l_min, self._l_max, not lazy, self._value.shape[0], 0)
+            changed |= ch
             if start == len(keys):
-                return
+                return changed
             # out of slots: room for the rest at the rate of slots per voxel so far, and a margin
             used = int(self._meta[K.TOP])
             rate = (used - top) / max(start, 1)
             self._value, self._child = K.grow(self._value, self._child, int(used + 1.25 * rate * (len(keys) - start)))
+
+    def _apply_halves(self, keys, is_hit, lazy: bool) -> bool:
+        """The voxels on two threads, when the path to the node all of them share exists down to
+        its children: each thread updates whole subtrees below that node, allocating slots from
+        its own range, and the shared path is settled afterwards. False (nothing done) where the
+        path does not exist yet even after the first voxel (a pruned leaf on it absorbs it)."""
+        diff = int(keys[0] ^ keys[-1])
+        shared = K.DEPTH - int((diff | (diff >> 16) | (diff >> 32)) & 0xFFFF).bit_length()  # depth of that node
+        path = self._path(int(keys[0]), shared)
+        first = 0
+        if path is None:  # make it: the first voxel's update creates (or expands) the nodes on its way
+            self._apply_range(keys, is_hit, lazy, 0, 1)
+            path, first = self._path(int(keys[0]), shared), 1
+            if path is None:
+                return False
+        split = I.subtree_split(keys, shared, first)
+        # slot ranges: the first thread from the top of the pool (and the free list), the second
+        # above its range; a thread that runs out leaves its rest to this one
+        top = int(self._meta[K.TOP])
+        room_a = 8 * ((_ROOM_PER_VOXEL * (split - first) + _ROOM_MARGIN) // 8 + 1)
+        room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
+        if self._value.shape[0] < top + room_a + room_b:
+            self._value, self._child = K.grow(self._value, self._child, top + room_a + room_b)
+        meta_a = np.array([top, self._meta[K.FREE], 0], np.int64)
+        meta_b = np.array([top + room_a, -1, 0], np.int64)
+        args = (self._l_hit, self._l_miss, self._l_min, self._l_max, not lazy)
+        runs = [_POOL.submit(I.apply_voxels, self._value, self._child, meta_a, keys[:split], is_hit[:split], first,
+                             *args, top + room_a, shared + 1),
+                _POOL.submit(I.apply_voxels, self._value, self._child, meta_b, keys, is_hit, split,
+                             *args, self._value.shape[0], shared + 1)]
+        (end_a, changed_a), (end_b, changed_b) = (r.result() for r in runs)
+        K.join_pools(self._child, self._meta, meta_a, meta_b, int(meta_a[K.TOP]), top + room_a)
+        changed = changed_a or changed_b
+        if end_a < split:  # a range ran out of slots: the rest here
+            changed |= self._apply_range(keys, is_hit, lazy, end_a, split)
+        if end_b < len(keys):
+            changed |= self._apply_range(keys, is_hit, lazy, end_b, len(keys))
+        if changed and not lazy:
+            K.settle_path(self._value, self._child, self._meta, path)
+        return True
+
+    def _path(self, key: int, depth: int):
+        """Nodes from the root down to ``depth`` towards voxel ``key`` when each has its child
+        block, else None."""
+        path = K.path_to(self._value, self._child, key, depth)
+        return path if len(path) else None
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
