@@ -24,8 +24,6 @@ def _update(L, iy, ix, l_delta, l_min, l_max):
     L[iy, ix] = min(max(L[iy, ix] + l_delta, l_min), l_max)
 
 
-
-
 # ---------------------------------------------------------------------------------------------
 # lidar: the walks along a beam
 #

@@ -245,6 +245,13 @@ def cube_corner(origin, res):
 
 
 @kernel
+def _cube_index(key, corner):
+    """Bit of the voxel with packed key ``key`` in the cube at ``corner``."""
+    d = key - corner
+    return (d & (CUBE - 1)) + ((d >> _KY) & (CUBE - 1)) * CUBE + (d >> _KZ) * (CUBE * CUBE)
+
+
+@kernel
 def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hits, frees, count,
               cube_hits, cube_frees, corner):
     """Set the hit bit of each in-range end voxel and the free bits of every ray's voxels, for rays
@@ -283,8 +290,7 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             # branches: the branch-free forms measured slower, their compare→select→add chain
             # being longer than the mispredictions they save.)
             key = kx | (ky << _KY) | (kz << _KZ)
-            d = key - corner
-            idx = (d & (CUBE - 1)) + ((d >> _KY) & (CUBE - 1)) * CUBE + (d >> _KZ) * (CUBE * CUBE)
+            idx = _cube_index(key, corner)
             dky, dkz = sy << _KY, sz << _KZ
             diy, diz = sy * CUBE, sz * CUBE * CUBE
             while True:
@@ -314,8 +320,7 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             kx, ky, kz = key & 0xFFFFF, (key >> _KY) & 0xFFFFF, key >> _KZ
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
-            d = end_key - corner
-            j = (d & (CUBE - 1)) + ((d >> _KY) & (CUBE - 1)) * CUBE + (d >> _KZ) * (CUBE * CUBE)
+            j = _cube_index(end_key, corner)
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
             continue
         wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7  # local coordinate on entering a block
@@ -515,17 +520,21 @@ def block_voxels(codes, hits, frees, kbox):
 
 
 @kernel
+def shared_depth(a, b):
+    """Depth of the deepest node on the paths to the voxels with packed keys ``a`` and ``b`` (16
+    when they are the same voxel)."""
+    d = a ^ b
+    return DEPTH - bit_length((d | (d >> 16) | (d >> 32)) & 0xFFFF)
+
+
+@kernel
 def subtree_split(keys, depth, first):
     """Index in ``keys[first:]`` (packed, Morton order, all below one node at ``depth``) where one
     child subtree of that node ends and the next begins, nearest the middle."""
-    bit = DEPTH - 1 - depth
     n = keys.shape[0]
     best = first
     for i in range(first + 1, n):
-        a, b = keys[i - 1], keys[i]
-        pa = ((a >> bit) & 1) | (((a >> (16 + bit)) & 1) << 1) | (((a >> (32 + bit)) & 1) << 2)
-        pb = ((b >> bit) & 1) | (((b >> (16 + bit)) & 1) << 1) | (((b >> (32 + bit)) & 1) << 2)
-        if pa != pb and abs(2 * i - n - first) < abs(2 * best - n - first):
+        if shared_depth(keys[i - 1], keys[i]) == depth and abs(2 * i - n - first) < abs(2 * best - n - first):
             best = i
     return best
 
@@ -562,9 +571,7 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
         # ---- leave the previous voxel's path up to the node both share
         d = 0
         if known >= 0:
-            diff = key ^ previous
-            diff = (diff | (diff >> 16) | (diff >> 32)) & 0xFFFF
-            shared = DEPTH - bit_length(diff)  # 16 when it is the same voxel
+            shared = shared_depth(key, previous)
             if settle_nodes:
                 for s in range(min(dirty, known - 1), max(shared, top - 1), -1):
                     settle(value, child, meta, path[s], True, True)

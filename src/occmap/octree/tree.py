@@ -377,14 +377,13 @@ class OcTree:
         its children: each thread updates whole subtrees below that node, allocating slots from
         its own range, and the shared path is settled afterwards. False (nothing done) where the
         path does not exist yet even after the first voxel (a pruned leaf on it absorbs it)."""
-        diff = int(keys[0] ^ keys[-1])
-        shared = K.DEPTH - int((diff | (diff >> 16) | (diff >> 32)) & 0xFFFF).bit_length()  # depth of that node
-        path = self._path(int(keys[0]), shared)
+        shared = I.shared_depth(keys[0], keys[-1])  # depth of that node
+        path = K.path_to(self._value, self._child, keys[0], shared)
         first = 0
-        if path is None:  # make it: the first voxel's update creates (or expands) the nodes on its way
+        if not len(path):  # make it: the first voxel's update creates (or expands) the nodes on its way
             self._apply_range(keys, is_hit, lazy, 0, 1)
-            path, first = self._path(int(keys[0]), shared), 1
-            if path is None:
+            path, first = K.path_to(self._value, self._child, keys[0], shared), 1
+            if not len(path):
                 return False
         split = I.subtree_split(keys, shared, first)
         # slot ranges: the first thread from the top of the pool (and the free list), the second
@@ -411,12 +410,6 @@ class OcTree:
         if changed and not lazy:
             K.settle_path(self._value, self._child, self._meta, path)
         return True
-
-    def _path(self, key: int, depth: int):
-        """Nodes from the root down to ``depth`` towards voxel ``key`` when each has its child
-        block, else None."""
-        path = K.path_to(self._value, self._child, key, depth)
-        return path if len(path) else None
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
