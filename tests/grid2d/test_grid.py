@@ -9,6 +9,7 @@ import pytest
 
 from occmap.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from occmap.grid2d import LidarModel, OccupancyGrid2D, logit
+from occmap.grid2d import _kernels as K
 
 L_HIT, L_MISS, L_MAX, L_MIN = logit(0.7), logit(0.4), logit(0.971), logit(0.1192)
 
@@ -86,6 +87,29 @@ def test_batched_integration_equals_one_scan_at_a_time(rng):
         b.integrate_scan(p, r, angles, max_range=5.0)
     np.testing.assert_array_equal(a.log_odds, b.log_odds)
     np.testing.assert_array_equal(a.observed, b.observed)
+
+
+def test_scans_past_the_stamp_codes_equal_wide_stamps(rng):
+    """The grid's 16-bit stamps run out of scan codes every 32,767 scans and start again; 70,000
+    small scans from nearby poses, in one call and in calls of uneven sizes, give the same cells
+    as the kernel with 32-bit stamps and scan ids 1..70,000 (an old stamp mistaken for "already
+    updated in this scan" would skip updates)."""
+    n = 70_000
+    poses = np.column_stack([rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), rng.uniform(-np.pi, np.pi, n)])
+    angles = np.linspace(-np.pi, np.pi, 6, endpoint=False)
+    ranges = rng.uniform(0.3, 1.2, (n, 6))
+    one = OccupancyGrid2D(0.05, size=(3.0, 3.0), origin=(-1.5, -1.5))
+    one.integrate_scans(poses, ranges, angles, max_range=1.0)
+    split = OccupancyGrid2D(0.05, size=(3.0, 3.0), origin=(-1.5, -1.5))
+    for i, j in ((0, 1), (1, 32_766), (32_766, 32_768), (32_768, 65_535), (65_535, 65_536), (65_536, n)):
+        split.integrate_scans(poses[i:j], ranges[i:j], angles, max_range=1.0)
+    L = np.zeros(one.shape, np.float32)
+    S = np.zeros(one.shape, np.int32)
+    K.integrate_lidar(L, S, 1, poses, ranges, np.ascontiguousarray(np.broadcast_to(angles, ranges.shape)), 1.0,
+                      -1.5, -1.5, 20.0, L_HIT, L_MISS, L_MIN, L_MAX)
+    for g in (one, split):
+        np.testing.assert_array_equal(g.log_odds.view(np.int32), L.view(np.int32))
+        np.testing.assert_array_equal(g.observed, S != 0)
 
 
 def test_growing_map_keeps_content_and_alignment(rng):

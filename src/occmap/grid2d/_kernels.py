@@ -1,11 +1,12 @@
 """Numba kernels of the 2D occupancy grid: plain arrays in, arrays updated in place.
 
-Per-cell state is ``L`` (float32 log-odds) and ``stamp`` (int32): ``stamp == 0`` means never
-observed; within scan ``s`` (s ≥ 1) a free update sets ``2s`` and a hit sets ``2s + 1``, so one
-array says both "already updated in this scan" and "hit wins over miss". The lidar kernels see
-the cells as flat arrays with a column and a row step (see :func:`_flat`), so they serve both two
-separate (H, W) arrays and the grid's interleaved storage (log-odds and stamp of a cell side by
-side in one 8-byte record).
+Per-cell state is ``L`` (float32 log-odds) and ``stamp`` (unsigned integers, uint16 in the grid):
+``stamp == 0`` means never observed; within scan code ``s`` (s ≥ 1) a free update sets ``2s`` and
+a hit sets ``2s + 1``, so one array says both "already updated in this scan" and "hit wins over
+miss". Codes rise within a call; the caller keeps ``2s + 1`` within the stamp's dtype and every
+older stamp below ``2s`` (the grid lowers all of them to 1 when it runs out of codes). Two
+separate arrays, 6 bytes a cell in all, keep more of a scan's cells in the caches than one 8-byte
+record did (5–7 % faster on the benchmark's 10 m beams, medians of alternating rounds).
 """
 
 from __future__ import annotations
@@ -36,14 +37,14 @@ def _update(L, iy, ix, l_delta, l_min, l_max):
 
 
 @kernel
-def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max):
+def _walk_inside(Lf, Sf, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max):
     """Free update along a traversal from (ix, iy), a cell of the part, while it stays in the part:
     ``rx``, ``ry`` steps are left to the end cell (excluded), of which ``cx``, ``cy`` (≤ rx, ry)
     stay in the part. Amanatides–Woo in two phases: while both axes can still step, along the one
     whose next boundary comes first (x on ties); then a straight run along the other, as long as
     the walk takes it."""
-    idx = iy * rs + ix * cs
-    stx = sx * cs
+    idx = iy * rs + ix
+    stx = sx
     sty = sy * rs
     while cx > 0 and cy > 0:
         i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
@@ -89,7 +90,7 @@ def _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, 
 
 
 @kernel
-def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, inv_res, s2, l_miss, l_min, l_max):
+def _walk_beam(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, inv_res, s2, l_miss, l_min, l_max):
     """Free update of the cells from (x0, y0) to (x1, y1), end cell excluded, that lie in the part
     ``[x_lo, x_hi) × [y_lo, y_hi)`` (which lies in the grid). The traversal is monotone in both
     axes, so its cells in a rectangle are one run: start the walk at its first cell there (see
@@ -114,7 +115,7 @@ def _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, i
             iy += sy * jy
     cx = min(rx, x_hi - 1 - ix if sx > 0 else ix - x_lo)  # the steps that stay in the part
     cy = min(ry, y_hi - 1 - iy if sy > 0 else iy - y_lo)
-    _walk_inside(Lf, Sf, cs, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max)
+    _walk_inside(Lf, Sf, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max)
 
 
 @kernel
@@ -132,7 +133,7 @@ def _beam_end(x0, y0, th, r, a, max_range):
 
 
 @kernel
-def _part(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+def _part(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
           l_hit, l_miss, l_min, l_max):
     """All scans' updates of the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
     first the scan's hits, each cell once (stamp ``2s + 1``), then the free cells along each of its
@@ -150,23 +151,23 @@ def _part(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, 
                 ix = int(math.floor((ex[b] - ox) * inv_res))
                 iy = int(math.floor((ey[b] - oy) * inv_res))
                 if x_lo <= ix < x_hi and y_lo <= iy < y_hi:
-                    idx = iy * rs + ix * cs
+                    idx = iy * rs + ix
                     if Sf[idx] != 2 * s + 1:
                         Sf[idx] = 2 * s + 1
                         Lf[idx] = min(max(Lf[idx] + l_hit, l_min), l_max)
         for b in range(n_beams):
             if kind[b] != 0:
-                _walk_beam(Lf, Sf, cs, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, ex[b], ey[b], ox, oy, inv_res, 2 * s,
+                _walk_beam(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, ex[b], ey[b], ox, oy, inv_res, 2 * s,
                            l_miss, l_min, l_max)
 
 
 @kernel_parallel
-def _parts(Lf, Sf, cs, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+def _parts(Lf, Sf, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
            l_hit, l_miss, l_min, l_max):
     """:func:`_part` for each row ``(x_lo, x_hi, y_lo, y_hi)`` of ``parts`` (disjoint), one
     thread each, with no synchronisation until all are done."""
     for p in prange(parts.shape[0]):
-        _part(Lf, Sf, cs, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, ranges, angles,
+        _part(Lf, Sf, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, ranges, angles,
               max_range, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
 
 
@@ -226,27 +227,18 @@ SPLIT_MIN_CELLS = 20_000
 
 
 def _flat(L, stamp):
-    """Flat views ``(Lf, Sf, cs, rs)`` of the grid's cells: cell (iy, ix) is ``Lf[iy·rs + ix·cs]``
-    and ``Sf[iy·rs + ix·cs]``. Two C-contiguous (H, W) arrays, or the two halves of one
-    interleaved (H, W, 2) buffer (float32 log-odds then int32 stamp, so one cache line holds both
-    of a cell: what :class:`OccupancyGrid2D` stores)."""
-    H, W = L.shape
-    if L.flags.c_contiguous and stamp.flags.c_contiguous:
-        return L.reshape(-1), stamp.reshape(-1), 1, W
-    n = 2 * H * W
-    if (L.dtype == np.float32 and stamp.dtype == np.int32 and stamp.shape == (H, W) and n > 0
-            and L.strides == (8 * W, 8) and stamp.strides == (8 * W, 8)
-            and stamp.ctypes.data == L.ctypes.data + 4 and L.flags.writeable and stamp.flags.writeable):
-        Lf = np.lib.stride_tricks.as_strided(L, shape=(n,), strides=(4,))
-        Sf = np.lib.stride_tricks.as_strided(stamp, shape=(n - 1,), strides=(4,))
-        return Lf, Sf, 2, 2 * W
-    raise ValueError("L and stamp must be C-contiguous (H, W) arrays or the halves of one interleaved buffer")
+    """Flat views ``(Lf, Sf)`` of the grid's cells, two C-contiguous (H, W) arrays: cell (iy, ix)
+    is ``Lf[iy·W + ix]`` and ``Sf[iy·W + ix]``."""
+    if L.flags.c_contiguous and stamp.flags.c_contiguous and stamp.shape == L.shape:
+        return L.reshape(-1), stamp.reshape(-1)
+    raise ValueError("L and stamp must be C-contiguous (H, W) arrays")
 
 
 def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
                     l_hit, l_miss, l_min, l_max, split_min_cells=None):
     """Integrate scans ``k = 0..N-1`` (poses (N, 3), ranges (N, n), angles (N, n)) into the grid
-    ``L`` (float32 log-odds), ``stamp`` (int32), both (H, W), with scan ids ``scan0 + k``.
+    ``L`` (float32 log-odds), ``stamp`` (unsigned integers), both (H, W), with scan codes
+    ``scan0 + k`` (see the module's docstring for what they must fit).
     Returns (beams used, readings dropped as NaN/≤ 0, max-range readings).
 
     With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` where Numba
@@ -255,14 +247,14 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
     threads = get_num_threads()
     if split_min_cells is None:
         split_min_cells = SPLIT_MIN_CELLS if threads >= 2 else -1
-    Lf, Sf, cs, rs = _flat(L, stamp)
+    Lf, Sf = _flat(L, stamp)
     H, W = L.shape
-    return _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+    return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
                             l_hit, l_miss, l_min, l_max, split_min_cells, max(threads, 2))
 
 
 @kernel
-def _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+def _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
                      l_hit, l_miss, l_min, l_max, split_min_cells, max_parts):
     n_scans, n_beams = ranges.shape
     used = 0
@@ -280,10 +272,10 @@ def _integrate_lidar(Lf, Sf, cs, rs, H, W, scan0, poses, ranges, angles, max_ran
     parts = np.empty((max_parts, 4), dtype=np.int64)
     n_parts = _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, split_min_cells, parts)
     if n_parts == 1:
-        _part(Lf, Sf, cs, rs, 0, W, 0, H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+        _part(Lf, Sf, W, 0, W, 0, H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
               l_hit, l_miss, l_min, l_max)
     else:
-        _parts(Lf, Sf, cs, rs, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+        _parts(Lf, Sf, W, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
                l_hit, l_miss, l_min, l_max)
     return used, dropped, maxed
 

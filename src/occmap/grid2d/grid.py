@@ -20,17 +20,16 @@ from .sensor_models import LidarModel, SonarModel, logit
 _GROW_MARGIN_CELLS = 64
 
 
-def _new_cells(shape, l_prior: float) -> np.ndarray:
-    """Cell storage (H, W, 2) float32: per cell the log-odds, then the int32 stamp in the second
-    slot (one 8-byte record, so a ray's update of both touches one cache line). Every cell at the
-    prior and never observed (stamp 0); with prior 0 the buffer comes zeroed from the OS and is
-    only paged in where rays go."""
-    if l_prior == 0.0:
-        return np.zeros((*shape, 2), dtype=np.float32)
-    cells = np.empty((*shape, 2), dtype=np.float32)
-    cells[..., 0] = l_prior
-    cells.view(np.int32)[..., 1] = 0
-    return cells
+#: Scan codes available to the uint16 stamps (free ``2c``, hit ``2c + 1``); past the last, every
+#: stamp drops to 1 (observed before) and codes start again at 1.
+_LAST_CODE = 32767
+
+
+def _new_cells(shape, l_prior: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cell storage: float32 log-odds at the prior and uint16 stamps, 0 (never observed), both
+    (H, W). Zeroed buffers come from the OS and are only paged in where rays go."""
+    L = np.zeros(shape, dtype=np.float32) if l_prior == 0.0 else np.full(shape, l_prior, dtype=np.float32)
+    return L, np.zeros(shape, dtype=np.uint16)
 
 
 def _beam_bounds(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) -> tuple[float, float, float, float]:
@@ -72,6 +71,7 @@ class OccupancyGrid2D:
             raise InvalidArgumentError(f"prior {prior!r} must lie strictly between the clamping bounds {clamp!r}")
         self.growing = size is None
         self._scans = 0
+        self._code = 0  # stamp code of the last scan integrated (see _in_runs)
         self.stats = {"scans": 0, "beams": 0, "dropped": 0, "max_range": 0}
         if size is None:
             self.origin = None if origin is None else np.array(origin, dtype=np.float64)
@@ -82,7 +82,7 @@ class OccupancyGrid2D:
                 raise InvalidArgumentError(f"size must be positive (width, height) in metres, got {size!r}")
             self.origin = np.zeros(2) if origin is None else np.array(origin, dtype=np.float64)
             shape = (int(math.ceil(h / self.resolution - 1e-9)), int(math.ceil(w / self.resolution - 1e-9)))
-        self._set_cells(_new_cells(shape, self.l_prior))
+        self._L, self._stamp = _new_cells(shape, self.l_prior)
 
     # ------------------------------------------------------------------ geometry
 
@@ -106,13 +106,6 @@ class OccupancyGrid2D:
         if c.shape[-1:] != (2,):
             raise ShapeError(f"cells must have shape (..., 2), got {c.shape}")
         return self._origin_or_zero() + (c[..., ::-1] + 0.5) * self.resolution
-
-    def _set_cells(self, cells: np.ndarray) -> None:
-        """Adopt ``cells`` (see :func:`_new_cells`); ``_L`` (float32 log-odds) and ``_stamp``
-        (int32; 0: never observed) are (H, W) views of it."""
-        self._cells = cells
-        self._L = cells[..., 0]
-        self._stamp = cells.view(np.int32)[..., 1]
 
     def _origin_or_zero(self) -> np.ndarray:
         return np.zeros(2) if self.origin is None else self.origin
@@ -205,11 +198,11 @@ class OccupancyGrid2D:
             raise InvalidArgumentError(f"max_range must be a positive finite number of metres, got {max_range!r}")
         if self.growing and len(P):
             self._grow_to(*_beam_bounds(P, R, A, max_range))
-        used, dropped, maxed = K.integrate_lidar(
-            self._L, self._stamp, self._scans + 1, P, R, A, float(max_range), float(self.origin[0]),
+        used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_lidar(
+            self._L, self._stamp, code, P[i:j], R[i:j], A[i:j], float(max_range), float(self.origin[0]),
             float(self.origin[1]), 1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior,
             self.l_min, self.l_max,
-        )
+        ))
         return self._record(len(P), used, dropped, maxed)
 
     def integrate_sonar(self, poses, ranges, bearings, max_range: float, model: SonarModel | None = None) -> dict:
@@ -240,13 +233,31 @@ class OccupancyGrid2D:
             reach = max_range + arc
             self._grow_to(P[:, 0].min() - reach, P[:, 1].min() - reach, P[:, 0].max() + reach, P[:, 1].max() + reach)
         lo, hi = model.sector_bounds(B)
-        used, dropped, maxed = K.integrate_sonar(
-            self._L, self._stamp, self._scans + 1, np.ascontiguousarray(P), np.ascontiguousarray(R), B, lo, hi,
+        P, R = np.ascontiguousarray(P), np.ascontiguousarray(R)
+        used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_sonar(
+            self._L, self._stamp, code, P[i:j], R[i:j], B, lo, hi,
             0.5 * model.beam_width, bool(model.wrap_angles), model.weighting == "uniform", float(model.min_range),
             float(max_range), bool(model.ignore_max_range), float(arc), float(self.origin[0]), float(self.origin[1]),
             self.resolution, model.l_occupied - self.l_prior, model.l_free - self.l_prior, self.l_min, self.l_max,
-        )
+        ))
         return self._record(len(P), used, dropped, maxed)
+
+    def _in_runs(self, n: int, integrate) -> tuple[int, int, int]:
+        """Integrate a call's ``n`` scans as ``integrate(i, j, code)`` over runs ``[i, j)`` whose
+        stamp codes ``code .. code + j − i − 1`` fit the uint16 stamps; returns the summed counts.
+        Between runs, once the codes are used up, every stamp drops to 1 (observed, before every
+        coming scan) and codes start again at 1."""
+        totals = np.zeros(3, dtype=np.int64)
+        i = 0
+        while i < n:
+            if self._code == _LAST_CODE:
+                np.minimum(self._stamp, 1, out=self._stamp)
+                self._code = 0
+            j = min(n, i + _LAST_CODE - self._code)
+            totals += integrate(i, j, self._code + 1)
+            self._code += j - i
+            i = j
+        return tuple(totals)
 
     def _record(self, scans: int, beams, dropped, maxed) -> dict:
         """Advance the scan counter and add one call's counts to :attr:`stats`; returns them."""
@@ -276,9 +287,10 @@ class OccupancyGrid2D:
         add_right = hi_x - W + margin_x if hi_x > W else 0
         add_top = hi_y - H + margin_y if hi_y > H else 0
         shape = (H + add_bottom + add_top, W + add_left + add_right)
-        cells = _new_cells(shape, self.l_prior)
-        cells[add_bottom:add_bottom + H, add_left:add_left + W] = self._cells
-        self._set_cells(cells)
+        L, stamp = _new_cells(shape, self.l_prior)
+        L[add_bottom:add_bottom + H, add_left:add_left + W] = self._L
+        stamp[add_bottom:add_bottom + H, add_left:add_left + W] = self._stamp
+        self._L, self._stamp = L, stamp
         self.origin = self.origin - np.array([add_left, add_bottom]) * res
 
     # ------------------------------------------------------------------ files
@@ -317,7 +329,7 @@ class OccupancyGrid2D:
         known = occ >= 0
         p = np.clip(occ / 100.0, 1e-9, 1 - 1e-9)
         grid._L[known] = np.clip(np.log(p / (1.0 - p)), grid.l_min, grid.l_max)[known]
-        grid._stamp[known] = 1  # known from a file: below every scan's stamps (2s, 2s + 1 for s ≥ 1)
+        grid._stamp[known] = 1  # known from a file: below every scan's stamps (2c, 2c + 1 for c ≥ 1)
         return grid
 
     def __repr__(self) -> str:
