@@ -222,6 +222,46 @@ def test_large_scans_match_octomap(res):
     assert formats.encode_ot(ours) == ref.write()  # every node and value, in OctoMap's own bytes
 
 
+def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
+    """A ray from the origin with a y of −4·10⁻¹⁶ (a UOS scan has one): its end voxel is at
+    y key 32767, but its walk never crosses y = 0 before the range test stops it, 64 voxels out,
+    past the dense cube. OctoMap marks the end voxel occupied all the same (it was once marked at
+    the walk's last voxel instead)."""
+    rng = np.random.default_rng(13)
+    pts = np.vstack([[[6.48370, -4.12815e-16, 1.84829]], _room_cloud(rng, 5000, half=3.0)])
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    ours.insert_point_cloud(pts, np.zeros(3))
+    ref.insertPointCloud(pts, np.zeros(3))
+    assert ours.occupancy_at(np.array([[6.45, -0.05, 1.85]]))[0] == 1
+    assert formats.encode_ot(ours) == ref.write()
+
+
+@pytest.mark.parametrize("res", [0.05, 0.2])
+def test_dense_cube_walks_give_the_plain_walks_voxels(res):
+    """The cube phase (slabs along each ray's major axis, x, y and z all among them, ties of
+    directions along diagonals, rays ending inside and beyond the cube) against OctoMap's plain
+    step-by-step walk (``ray_voxels``), voxel for voxel, hits included."""
+    from occmap.octree import _insert as I
+    from occmap.octree import tree as tree_module
+
+    rng = np.random.default_rng(14)
+    d = rng.normal(size=(6000, 3))
+    d[:1000] = np.round(d[:1000])  # axis-aligned and diagonal directions: ties between axes
+    d[np.all(d == 0, axis=1)] = (1.0, 1.0, 0.0)
+    pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.2, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
+    origin = np.array([0.013, -0.021, 0.034], np.float32)
+    ends, hit, _, _ = I.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32))
+    blocks = I.merge_blocks(*tree_module._mark_range(origin, ends, hit, res, True, 0, len(ends)))
+    keys, is_hit = I.block_voxels(*blocks, np.empty((0, 3), np.int64))
+    ref_keys, ref_hit = I.ray_voxels(origin[None], ends, hit, res)
+    unique, inverse = np.unique(ref_keys, return_inverse=True)
+    unique_hit = np.zeros(len(unique), bool)
+    np.logical_or.at(unique_hit, inverse, ref_hit)
+    order = np.argsort(keys)
+    np.testing.assert_array_equal(keys[order], unique)
+    np.testing.assert_array_equal(is_hit[order], unique_hit)
+
+
 def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
     """The tree updated on two threads with slot ranges far too small: each thread stops where
     its range is full and the rest is applied on one thread; the tree is still OctoMap's."""

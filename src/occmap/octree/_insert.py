@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .._intrinsics import bit_length
+from .._intrinsics import add_if_le, add_if_lt, bit_length
 from .._jit import kernel
 from ._kernels import DEPTH, FREE, MAX_KEY, SIZE, TOP, alloc_block, coord_to_key, key_to_coord, settle
 
@@ -214,9 +214,11 @@ def grow_blocks(table, slots, codes, hits, frees, count):
     return t2, s2, c2, h2, f2, n2
 
 
-#: The dense cube marked around the sensor: CUBE³ voxels (a multiple of 8), bit
-#: ``x + CUBE·y + CUBE²·z`` of a flat int64 array. Near the sensor every voxel is crossed by many
-#: rays; there a step sets a bit at an index that moves with it, with no block to look up.
+#: The dense cube marked around the sensor: CUBE³ voxels (a multiple of 8), voxel
+#: ``x + CUBE·y + CUBE²·z``: a byte of the free cube (a plain store marks it, so marks of one
+#: voxel or one word never wait for each other) and a bit of the hit cube (int64 words). Near the
+#: sensor every voxel is crossed by many rays; there a step marks at an index that moves with it,
+#: with no block to look up.
 CUBE = 128
 _CUBE_WORDS = CUBE ** 3 // 64
 #: Packed keys in the cube phase: ``kx | ky << 20 | kz << 40``; a step past either end of the
@@ -227,8 +229,8 @@ _OUTSIDE = ~((CUBE - 1) | ((CUBE - 1) << _KY) | ((CUBE - 1) << _KZ))
 
 @kernel
 def new_cube():
-    """Dense hit and free bits of a cube (zeroed)."""
-    return np.zeros(_CUBE_WORDS, np.int64), np.zeros(_CUBE_WORDS, np.int64)
+    """Dense hit bits and free bytes of a cube (zeroed)."""
+    return np.zeros(_CUBE_WORDS, np.int64), np.zeros(CUBE ** 3, np.uint8)
 
 
 @kernel
@@ -249,6 +251,78 @@ def _cube_index(key, corner):
     """Bit of the voxel with packed key ``key`` in the cube at ``corner``."""
     d = key - corner
     return (d & (CUBE - 1)) + ((d >> _KY) & (CUBE - 1)) * CUBE + (d >> _KZ) * (CUBE * CUBE)
+
+
+#: A ray is walked in slabs (:func:`_cube_slabs`) when its two other axes cross voxel borders
+#: at least this much more sparsely than its major axis: then, in floating point too, each of them
+#: steps at most once between two steps of the major axis.
+_SLAB_MARGIN = 1.0 + 1e-9
+
+
+@kernel
+def _cube_slabs(frees, idx, n, tM, tA, tB, gM, gA, gB, dM, dA, dB, tie_a, tie_b):
+    """``n`` slabs of OctoMap's DDA in the free cube, from a voxel the walk has just entered along
+    its major axis M (``t``, ``g``, index step ``d`` per axis; minor axes A and B). In a slab the
+    minor axes step at most once each (see :data:`_SLAB_MARGIN`): A when ``tA < tM``, or equal
+    and ``tie_a`` (OctoMap's tie-breaks prefer z over y over x; ``tie_a`` and ``tie_b`` are
+    literals, so each form compiles to one compare), likewise B, A before B when ``tA < tB``; then
+    M steps. A slab is so a fixed sequence of three marks at computed indices — its voxels,
+    repeats marked twice — with no branch to mispredict. Returns the index, the three t and the
+    minor steps taken (the caller moves the keys)."""
+    nA = 0
+    nB = 0
+    for _ in range(n):
+        uA = add_if_le(tA, tM, gA) if tie_a else add_if_lt(tA, tM, gA)
+        uB = add_if_le(tB, tM, gB) if tie_b else add_if_lt(tB, tM, gB)
+        cA = np.int64(uA != tA)
+        cB = np.int64(uB != tB)
+        sA = cA * dA
+        sB = cB * dB
+        a_first = np.int64(tA < tB)
+        frees[np.uint64(idx)] = 1
+        frees[np.uint64(idx + sB + a_first * (sA - sB))] = 1  # the first minor step's voxel (or a repeat)
+        idx += sA + sB
+        frees[np.uint64(idx)] = 1
+        idx += dM
+        tA = uA
+        tB = uB
+        tM += gM
+        nA += cA
+        nB += cB
+    return idx, tM, tA, tB, nA, nB
+
+
+@kernel
+def _room(local, step):
+    """Steps of one voxel in direction ``step`` that keep cube coordinate ``local`` in the cube
+    (unlimited for an axis that does not move)."""
+    if step == 0:
+        return CUBE
+    return CUBE - 1 - local if step > 0 else local
+
+
+@kernel
+def _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
+    """How many slabs (:func:`_cube_slabs`) a walk just past a major-axis step can take without
+    checks: every voxel of them, and the one after, stays in the cube (the minor axes step at most
+    once a slab), short of the end voxel's major coordinate (so none is the end voxel) and with the
+    major axis's next crossing within ``length`` (so the walk's range test cannot stop it; one slab
+    of margin for the rounding of the sums)."""
+    d = key - corner
+    lx, ly, lz = d & (CUBE - 1), (d >> _KY) & (CUBE - 1), d >> _KZ
+    n = min(_room(lx, sx), _room(ly, sy), _room(lz, sz))
+    if major == 0:
+        r, t, g = abs((end_key & 0xFFFFF) - (key & 0xFFFFF)), tx, gx
+    elif major == 1:
+        r, t, g = abs(((end_key >> _KY) & 0xFFFFF) - ((key >> _KY) & 0xFFFFF)), ty, gy
+    else:
+        r, t, g = abs((end_key >> _KZ) - (key >> _KZ)), tz, gz
+    n = min(n, r - 1)
+    if t < length:
+        n = min(n, int((length - t) / g) - 1)
+    else:
+        n = 0
+    return n
 
 
 @kernel
@@ -286,37 +360,61 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             done = True
         if ray and corner >= 0:
             # the cube phase (the sensor's voxel lies in the cube): OctoMap's DDA step with the
-            # packed key and the cube index moving together, no block to look up. (Written with
-            # branches: the branch-free forms measured slower, their compare→select→add chain
-            # being longer than the mispredictions they save.)
+            # packed key and the cube index moving together, no block to look up; from the first
+            # step along the major axis on, in slabs where the ray allows (see _cube_slabs)
             key = kx | (ky << _KY) | (kz << _KZ)
             idx = _cube_index(key, corner)
             dky, dkz = sy << _KY, sz << _KZ
             diy, diz = sy * CUBE, sz * CUBE * CUBE
+            major = 0 if gx <= min(gy, gz) else (1 if gy <= gz else 2)
+            g_major = min(gx, gy, gz)
+            slabs = (gx >= g_major * _SLAB_MARGIN or major == 0) and (gy >= g_major * _SLAB_MARGIN or major == 1) \
+                and (gz >= g_major * _SLAB_MARGIN or major == 2)
             while True:
-                cube_frees[np.uint64(idx >> 6)] |= np.int64(1) << (idx & 63)  # (unsigned: no wrap-around test)
+                cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
                 if tx < ty:
                     if tx < tz:
                         key += sx
                         idx += sx
                         tx += gx
+                        axis = 0
                     else:
                         key += dkz
                         idx += diz
                         tz += gz
+                        axis = 2
                 elif ty < tz:
                     key += dky
                     idx += diy
                     ty += gy
+                    axis = 1
                 else:
                     key += dkz
                     idx += diz
                     tz += gz
+                    axis = 2
                 if key == end_key or min(tx, ty, tz) > length:
+                    key = end_key  # (the range test may stop the walk short of it)
                     done = True
                     break
                 if (key - corner) & _OUTSIDE:
                     break
+                if slabs and axis == major:
+                    slabs = False
+                    n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
+                    if n > 0:
+                        if major == 0:
+                            idx, tx, ty, tz, ny, nz = _cube_slabs(cube_frees, idx, n, tx, ty, tz, gx, gy, gz,
+                                                                  sx, diy, diz, True, True)
+                            key += n * sx + ny * dky + nz * dkz
+                        elif major == 1:
+                            idx, ty, tx, tz, nx, nz = _cube_slabs(cube_frees, idx, n, ty, tx, tz, gy, gx, gz,
+                                                                  diy, sx, diz, False, True)
+                            key += n * dky + nx * sx + nz * dkz
+                        else:
+                            idx, tz, tx, ty, nx, ny = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy,
+                                                                  diz, sx, diy, False, False)
+                            key += n * dkz + nx * sx + ny * dky
             kx, ky, kz = key & 0xFFFFF, (key >> _KY) & 0xFFFFF, key >> _KZ
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
@@ -374,13 +472,19 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
     return stop
 
 
+#: Multiplier that gathers the low bits of a word's eight bytes into its top byte's bits
+#: 49..56 (byte i's bit lands on bit 49 + i, no two products overlap, so nothing carries).
+_GATHER = 0x0002040810204081
+
+
 @kernel
 def cube_blocks(cube_hits, cube_frees, corner):
     """The cube's marked voxels as blocks: codes, hit masks, free masks (the blocks that have any;
     :func:`merge_blocks` ors them with the same blocks marked elsewhere)."""
     cx, cy, cz = corner & 0xFFFFF, (corner >> _KY) & 0xFFFFF, corner >> _KZ
     nb = CUBE // 8
-    w_row = CUBE // 64  # words per row of the cube
+    w_row = CUBE // 64  # words of hit bits per row of the cube
+    free_rows = cube_frees.view(np.uint64)  # eight voxels' free bytes per word
     codes = np.empty(nb ** 3, np.int64)
     hits = np.empty((nb ** 3, 8), np.int64)
     frees = np.empty((nb ** 3, 8), np.int64)
@@ -388,9 +492,10 @@ def cube_blocks(cube_hits, cube_frees, corner):
     for bz in range(nb):
         for by in range(nb):
             for bx in range(nb):
-                # the block's 8×8×8 bits: byte bx % 8 of one word per cube row (y, z)
+                # the block's 8×8×8 voxels: byte bx % 8 of one hit word, and one free word, per row (y, z)
                 word0 = (bz * 8 * CUBE + by * 8) * w_row + (bx * 8) // 64
                 shift = (bx * 8) % 64
+                row0 = ((bz * 8 * CUBE + by * 8) * CUBE + bx * 8) // 8
                 any_bits = np.int64(0)
                 for lz in range(8):
                     hw = np.int64(0)
@@ -398,7 +503,8 @@ def cube_blocks(cube_hits, cube_frees, corner):
                     for ly in range(8):
                         w = word0 + (lz * CUBE + ly) * w_row
                         hw |= ((cube_hits[w] >> shift) & 0xFF) << (8 * ly)
-                        fw |= ((cube_frees[w] >> shift) & 0xFF) << (8 * ly)
+                        f = free_rows[row0 + (lz * CUBE + ly) * (CUBE // 8)]
+                        fw |= np.int64(((f * np.uint64(_GATHER)) >> np.uint64(49)) & np.uint64(0xFF)) << (8 * ly)
                     hits[n, lz] = hw
                     frees[n, lz] = fw
                     any_bits |= hw | fw

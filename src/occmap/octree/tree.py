@@ -74,7 +74,7 @@ def _mark_range(origin, ends, hit, res, rays, start, stop):
     twice; with many rays the voxels around the sensor are marked in a dense cube."""
     storage = I.new_blocks(max(64, (stop - start) // 8))
     corner = I.cube_corner(origin, res) if rays and stop - start >= _CUBE_RAYS else -1
-    cube = I.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    cube = I.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.uint8))
     while True:
         start = I.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
         if start == stop:
