@@ -367,9 +367,8 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             dky, dkz = sy << _KY, sz << _KZ
             diy, diz = sy * CUBE, sz * CUBE * CUBE
             major = 0 if gx <= min(gy, gz) else (1 if gy <= gz else 2)
-            g_major = min(gx, gy, gz)
-            slabs = (gx >= g_major * _SLAB_MARGIN or major == 0) and (gy >= g_major * _SLAB_MARGIN or major == 1) \
-                and (gz >= g_major * _SLAB_MARGIN or major == 2)
+            g_middle = min(max(gx, gy), max(gy, gz), max(gx, gz))
+            slabs = g_middle >= min(gx, gy, gz) * _SLAB_MARGIN
             while True:
                 cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
                 if tx < ty:
