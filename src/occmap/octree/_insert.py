@@ -248,9 +248,16 @@ def cube_corner(origin, res):
 
 @kernel
 def _cube_index(key, corner):
-    """Bit of the voxel with packed key ``key`` in the cube at ``corner``."""
+    """Index of the voxel with packed key ``key`` in the cube at ``corner``."""
     d = key - corner
     return (d & (CUBE - 1)) + ((d >> _KY) & (CUBE - 1)) * CUBE + (d >> _KZ) * (CUBE * CUBE)
+
+
+@kernel
+def _cube_key(idx, corner):
+    """Packed key of the voxel at index ``idx`` of the cube at ``corner`` (:func:`_cube_index`
+    undone)."""
+    return corner + idx % CUBE + ((idx // CUBE % CUBE) << _KY) + ((idx // (CUBE * CUBE)) << _KZ)
 
 
 #: A ray is walked in slabs (:func:`_cube_slabs`) when its two other axes cross voxel borders
@@ -266,18 +273,13 @@ def _cube_slabs(frees, idx, n, tM, tA, tB, gM, gA, gB, dM, dA, dB, tie_a, tie_b)
     minor axes step at most once each (see :data:`_SLAB_MARGIN`): A when ``tA < tM``, or equal
     and ``tie_a`` (OctoMap's tie-breaks prefer z over y over x; ``tie_a`` and ``tie_b`` are
     literals, so each form compiles to one compare), likewise B, A before B when ``tA < tB``; then
-    M steps. A slab is so a fixed sequence of three marks at computed indices — its voxels,
-    repeats marked twice — with no branch to mispredict. Returns the index, the three t and the
-    minor steps taken (the caller moves the keys)."""
-    nA = 0
-    nB = 0
+    M steps. So a slab is a fixed sequence of three marks at computed indices — its voxels,
+    repeats marked twice — with no branch to mispredict. Returns the index and the three t."""
     for _ in range(n):
         uA = add_if_le(tA, tM, gA) if tie_a else add_if_lt(tA, tM, gA)
         uB = add_if_le(tB, tM, gB) if tie_b else add_if_lt(tB, tM, gB)
-        cA = np.int64(uA != tA)
-        cB = np.int64(uB != tB)
-        sA = cA * dA
-        sB = cB * dB
+        sA = np.int64(uA != tA) * dA
+        sB = np.int64(uB != tB) * dB
         a_first = np.int64(tA < tB)
         frees[np.uint64(idx)] = 1
         frees[np.uint64(idx + sB + a_first * (sA - sB))] = 1  # the first minor step's voxel (or a repeat)
@@ -287,9 +289,7 @@ def _cube_slabs(frees, idx, n, tM, tA, tB, gM, gA, gB, dM, dA, dB, tie_a, tie_b)
         tA = uA
         tB = uB
         tM += gM
-        nA += cA
-        nB += cB
-    return idx, tM, tA, tB, nA, nB
+    return idx, tM, tA, tB
 
 
 @kernel
@@ -403,17 +403,15 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
                     n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
                     if n > 0:
                         if major == 0:
-                            idx, tx, ty, tz, ny, nz = _cube_slabs(cube_frees, idx, n, tx, ty, tz, gx, gy, gz,
-                                                                  sx, diy, diz, True, True)
-                            key += n * sx + ny * dky + nz * dkz
+                            idx, tx, ty, tz = _cube_slabs(cube_frees, idx, n, tx, ty, tz, gx, gy, gz, sx, diy, diz,
+                                                          True, True)
                         elif major == 1:
-                            idx, ty, tx, tz, nx, nz = _cube_slabs(cube_frees, idx, n, ty, tx, tz, gy, gx, gz,
-                                                                  diy, sx, diz, False, True)
-                            key += n * dky + nx * sx + nz * dkz
+                            idx, ty, tx, tz = _cube_slabs(cube_frees, idx, n, ty, tx, tz, gy, gx, gz, diy, sx, diz,
+                                                          False, True)
                         else:
-                            idx, tz, tx, ty, nx, ny = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy,
-                                                                  diz, sx, diy, False, False)
-                            key += n * dkz + nx * sx + ny * dky
+                            idx, tz, tx, ty = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy, diz, sx, diy,
+                                                          False, False)
+                        key = _cube_key(idx, corner)
             kx, ky, kz = key & 0xFFFFF, (key >> _KY) & 0xFFFFF, key >> _KZ
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
