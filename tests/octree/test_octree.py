@@ -236,11 +236,12 @@ def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
     assert formats.encode_ot(ours) == ref.write()
 
 
-@pytest.mark.parametrize("res", [0.05, 0.2])
-def test_dense_cube_walks_give_the_plain_walks_voxels(res):
+@pytest.mark.parametrize("res, one_sided", [(0.05, False), (0.2, False), (0.05, True), (0.2, True)])
+def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided):
     """The cube phase (slabs along each ray's major axis, x, y and z all among them, ties of
     directions along diagonals, rays ending inside and beyond the cube) against OctoMap's plain
-    step-by-step walk (``ray_voxels``), voxel for voxel, hits included."""
+    step-by-step walk (``ray_voxels``), voxel for voxel, hits included; also with a scan that
+    lies on one side of its sensor (+x, +y, −z), which moves the cube to that side."""
     from occmap.octree import _insert as I
     from occmap.octree import tree as tree_module
 
@@ -248,10 +249,19 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res):
     d = rng.normal(size=(6000, 3))
     d[:1000] = np.round(d[:1000])  # axis-aligned and diagonal directions: ties between axes
     d[np.all(d == 0, axis=1)] = (1.0, 1.0, 0.0)
+    if one_sided:
+        d = np.abs(d) * (1.0, 1.0, -1.0)
     pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.2, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
     origin = np.array([0.013, -0.021, 0.034], np.float32)
     ends, hit, _, _ = I.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32))
-    blocks = I.merge_blocks(*tree_module._mark_range(origin, ends, hit, res, True, 0, len(ends)))
+    corner = I.cube_corner(origin, ends, 0, len(ends), res)
+    sensor_block = (np.floor(origin.astype(np.float64) * (1 / res)).astype(np.int64) + 32768) >> 3
+    shift = sensor_block - (np.array([corner & 0xFFFFF, (corner >> 20) & 0xFFFFF, corner >> 40]) >> 3)
+    if one_sided and res == 0.05:  # rays out to 180 voxels: the cube goes to their side
+        np.testing.assert_array_equal(shift, [0, 0, 15])
+    else:  # centred (within a block): at 0.2 m every ray lies in the centred cube
+        assert np.all(np.abs(shift - 8) <= 1)
+    blocks = tree_module._mark(origin, ends, hit, res, True, False)
     keys, is_hit = I.block_voxels(*blocks, np.empty((0, 3), np.int64))
     ref_keys, ref_hit = I.ray_voxels(origin[None], ends, hit, res)
     unique, inverse = np.unique(ref_keys, return_inverse=True)

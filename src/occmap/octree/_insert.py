@@ -9,8 +9,9 @@ local coordinates (lx, ly, lz)):
    arithmetic included) and sets the bits; a hash of block keys with the last block cached keeps
    this a few nanoseconds per voxel. Around the sensor, where every voxel is crossed by many rays
    (at 0.2 m most of a scan's steps lie within ±64 voxels of it), the bits go to a dense cube
-   instead, turned into blocks at the end (:func:`cube_blocks`). Disjoint ranges of rays can
-   be marked in parallel threads and merged (:func:`merge_blocks`).
+   instead, placed where the scan's steps are (:func:`cube_corner`) and turned into blocks at
+   the end (:func:`cube_blocks`). Disjoint ranges of rays can be marked in parallel threads and
+   merged (:func:`merge_blocks`).
 2. :func:`block_voxels` lists the marked voxels in Morton order (blocks sorted by their Morton
    code) and :func:`apply_voxels` updates them in that order, so consecutive voxels share their
    path from the root except the last level or two. Each
@@ -160,20 +161,6 @@ def ray_voxels(origins, ends, with_end, res):
 # ---------------------------------------------------------------------------- marking
 
 @kernel
-def half_work(origin, ends):
-    """The ray at which half of a scan's traversal work (≈ the rays' L1 lengths) is done."""
-    total = 0.0
-    for i in range(ends.shape[0]):
-        total += abs(ends[i, 0] - origin[0]) + abs(ends[i, 1] - origin[1]) + abs(ends[i, 2] - origin[2])
-    acc = 0.0
-    for i in range(ends.shape[0]):
-        acc += abs(ends[i, 0] - origin[0]) + abs(ends[i, 1] - origin[1]) + abs(ends[i, 2] - origin[2])
-        if acc >= 0.5 * total:
-            return i
-    return ends.shape[0]
-
-
-@kernel
 def _block_code(kx, ky, kz):
     """Packed key of the block holding voxel (kx, ky, kz), plus one (0 marks an empty slot)."""
     return (((kx >> 3) << 26) | ((ky >> 3) << 13) | (kz >> 3)) + 1
@@ -214,7 +201,8 @@ def grow_blocks(table, slots, codes, hits, frees, count):
     return t2, s2, c2, h2, f2, n2
 
 
-#: The dense cube marked around the sensor: CUBE³ voxels (a multiple of 8), voxel
+#: The dense cube marked around the sensor: CUBE³ voxels (a multiple of 8) holding the sensor's
+#: voxel, voxel
 #: ``x + CUBE·y + CUBE²·z``: a byte of the free cube (a plain store marks it, so marks of one
 #: voxel or one word never wait for each other) and a bit of the hit cube (int64 words). Near the
 #: sensor every voxel is crossed by many rays; there a step marks at an index that moves with it,
@@ -233,16 +221,72 @@ def new_cube():
     return np.zeros(_CUBE_WORDS, np.int64), np.zeros(CUBE ** 3, np.uint8)
 
 
+#: Rays sampled (evenly over a range) to place the cube, and points taken along each.
+_PLACE_RAYS = 256
+_PLACE_POINTS = 4
+#: Placements of the cube along one axis that keep a given voxel inside: 16, one per block.
+_PLACES = CUBE // 8
+
+
 @kernel
-def cube_corner(origin, res):
-    """Packed key of the corner of the cube around the voxel of ``origin`` (block-aligned, that
-    voxel's block in the middle), or −1 where the cube would leave the key range."""
+def cube_corner(origin, ends, start, stop, res):
+    """Packed key of the corner of the cube for rays ``start..stop-1`` from ``origin``, or −1
+    where no cube around the sensor's voxel fits the key range. The cube is block-aligned and
+    holds the sensor's voxel; of the 16 such placements per axis it takes those that hold the
+    most of the rays' steps, estimated from a sample: a walk's steps are spread evenly over its
+    length, so points evenly spread along a ray, weighted by its number of steps, stand for them.
+    The axes are placed one at a time, the other two held, twice over, from the centred cube (a
+    sensor at one side of its scan gets a cube shifted to that side)."""
     inv_res = 1.0 / res
-    cx = ((coord_to_key(origin[0], inv_res) >> 3) - CUBE // 16) << 3
-    cy = ((coord_to_key(origin[1], inv_res) >> 3) - CUBE // 16) << 3
-    cz = ((coord_to_key(origin[2], inv_res) >> 3) - CUBE // 16) << 3
-    if min(cx, cy, cz) < 0 or max(cx, cy, cz) + CUBE > MAX_KEY + 1:
-        return -1
+    ok = np.empty(3, np.int64)
+    for a in range(3):
+        ok[a] = coord_to_key(origin[a], inv_res)
+    lo = np.empty(3, np.int64)  # allowed shifts k: corner block = sensor's block − k
+    hi = np.empty(3, np.int64)
+    for a in range(3):
+        b = ok[a] >> 3
+        lo[a] = max(0, b + _PLACES - (MAX_KEY + 1) // 8)
+        hi[a] = min(_PLACES - 1, b)
+        if lo[a] > hi[a]:
+            return -1
+    step = max(1, (stop - start) // _PLACE_RAYS)
+    m = (stop - start + step - 1) // step * _PLACE_POINTS
+    rel = np.empty((m, 3), np.int64)  # a point's block relative to the sensor's, per axis
+    w = np.empty(m)
+    j = 0
+    for i in range(start, stop, step):
+        n_steps = 0
+        for a in range(3):
+            n_steps += abs(coord_to_key(ends[i, a], inv_res) - ok[a])
+        for p in range(_PLACE_POINTS):
+            f = (p + 0.5) / _PLACE_POINTS
+            for a in range(3):
+                c = np.float64(origin[a]) + f * (np.float64(ends[i, a]) - np.float64(origin[a]))
+                rel[j, a] = (coord_to_key(c, inv_res) >> 3) - (ok[a] >> 3)
+            w[j] = n_steps
+            j += 1
+    k = np.empty(3, np.int64)
+    for a in range(3):
+        k[a] = min(max(_PLACES // 2, lo[a]), hi[a])
+    hist = np.empty(2 * _PLACES)
+    for _ in range(2):
+        for a in range(3):
+            b, c = (a + 1) % 3, (a + 2) % 3
+            hist[:] = 0.0
+            for q in range(m):
+                r = rel[q, a]
+                if (-_PLACES <= r < _PLACES and -k[b] <= rel[q, b] < _PLACES - k[b]
+                        and -k[c] <= rel[q, c] < _PLACES - k[c]):
+                    hist[r + _PLACES] += w[q]
+            best, best_sum = k[a], -1.0
+            for kk in range(lo[a], hi[a] + 1):  # blocks −kk .. 15 − kk
+                total = hist[_PLACES - kk:2 * _PLACES - kk].sum()
+                if total > best_sum or (total == best_sum and abs(kk - _PLACES // 2) < abs(best - _PLACES // 2)):
+                    best, best_sum = kk, total
+            k[a] = best
+    cx = ((ok[0] >> 3) - k[0]) << 3
+    cy = ((ok[1] >> 3) - k[1]) << 3
+    cz = ((ok[2] >> 3) - k[2]) << 3
     return cx | (cy << _KY) | (cz << _KZ)
 
 

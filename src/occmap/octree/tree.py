@@ -12,6 +12,7 @@ Points are metres in the map frame; rays start at the sensor origin.
 from __future__ import annotations
 
 import math
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
@@ -23,8 +24,9 @@ from . import _kernels as K
 from . import views
 
 _INITIAL_SLOTS = 1 << 12
-#: Scans with at least this many rays are marked by two threads.
+#: Scans with at least this many rays are marked by two threads, in this many runs of rays.
 _PARALLEL_RAYS = 20_000
+_MARK_RUNS = 8
 #: Scans with at least this many marked blocks list their voxels on two threads.
 _PARALLEL_BLOCKS = 256
 #: Scans with at least this many voxels update the tree on two threads.
@@ -32,8 +34,8 @@ _PARALLEL_VOXELS = 20_000
 #: Slots a thread's range holds: this many a voxel, and a margin.
 _ROOM_PER_VOXEL = 2
 _ROOM_MARGIN = 8 * 16 * 8
-#: Scans (or halves of one) with at least this many rays mark the voxels near the sensor in a
-#: dense cube (see occmap.octree._insert.CUBE).
+#: Scans with at least this many rays mark the voxels near the sensor in a dense cube (see
+#: occmap.octree._insert.CUBE).
 _CUBE_RAYS = 4096
 _POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="occmap-octree")
 #: Traces the next scan of insert_point_clouds while the tree takes the current one.
@@ -69,17 +71,23 @@ def _origin(origin) -> np.ndarray:
     return o
 
 
-def _mark_range(origin, ends, hit, res, rays, start, stop):
-    """Block masks of rays ``start..stop-1`` (grown until they fit), a block possibly listed
-    twice; with many rays the voxels around the sensor are marked in a dense cube."""
-    storage = I.new_blocks(max(64, (stop - start) // 8))
-    corner = I.cube_corner(origin, res) if rays and stop - start >= _CUBE_RAYS else -1
+def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int):
+    """Block masks of the runs ``(start, stop)`` of rays this thread takes from ``runs`` (shared
+    by the threads, each run taken once) until none is left, grown until they fit, a block
+    possibly listed twice; with a cube (``corner`` ≥ 0) the voxels around the sensor are marked
+    in a dense one of this thread's."""
+    storage = I.new_blocks(capacity)
     cube = I.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.uint8))
     while True:
-        start = I.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
-        if start == stop:
+        try:
+            start, stop = runs.popleft()
+        except IndexError:
             break
-        storage = I.grow_blocks(*storage)
+        while True:
+            start = I.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
+            if start == stop:
+                break
+            storage = I.grow_blocks(*storage)
     table, slots, codes, hits, frees, count = storage
     n = int(count[0])
     blocks = codes[:n], hits[:n], frees[:n]
@@ -90,13 +98,18 @@ def _mark_range(origin, ends, hit, res, rays, start, stop):
 
 def _mark(origin, ends, hit, res, rays: bool, threads: bool):
     """The scan's voxels as Morton-sorted blocks of hit and free bits (only hits unless ``rays``);
-    with ``threads``, large scans are marked by two threads (the kernels release the GIL)."""
+    with ``threads``, large scans are marked by two threads (the kernels release the GIL), which
+    take runs of rays in turn: the work of a run is hard to foresee (a step outside the cube
+    costs several inside it), so a thread that is done early takes more."""
     n = len(ends)
+    corner = I.cube_corner(origin, ends, 0, n, res) if rays and n >= _CUBE_RAYS else -1
     if not threads or n < _PARALLEL_RAYS:
-        parts = [_mark_range(origin, ends, hit, res, rays, 0, n)]
+        parts = [_mark_runs(origin, ends, hit, res, rays, corner, deque([(0, n)]), max(64, n // 8))]
     else:
-        half = I.half_work(origin, ends)
-        futures = [_POOL.submit(_mark_range, origin, ends, hit, res, rays, a, b) for a, b in ((0, half), (half, n))]
+        bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
+        runs = deque(zip(bounds[:-1], bounds[1:]))
+        futures = [_POOL.submit(_mark_runs, origin, ends, hit, res, rays, corner, runs, max(64, n // 16))
+                   for _ in range(2)]
         parts = [f.result() for f in futures]
     return I.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
 
