@@ -237,11 +237,12 @@ def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
 
 
 @pytest.mark.parametrize("res, one_sided", [(0.05, False), (0.2, False), (0.05, True), (0.2, True)])
-def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided):
+def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatch):
     """The cube phase (slabs along each ray's major axis, x, y and z all among them, ties of
     directions along diagonals, rays ending inside and beyond the cube) against OctoMap's plain
     step-by-step walk (``ray_voxels``), voxel for voxel, hits included; also with a scan that
-    lies on one side of its sensor (+x, +y, −z), which moves the cube to that side."""
+    lies on one side of its sensor (+x, +y, −z), which moves the cube to that side; on one
+    thread and on two (taking runs of rays in turn)."""
     from occmap.octree import _insert as I
     from occmap.octree import tree as tree_module
 
@@ -261,15 +262,17 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided):
         np.testing.assert_array_equal(shift, [0, 0, 15])
     else:  # centred (within a block): at 0.2 m every ray lies in the centred cube
         assert np.all(np.abs(shift - 8) <= 1)
-    blocks = tree_module._mark(origin, ends, hit, res, True, False)
-    keys, is_hit = I.block_voxels(*blocks, np.empty((0, 3), np.int64))
     ref_keys, ref_hit = I.ray_voxels(origin[None], ends, hit, res)
     unique, inverse = np.unique(ref_keys, return_inverse=True)
     unique_hit = np.zeros(len(unique), bool)
     np.logical_or.at(unique_hit, inverse, ref_hit)
-    order = np.argsort(keys)
-    np.testing.assert_array_equal(keys[order], unique)
-    np.testing.assert_array_equal(is_hit[order], unique_hit)
+    monkeypatch.setattr(tree_module, "_PARALLEL_RAYS", 1000)
+    for threads in (False, True):
+        keys, is_hit = I.block_voxels(*tree_module._mark(origin, ends, hit, res, True, threads),
+                                      np.empty((0, 3), np.int64))
+        order = np.argsort(keys)
+        np.testing.assert_array_equal(keys[order], unique)
+        np.testing.assert_array_equal(is_hit[order], unique_hit)
 
 
 def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
