@@ -3,6 +3,9 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+SOURCES := $(shell find src -name '*.py')
+KERNELS := $(VENV)/.kernels
+CLEAR_KERNEL_CACHE := find src \( -name '*.nbi' -o -name '*.nbc' \) -delete
 
 .PHONY: demo test bench clean clean-cache
 
@@ -12,20 +15,33 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-demo: $(STAMP)
+# Numba checks a cached kernel against its own source file only, not against the kernels it
+# calls from other files, which are compiled into it: after any change to the sources the whole
+# cache goes, so that no stale kernel runs (once one crashed the tests).
+$(KERNELS): $(SOURCES) | $(STAMP)
+	$(CLEAR_KERNEL_CACHE)
+	touch $@
+
+demo: $(STAMP) $(KERNELS)
 	$(BIN)/occmap demo --out demo_output
 
-test: $(STAMP)
+test: $(STAMP) $(KERNELS)
 	$(BIN)/python -m pytest -q
 
-bench: $(STAMP)
+# every benchmark, the octree's last (about a quarter of an hour); each rewrites its section of
+# BENCHMARKS.md
+bench: $(STAMP) $(KERNELS)
 	$(BIN)/python benchmarks/bench_geometry.py
 	$(BIN)/python benchmarks/bench_grid2d.py
+	$(BIN)/python benchmarks/bench_local_map.py
+	$(BIN)/python benchmarks/bench_localize.py
+	$(BIN)/python benchmarks/bench_octree.py
 
 clean: clean-cache
 	rm -rf $(VENV) demo_output
 
-# Numba's compiled-kernel cache lives beside the sources; clear it after editing kernels if a
-# stale entry misbehaves (its validity check is the source file's timestamp and size).
+# Numba's compiled-kernel cache lives beside the sources (the targets above clear it when they
+# change)
 clean-cache:
-	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+	$(CLEAR_KERNEL_CACHE)
+	rm -f $(KERNELS)
