@@ -255,7 +255,7 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.2, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
     origin = np.array([0.013, -0.021, 0.034], np.float32)
     ends, hit, _, _ = I.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32))
-    corner = I.cube_corner(origin, ends, 0, len(ends), res)
+    corner = I.cube_corner(origin, ends, res)
     sensor_block = (np.floor(origin.astype(np.float64) * (1 / res)).astype(np.int64) + 32768) >> 3
     shift = sensor_block - (np.array([corner & 0xFFFFF, (corner >> 20) & 0xFFFFF, corner >> 40]) >> 3)
     if one_sided and res == 0.05:  # rays out to 180 voxels: the cube goes to their side

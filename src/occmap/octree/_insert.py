@@ -221,7 +221,7 @@ def new_cube():
     return np.zeros(_CUBE_WORDS, np.int64), np.zeros(CUBE ** 3, np.uint8)
 
 
-#: Rays sampled (evenly over a range) to place the cube, and points taken along each.
+#: Rays sampled (evenly over the scan) to place the cube, and points taken along each.
 _PLACE_RAYS = 256
 _PLACE_POINTS = 4
 #: Placements of the cube along one axis that keep a given voxel inside: 16, one per block.
@@ -229,8 +229,8 @@ _PLACES = CUBE // 8
 
 
 @kernel
-def cube_corner(origin, ends, start, stop, res):
-    """Packed key of the corner of the cube for rays ``start..stop-1`` from ``origin``, or −1
+def cube_corner(origin, ends, res):
+    """Packed key of the corner of the cube for the rays from ``origin`` to ``ends``, or −1
     where no cube around the sensor's voxel fits the key range. The cube is block-aligned and
     holds the sensor's voxel; of the 16 such placements per axis it takes those that hold the
     most of the rays' steps, estimated from a sample: a walk's steps are spread evenly over its
@@ -249,12 +249,13 @@ def cube_corner(origin, ends, start, stop, res):
         hi[a] = min(_PLACES - 1, b)
         if lo[a] > hi[a]:
             return -1
-    step = max(1, (stop - start) // _PLACE_RAYS)
-    m = (stop - start + step - 1) // step * _PLACE_POINTS
+    n = ends.shape[0]
+    step = max(1, n // _PLACE_RAYS)
+    m = (n + step - 1) // step * _PLACE_POINTS
     rel = np.empty((m, 3), np.int64)  # a point's block relative to the sensor's, per axis
     w = np.empty(m)
     j = 0
-    for i in range(start, stop, step):
+    for i in range(0, n, step):
         n_steps = 0
         for a in range(3):
             n_steps += abs(coord_to_key(ends[i, a], inv_res) - ok[a])

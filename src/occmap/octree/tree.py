@@ -102,7 +102,7 @@ def _mark(origin, ends, hit, res, rays: bool, threads: bool):
     take runs of rays in turn: the work of a run is hard to foresee (a step outside the cube
     costs several inside it), so a thread that is done early takes more."""
     n = len(ends)
-    corner = I.cube_corner(origin, ends, 0, n, res) if rays and n >= _CUBE_RAYS else -1
+    corner = I.cube_corner(origin, ends, res) if rays and n >= _CUBE_RAYS else -1
     if not threads or n < _PARALLEL_RAYS:
         parts = [_mark_runs(origin, ends, hit, res, rays, corner, deque([(0, n)]), max(64, n // 8))]
     else:
