@@ -70,7 +70,6 @@ class OccupancyGrid2D:
         if not self.l_min < self.l_prior < self.l_max:
             raise InvalidArgumentError(f"prior {prior!r} must lie strictly between the clamping bounds {clamp!r}")
         self.growing = size is None
-        self._scans = 0
         self._code = 0  # stamp code of the last scan integrated (see _in_runs)
         self.stats = {"scans": 0, "beams": 0, "dropped": 0, "max_range": 0}
         if size is None:
@@ -260,8 +259,7 @@ class OccupancyGrid2D:
         return tuple(totals)
 
     def _record(self, scans: int, beams, dropped, maxed) -> dict:
-        """Advance the scan counter and add one call's counts to :attr:`stats`; returns them."""
-        self._scans += scans
+        """Add one call's counts to :attr:`stats`; returns them."""
         counts = {"scans": scans, "beams": int(beams), "dropped": int(dropped), "max_range": int(maxed)}
         for key, value in counts.items():
             self.stats[key] += value
@@ -335,4 +333,4 @@ class OccupancyGrid2D:
     def __repr__(self) -> str:
         H, W = self.shape
         o = "unset" if self.origin is None else f"({self.origin[0]:.3f}, {self.origin[1]:.3f})"
-        return f"OccupancyGrid2D({W}×{H} cells at {self.resolution} m, origin {o}, {self._scans} scans)"
+        return f"OccupancyGrid2D({W}×{H} cells at {self.resolution} m, origin {o}, {self.stats['scans']} scans)"

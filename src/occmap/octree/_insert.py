@@ -201,12 +201,11 @@ def grow_blocks(table, slots, codes, hits, frees, count):
     return t2, s2, c2, h2, f2, n2
 
 
-#: The dense cube marked around the sensor: CUBE³ voxels (a multiple of 8) holding the sensor's
-#: voxel, voxel
-#: ``x + CUBE·y + CUBE²·z``: a byte of the free cube (a plain store marks it, so marks of one
-#: voxel or one word never wait for each other) and a bit of the hit cube (int64 words). Near the
-#: sensor every voxel is crossed by many rays; there a step marks at an index that moves with it,
-#: with no block to look up.
+#: The dense cube marked around the sensor: CUBE³ voxels (a multiple of 8) that hold the
+#: sensor's voxel; voxel ``x + CUBE·y + CUBE²·z`` is a byte of the free cube (a plain store marks
+#: it, so marks of one voxel or one word never wait for each other) and a bit of the hit cube
+#: (int64 words). Near the sensor every voxel is crossed by many rays; there a step marks at an
+#: index that moves with it, with no block to look up.
 CUBE = 128
 _CUBE_WORDS = CUBE ** 3 // 64
 #: Packed keys in the cube phase: ``kx | ky << 20 | kz << 40``; a step past either end of the
