@@ -77,13 +77,13 @@ def _clouds(paths):
 
 
 def _save_octree(tree, path) -> None:
-    from .octree import formats
+    from .io import octomap
 
     path = str(path)
     if path.endswith(".bt"):
-        formats.write_binary(tree, path)
+        octomap.write_bt(tree, path)
     elif path.endswith(".ot"):
-        formats.write_ot(tree, path)
+        octomap.write_ot(tree, path)
     elif path.endswith(".ply"):
         tree.export_ply(path)
     else:
@@ -125,9 +125,9 @@ def _map3d(args) -> int:
 
 
 def _info(args) -> int:
-    from .octree import formats
+    from .io import octomap
 
-    tree = formats.load(args.file)
+    tree = octomap.read_octree(args.file)
     lv = tree.leaves()
     occupied = int((lv.log_odds >= tree.occupancy_log_odds).sum())
     lo, hi = tree.metric_bounds()
@@ -144,17 +144,17 @@ def _info(args) -> int:
 
 
 def _convert(args) -> int:
-    from .octree import formats
+    from .io import octomap
 
-    _save_octree(formats.load(args.input), args.output)
+    _save_octree(octomap.read_octree(args.input), args.output)
     print(f"wrote {args.output}")
     return 0
 
 
 def _render(args) -> int:
-    from .octree import formats
+    from .io import octomap
 
-    tree = formats.load(args.file)
+    tree = octomap.read_octree(args.file)
     if args.slice is None:
         tree.save_height_png(args.output, args.pixel)
     else:

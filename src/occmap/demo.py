@@ -129,6 +129,7 @@ def map_intel(out: Path, data: Path) -> list[str]:
 def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[str]:
     """Drive a simulated Velodyne HDL-32E through the synthetic town block, build the octree,
     save it as OctoMap .bt and draw it from above and as a slice at 1 m."""
+    from .io.octomap import write_bt
     from .octree import OcTree
     from .sim.world3d import VELODYNE_HDL32, simulate_drive
 
@@ -139,7 +140,7 @@ def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[s
         tree.insert_point_cloud(cloud.world_points(), cloud.origin, max_range=40.0)
     seconds = time.perf_counter() - t0
     points = sum(len(c) for c in clouds)
-    tree.write_binary(out / "town.bt")
+    write_bt(tree, out / "town.bt")
     tree.save_height_png(out / "town_height.png")
     tree.save_slice_png(out / "town_slice_1m.png", 1.0)
     occupied = len(tree.occupied_centers())
@@ -155,6 +156,7 @@ def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[s
 def map_scan_dat(out: Path, data: Path, resolution: float = 0.1) -> list[str]:
     """OctoMap's sample 3D scan (scan.dat) mapped and drawn."""
     from .io.pointclouds import read_xyz
+    from .io.octomap import write_bt
     from .octree import OcTree
 
     cloud = read_xyz(data / "octomap" / "scan.dat.bz2")
@@ -162,7 +164,7 @@ def map_scan_dat(out: Path, data: Path, resolution: float = 0.1) -> list[str]:
     t0 = time.perf_counter()
     tree.insert_point_cloud(cloud.world_points(), cloud.origin)
     seconds = time.perf_counter() - t0
-    tree.write_binary(out / "scan_dat.bt")
+    write_bt(tree, out / "scan_dat.bt")
     tree.save_height_png(out / "scan_dat_height.png")
     return [
         f"OctoMap sample scan (scan.dat): {len(cloud):,} points at {resolution:g} m in {seconds:.2f} s, "
