@@ -7,8 +7,13 @@ local coordinates (lx, ly, lz), :func:`.keys.in_block`). *Block storage* is the 
 ``(table, slots, codes, hits, frees, count)``: an open-addressing hash from code to block index
 (``table`` holds codes, 0 = empty, ``slots`` the indices; at least twice as many entries as
 blocks), the blocks' codes and masks in the order they were added, and their number
-``count[0]``. A ray's voxels lie mostly in the block of the voxel before, so the accessor
-(:func:`access`) caches the last block and costs an array index there instead of a hash lookup.
+``count[0]``.
+
+The accessor (Bonxai's ``VoxelGrid::Accessor``): a ray's voxels lie mostly in the block of the
+voxel before, so a walk keeps the last block's code and index beside it and calls
+:func:`find_or_add` only when the code changes; a voxel in the same block costs an array index,
+not a hash lookup. (The two variables live in the walk's own loop: a Numba call or tuple passing
+the arrays costs more than the lookup it saves.)
 """
 
 from __future__ import annotations
@@ -40,24 +45,21 @@ def _home(code, mask):
 
 
 @inline_kernel
-def access(table, slots, codes, count, code, last_code, last):
-    """The accessor: index of the block with ``code``, added (masks zero) if new, and the code,
-    to pass back as ``last_code``/``last`` on the next call (the cached block: no lookup when
-    the code repeats). Index −1 when a new block does not fit (the storage is left as it was)."""
-    if code == last_code:
-        return last, code
+def find_or_add(table, slots, codes, count, code):
+    """Index of the block with ``code``, added (masks zero) if new; −1 when a new block does not
+    fit (the storage is left as it was)."""
     mask = table.shape[0] - 1
     h = _home(code, mask)
     while table[h] != 0 and table[h] != code:
         h = (h + 1) & mask
     if table[h] == 0:
         if count[0] == codes.shape[0]:
-            return -1, last_code
+            return -1
         table[h] = code
         slots[h] = count[0]
         codes[count[0]] = code
         count[0] += 1
-    return slots[h], code
+    return slots[h]
 
 
 @kernel
@@ -68,7 +70,7 @@ def grow_blocks(table, slots, codes, hits, frees, count):
     h2[:n] = hits[:n]
     f2[:n] = frees[:n]
     for b in range(n):
-        access(t2, s2, c2, n2, codes[b], 0, -1)
+        find_or_add(t2, s2, c2, n2, codes[b])
     return t2, s2, c2, h2, f2, n2
 
 

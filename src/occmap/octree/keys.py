@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from .._intrinsics import bit_length
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 
 DEPTH = 16
 #: OctoMap's ``tree_max_val``: the key of the voxel whose lower corner is the world origin.
@@ -109,7 +109,7 @@ def block_key(code):
     return code - 1
 
 
-@kernel
+@inline_kernel
 def in_block(key):
     """Index ``lx + 8·ly + 64·lz`` of the voxel with packed key ``key`` within its block."""
     return (key & 7) | (((key >> FIELD) & 7) << 3) | (((key >> (2 * FIELD)) & 7) << 6)

@@ -27,7 +27,7 @@ import numpy as np
 from .._intrinsics import add_if_le, add_if_lt
 from .._jit import kernel
 from . import raywalk
-from .blocks import access
+from .blocks import find_or_add
 from .keys import MAX_KEY, block_code, coord_to_key, field, in_block, key_in_range, pack, unpack
 
 
@@ -38,8 +38,8 @@ def prepare_rays(points, origins, max_range, res, box):
     each end (float32, as OctoMap's ``point3d``) is the point itself when within ``max_range``
     (< 0: unlimited) of its origin, else the point ``max_range`` along the ray; ``hit`` says which
     (the end voxel is then occupied). With a bounding box ``box`` (float32 (2, 3): min, max;
-    (0, 3) for none) a point outside it is no hit. Returns (ends, hit, dropped, first point whose
-    end lies outside the key range or −1)."""
+    (0, 3) for none) a point outside it is no hit. Returns (ends, hit, dropped, the first point
+    whose end lies outside the key range or whose ray's float32 length overflows, else −1)."""
     n = points.shape[0]
     inv_res = 1.0 / res
     ends = np.empty((n, 3), np.float32)
@@ -64,6 +64,8 @@ def prepare_rays(points, origins, max_range, res, box):
             hit[m] = (box[0, 0] <= px <= box[1, 0] and box[0, 1] <= py <= box[1, 1]
                       and box[0, 2] <= pz <= box[1, 2])
         if bad < 0:
+            if not norm < np.inf:  # (only where a resolution of 1e34 m or more puts such ends in range)
+                bad = i
             for c in (px, py, pz):
                 if not key_in_range(coord_to_key(c, inv_res)):
                     bad = i
@@ -297,7 +299,7 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
     oky = coord_to_key(oy, inv_res)
     okz = coord_to_key(oz, inv_res)
     origin_key = pack(okx, oky, okz)
-    last_code = 0  # the accessor's cached block
+    last_code = 0  # the block accessor's cache: the last block's code and index
     last = -1
     for i in range(start, stop):
         ex, ey, ez = ends[i, 0], ends[i, 1], ends[i, 2]
@@ -352,15 +354,18 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
             continue
         # the block phase: local coordinates on entering a block, per axis
-        w = (0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7)
+        wx, wy, wz = (0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7)
+        dkx, dky, dkz = dk
         lookup = True
         while True:
             if is_hit and not hit[i]:
                 break
-            if lookup:  # the voxel may lie in another block
-                last, last_code = access(table, slots, codes, count, block_code(key), last_code, last)
-                if last < 0:
-                    return i
+            if lookup:  # the voxel may lie in another block: the accessor
+                code = block_code(key)
+                if code != last_code:
+                    last, last_code = find_or_add(table, slots, codes, count, code), code
+                    if last < 0:
+                        return i
                 lookup = False
             m = in_block(key)
             if is_hit:
@@ -368,8 +373,15 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
                 break
             frees[np.uint64(last), np.uint64(m >> 6)] |= np.int64(1) << (m & 63)
             axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
-            key += dk[axis]
-            lookup = (field(key, axis) & 7) == w[axis]
+            if axis == 0:
+                key += dkx
+                lookup = (key & 7) == wx
+            elif axis == 1:
+                key += dky
+                lookup = ((key >> 20) & 7) == wy
+            else:
+                key += dkz
+                lookup = ((key >> 40) & 7) == wz
             if key == end_key or min(tx, ty, tz) > length:
                 key = end_key
                 is_hit = True

@@ -10,11 +10,12 @@ distances are float64, the half-voxel offset to the first border is rounded to f
 ``computeRayKeys`` and not in ``castRay`` (``border32``). :func:`step` moves the axis whose border
 comes first, ties going to z, then y (OctoMap's comparisons).
 
-A ray with no direction — float32 length 0, which happens when the end lies within ~1e-19 m of
-the origin (the squared components underflow) though possibly in a neighbouring voxel — gets
-``s = 0`` and ``t = g = BIG`` on every axis: its first step then lands at ``t`` = BIG, beyond any
-length, so every walk stops after the origin's voxel. (OctoMap divides by the zero length and
-steps forever.)
+A ray with no direction gets ``s = 0`` and ``t = g = BIG`` on every axis: its first step then
+lands at ``t`` ≥ BIG, beyond any length, so every walk stops after the origin's voxel. That is a
+ray whose float32 length is 0 — its end lies within ~1e-19 m of the origin (the squared
+components underflow), though possibly in a neighbouring voxel — or overflows (its ends lie
+~1e19 m apart, in the key range only at resolutions of ~1e34 m and more; insertion refuses those
+rays before they get here). OctoMap divides by the zero or infinite length and steps forever.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import math
 
 import numpy as np
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from .keys import key_to_coord
 
 #: "Never": the t of an axis the ray does not move along.
@@ -33,9 +34,10 @@ BIG = np.finfo(np.float64).max
 @kernel
 def direction(dx, dy, dz):
     """OctoMap's normalisation of a float32 vector: (float32 length, unit vector) with the length
-    as float64; (0, 0, 0, 0) for a vector whose float32 length is 0."""
+    as float64; (0, 0, 0, 0) — no direction — for a vector whose float32 length is 0 or
+    overflows."""
     length = np.float32(math.sqrt(np.float64(dx * dx + dy * dy + dz * dz)))
-    if length == 0:
+    if not 0 < length < np.inf:
         z = np.float32(0.0)
         return 0.0, z, z, z
     return np.float64(length), dx / length, dy / length, dz / length
@@ -63,7 +65,7 @@ def start(ox, oy, oz, ux, uy, uz, kx, ky, kz, res, border32):
     return sx, sy, sz, tx, ty, tz, gx, gy, gz
 
 
-@kernel
+@inline_kernel
 def step(tx, ty, tz, gx, gy, gz):
     """One step of OctoMap's walk: the axis (0, 1, 2) whose next border comes first (ties: z over
     y over x) and the three t after it crosses that border. The caller moves that axis's key by

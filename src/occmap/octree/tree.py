@@ -177,10 +177,11 @@ class OcTree:
             raise self._out_of_range("point", int(bad[0]), P[bad[0]])
         return keys
 
-    def _out_of_range(self, what: str, i: int, p) -> InvalidArgumentError:
+    def _out_of_range(self, what: str, i: int, p, ray: bool = False) -> InvalidArgumentError:
+        also = ", or its ray from the origin is too long for OctoMap's float32 arithmetic" if ray else ""
         return InvalidArgumentError(
             f"{what} {i} {np.asarray(p).tolist()} lies outside the octree's key range "
-            f"(±{CENTER * self.resolution:g} m at resolution {self.resolution:g} m)")
+            f"(±{CENTER * self.resolution:g} m at resolution {self.resolution:g} m){also}")
 
     def key_to_coord(self, keys, depth: int = 16) -> np.ndarray:
         """Centres (N, 3) of the nodes at ``depth`` that hold the given keys, computed as OctoMap's
@@ -252,7 +253,7 @@ class OcTree:
         box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
         ends, hit, more, bad = prepare_rays(P, o32[None, :], float(max_range), self.resolution, box)
         if bad >= 0:
-            raise self._out_of_range("point", bad, P[bad])
+            raise self._out_of_range("point", bad, P[bad], ray=True)
         kbox = self._bbx_keys()
         # with a box, a ray's free voxels are those before it first leaves the box: none from outside
         rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
@@ -283,7 +284,7 @@ class OcTree:
         E32, with_end, _, bad = prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
                                                np.empty((0, 3), np.float32))
         if bad >= 0:
-            raise self._out_of_range("ray end", bad, E[bad])
+            raise self._out_of_range("ray end", bad, E[bad], ray=True)
         keys, is_hit = ray_voxels(O32, E32, with_end, self.resolution)
         insertion.apply(self._pool, keys, is_hit, self._rule, lazy)
 
