@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from .._intrinsics import bit_length
-from .._jit import inline_kernel, kernel
+from .._jit import kernel
 
 DEPTH = 16
 #: OctoMap's ``tree_max_val``: the key of the voxel whose lower corner is the world origin.
@@ -109,7 +109,7 @@ def block_key(code):
     return code - 1
 
 
-@inline_kernel
+@kernel
 def in_block(key):
     """Index ``lx + 8·ly + 64·lz`` of the voxel with packed key ``key`` within its block."""
     return (key & 7) | (((key >> FIELD) & 7) << 3) | (((key >> (2 * FIELD)) & 7) << 6)
@@ -144,9 +144,14 @@ def pack_keys(keys: np.ndarray) -> np.ndarray:
     return keys[..., 0] + (keys[..., 1] << FIELD) + (keys[..., 2] << (2 * FIELD))
 
 
+def node_cells(depths) -> np.ndarray:
+    """Voxels along the edge of a node at ``depths``: 2^(16 − depth) (int64)."""
+    return 1 << (DEPTH - np.asarray(depths, np.int64))
+
+
 def node_centers(keys: np.ndarray, depths, resolution: float) -> np.ndarray:
     """Centres (..., 3) of the nodes at ``depths`` (broadcast over the leading dimensions) that
     hold ``keys`` (..., 3), as OctoMap's ``keyToCoord(key, depth)`` computes them, bit for bit:
     ``(floor((key − 32768) / 2^(16−d)) + 0.5) · resolution · 2^(16−d)``."""
-    cells = (1 << (DEPTH - np.asarray(depths, np.int64)))[..., None]
+    cells = node_cells(depths)[..., None]
     return (np.floor_divide(keys - CENTER, cells) + 0.5) * (resolution * cells)

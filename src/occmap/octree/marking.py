@@ -354,8 +354,7 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
             continue
         # the block phase: local coordinates on entering a block, per axis
-        wx, wy, wz = (0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7)
-        dkx, dky, dkz = dk
+        w = (0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7)
         lookup = True
         while True:
             if is_hit and not hit[i]:
@@ -373,15 +372,8 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
                 break
             frees[np.uint64(last), np.uint64(m >> 6)] |= np.int64(1) << (m & 63)
             axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
-            if axis == 0:
-                key += dkx
-                lookup = (key & 7) == wx
-            elif axis == 1:
-                key += dky
-                lookup = ((key >> 20) & 7) == wy
-            else:
-                key += dkz
-                lookup = ((key >> 40) & 7) == wz
+            key += dk[axis]
+            lookup = (field(key, axis) & 7) == w[axis]  # entered another block
             if key == end_key or min(tx, ty, tz) > length:
                 key = end_key
                 is_hit = True

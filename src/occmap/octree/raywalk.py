@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from .._jit import inline_kernel, kernel
+from .._jit import kernel
 from .keys import key_to_coord
 
 #: "Never": the t of an axis the ray does not move along.
@@ -65,7 +65,7 @@ def start(ox, oy, oz, ux, uy, uz, kx, ky, kz, res, border32):
     return sx, sy, sz, tx, ty, tz, gx, gy, gz
 
 
-@inline_kernel
+@kernel
 def step(tx, ty, tz, gx, gy, gz):
     """One step of OctoMap's walk: the axis (0, 1, 2) whose next border comes first (ties: z over
     y over x) and the three t after it crosses that border. The caller moves that axis's key by

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError, ShapeError
 from . import insertion, pool, query, views
-from .keys import CENTER, MAX_KEY, coord_to_keys, keys_in_range, node_centers, pack_keys
+from .keys import CENTER, MAX_KEY, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
 from .marking import prepare_rays, ray_voxels
 
 
@@ -388,7 +388,7 @@ class OcTree:
         depths = np.empty(n, np.int64)
         values = np.empty(n, np.float32)
         query.collect_nodes(*args, False, keys, depths, values)
-        sizes = self.resolution * (1 << (16 - depths)).astype(np.float64)
+        sizes = self.resolution * node_cells(depths).astype(np.float64)
         return Leaves(node_centers(keys, depths, self.resolution), sizes, values, depths)
 
     def _bbx_key(self, p) -> np.ndarray:
