@@ -1,5 +1,5 @@
-"""A scan's marked voxels as blocks of bits (Bonxai's ``VoxelGrid`` layout): storage, the
-accessor with its cached last block, merging, and listing the voxels in Morton order.
+"""A scan's marked voxels as blocks of bits (Bonxai's ``VoxelGrid`` layout): storage and its hash
+(the accessor's lookups), merging, and listing the voxels in Morton order.
 
 A *block* is the 8×8×8 voxels of one depth-13 node, known by its code (:func:`.keys.block_code`);
 it holds two 512-bit masks, hits and frees (int64 words; bit ``lx + 8·ly + 64·lz`` = the voxel at
@@ -9,11 +9,12 @@ local coordinates (lx, ly, lz), :func:`.keys.in_block`). *Block storage* is the 
 blocks), the blocks' codes and masks in the order they were added, and their number
 ``count[0]``.
 
-The accessor (Bonxai's ``VoxelGrid::Accessor``): a ray's voxels lie mostly in the block of the
-voxel before, so a walk keeps the last block's code and index beside it and calls
-:func:`find_or_add` only when the code changes; a voxel in the same block costs an array index,
-not a hash lookup. (The two variables live in the walk's own loop: a Numba call or tuple passing
-the arrays costs more than the lookup it saves.)
+Lookups probe linearly from :func:`home`. The one walk that looks blocks up,
+:func:`.marking.mark_scan`, does it through the *block accessor* (Bonxai's
+``VoxelGrid::Accessor``): a ray's voxels lie mostly in the block of the voxel before, so it keeps
+the last block's code and index and probes only when the code changes; a voxel in the same block
+costs an array index, not a hash lookup. The accessor is written inside that walk's loop: as a
+Numba function taking the storage's arrays (inlined or not) it made the walk twice as slow.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._intrinsics import bit_length
-from .._jit import inline_kernel, kernel
+from .._jit import kernel
 from .keys import block_key, morton, pack, unpack
 
 _FIBONACCI = 0x9E3779B97F4A7C15  # 2^64 / golden ratio
@@ -38,28 +39,10 @@ def new_blocks(capacity):
 
 
 @kernel
-def _home(code, mask):
+def home(code, mask):
     """Hash slot where a probe for ``code`` starts (Fibonacci hashing: the top bits of the product,
     which depend on every bit of the code)."""
     return np.int64((np.uint64(code) * np.uint64(_FIBONACCI)) >> np.uint64(64 - bit_length(mask)))
-
-
-@inline_kernel
-def find_or_add(table, slots, codes, count, code):
-    """Index of the block with ``code``, added (masks zero) if new; −1 when a new block does not
-    fit (the storage is left as it was)."""
-    mask = table.shape[0] - 1
-    h = _home(code, mask)
-    while table[h] != 0 and table[h] != code:
-        h = (h + 1) & mask
-    if table[h] == 0:
-        if count[0] == codes.shape[0]:
-            return -1
-        table[h] = code
-        slots[h] = count[0]
-        codes[count[0]] = code
-        count[0] += 1
-    return slots[h]
 
 
 @kernel
@@ -69,8 +52,15 @@ def grow_blocks(table, slots, codes, hits, frees, count):
     t2, s2, c2, h2, f2, n2 = new_blocks(2 * codes.shape[0])
     h2[:n] = hits[:n]
     f2[:n] = frees[:n]
-    for b in range(n):
-        find_or_add(t2, s2, c2, n2, codes[b])
+    c2[:n] = codes[:n]
+    n2[0] = n
+    mask = t2.shape[0] - 1
+    for b in range(n):  # (each code once: the first empty entry of its probe sequence)
+        h = home(codes[b], mask)
+        while t2[h] != 0:
+            h = (h + 1) & mask
+        t2[h] = codes[b]
+        s2[h] = b
     return t2, s2, c2, h2, f2, n2
 
 

@@ -5,8 +5,8 @@ voxel once (occupied ones only as hits) with a walk from the root. Here the two 
 masks of :mod:`.blocks`:
 
 1. :func:`mark_scan` walks the rays (:mod:`.raywalk`: OctoMap's ``computeRayKeys`` to the bit,
-   float32 arithmetic included) and sets the bits through the block accessor, a few nanoseconds
-   per voxel. Around the sensor, where every voxel is crossed by many rays (at 0.2 m most of a
+   float32 arithmetic included) and sets the bits through the block accessor
+   (:mod:`.blocks`), a few nanoseconds per voxel. Around the sensor, where every voxel is crossed by many rays (at 0.2 m most of a
    scan's steps lie within ±64 voxels of it), the bits go to a dense cube instead, placed where
    the scan's steps are (:func:`cube_corner`) and turned into blocks at the end
    (:func:`cube_blocks`). Disjoint ranges of rays can be marked in parallel threads and merged
@@ -27,7 +27,7 @@ import numpy as np
 from .._intrinsics import add_if_le, add_if_lt
 from .._jit import kernel
 from . import raywalk
-from .blocks import find_or_add
+from .blocks import home
 from .keys import MAX_KEY, block_code, coord_to_key, field, in_block, key_in_range, pack, unpack
 
 
@@ -354,26 +354,45 @@ def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hi
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
             continue
         # the block phase: local coordinates on entering a block, per axis
-        w = (0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7)
+        wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7
+        dkx, dky, dkz = dk
         lookup = True
         while True:
             if is_hit and not hit[i]:
                 break
-            if lookup:  # the voxel may lie in another block: the accessor
+            if lookup:  # the voxel may lie in another block
                 code = block_code(key)
-                if code != last_code:
-                    last, last_code = find_or_add(table, slots, codes, count, code), code
-                    if last < 0:
-                        return i
+                if code != last_code:  # the block accessor (see occmap.octree.blocks): find or add
+                    mask = table.shape[0] - 1
+                    h = home(code, mask)
+                    while table[h] != 0 and table[h] != code:
+                        h = (h + 1) & mask
+                    if table[h] == 0:
+                        if count[0] == codes.shape[0]:
+                            return i
+                        table[h] = code
+                        slots[h] = count[0]
+                        codes[count[0]] = code
+                        count[0] += 1
+                    last = slots[h]
+                    last_code = code
                 lookup = False
             m = in_block(key)
             if is_hit:
                 hits[last, m >> 6] |= np.int64(1) << (m & 63)
                 break
             frees[np.uint64(last), np.uint64(m >> 6)] |= np.int64(1) << (m & 63)
+            # (branches on the axis, not a tuple indexed by it: a few times faster here)
             axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
-            key += dk[axis]
-            lookup = (field(key, axis) & 7) == w[axis]  # entered another block
+            if axis == 0:
+                key += dkx
+                lookup = (field(key, 0) & 7) == wx  # entered another block
+            elif axis == 1:
+                key += dky
+                lookup = (field(key, 1) & 7) == wy
+            else:
+                key += dkz
+                lookup = (field(key, 2) & 7) == wz
             if key == end_key or min(tx, ty, tz) > length:
                 key = end_key
                 is_hit = True
