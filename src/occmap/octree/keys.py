@@ -121,7 +121,8 @@ def morton(kx, ky, kz, bits):
     octree's nodes of that many levels)."""
     m = 0
     for bit in range(bits):
-        m |= (((kx >> bit) & 1) << (3 * bit)) | (((ky >> bit) & 1) << (3 * bit + 1)) | (((kz >> bit) & 1) << (3 * bit + 2))
+        m |= ((((kx >> bit) & 1) << (3 * bit)) | (((ky >> bit) & 1) << (3 * bit + 1))
+              | (((kz >> bit) & 1) << (3 * bit + 2)))
     return m
 
 

@@ -5,12 +5,12 @@ voxel once (occupied ones only as hits) with a walk from the root. Here the two 
 masks of :mod:`.blocks`:
 
 1. :func:`mark_scan` walks the rays (:mod:`.raywalk`: OctoMap's ``computeRayKeys`` to the bit,
-   float32 arithmetic included) and sets the bits through the block accessor
-   (:mod:`.blocks`), a few nanoseconds per voxel. Around the sensor, where every voxel is crossed by many rays (at 0.2 m most of a
-   scan's steps lie within ±64 voxels of it), the bits go to a dense cube instead, placed where
-   the scan's steps are (:func:`cube_corner`) and turned into blocks at the end
-   (:func:`cube_blocks`). Disjoint ranges of rays can be marked in parallel threads and merged
-   (:func:`.blocks.merge_blocks`).
+   float32 arithmetic included) and sets the bits through the block accessor (:mod:`.blocks`),
+   a few nanoseconds per voxel. Around the sensor, where every voxel is crossed by many rays
+   (at 0.2 m most of a scan's steps lie within ±64 voxels of it), the bits go to a dense cube
+   instead, placed where the scan's steps are (:func:`cube_corner`) and turned into blocks at
+   the end (:func:`cube_blocks`). Disjoint ranges of rays can be marked in parallel threads and
+   merged (:func:`.blocks.merge_blocks`).
 2. :func:`.blocks.block_voxels` lists the marked voxels in Morton order and
    :func:`.update.apply_voxels` updates them in that order.
 

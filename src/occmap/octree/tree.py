@@ -81,7 +81,7 @@ class Nodes(NamedTuple):
 
 
 class OcTree:
-    """A probabilistic 3D occupancy octree with OctoMap's update rules and file formats.
+    """A probabilistic 3D occupancy octree with OctoMap's update rules (its files: :mod:`occmap.io.octomap`).
 
     Parameters
     ----------

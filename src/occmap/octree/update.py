@@ -51,7 +51,7 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
     out — nothing of it applied yet: the caller makes room and resumes there; whether any value
     changed). With ``settle_nodes`` false (OctoMap's lazy evaluation) inner nodes are neither
     updated nor pruned. Nodes above depth ``top`` are only passed through, never settled: two
-    threads can update the subtrees below one node side by side (see ``OcTree._apply``).
+    threads can update the subtrees below one node side by side (see :func:`.insertion.apply`).
 
     The walk to a voxel restarts from the deepest node shared with the previous voxel's path, so
     voxels in Morton order cost a level or two instead of sixteen; an inner node is settled once
