@@ -8,7 +8,7 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
   radians since its last run; between runs the estimate follows the odometry.
 * **measurement** — the likelihood field: the distance ``d`` from a beam's end point to the
   nearest occupied cell, precomputed once for the whole map with the exact Euclidean distance
-  transform (:mod:`occmap.edt`) and clamped at ``max_dist``; each beam scores
+  transform (:mod:`occmap.raster.edt`) and clamped at ``max_dist``; each beam scores
   ``pz = z_hit · exp(−d² / 2σ²) + z_rand / max_range``. Unknown cells are handled as AMCL does:
   only occupied cells (occupancy above ``occupied_thresh``) are obstacles, an end point in an
   unknown cell scores by its distance to the nearest obstacle like any other, and an end point
@@ -72,7 +72,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import get_num_threads
 
-from ..edt import distance_transform
+from ..raster.edt import distance_transform
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..geometry.motion import OdometryMotionModel, apply_odometry, odometry_delta
 from ..geometry.so2 import wrap_angle

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from occmap.errors import InvalidArgumentError, NonFiniteError, ShapeError
-from occmap.raycast import dda_init, dda_span, dda_step, traverse_2d
+from occmap.raster.walk2d import dda_init, dda_span, dda_step, traverse_2d
 
 
 def segment_hits_cell(a, b, iy, ix, res, origin, tol=1e-9):

@@ -7,8 +7,8 @@ parabolas ``(x − q)² + g(q)²``. Both passes are linear in the number of cell
 transform is O(H·W) whatever the obstacles look like, and every value is exact: squared
 distances are sums of squared integers (exact in float64 up to 2⁵³).
 
-Cells are ``(row, col)`` = ``(iy, ix)`` as everywhere in occmap; the distance between cells is
-measured between their centres, in cells (:func:`squared_distance_cells`) or in metres
+Cells are ``(row, col)`` = ``(iy, ix)`` (grid conventions: :mod:`occmap.raster`); the distance
+between cells is measured between their centres, in cells (:func:`squared_distance_cells`) or in metres
 (:func:`distance_transform`). An obstacle cell is at distance 0; where the mask holds no
 obstacle at all, the distance is ``inf``.
 
@@ -23,10 +23,10 @@ import math
 import numpy as np
 from numba import get_num_threads, prange
 
-from ._jit import kernel, kernel_parallel
-from .errors import InvalidArgumentError, ShapeError
+from .._jit import kernel, kernel_parallel
+from ..errors import InvalidArgumentError, ShapeError
 
-__all__ = ["squared_distance_cells", "distance_transform"]
+__all__ = ["squared_distance_cells", "distance_transform", "row_envelope"]
 
 #: Masks with fewer cells than this run on one thread (thread start-up costs more than it saves).
 PARALLEL_MIN_CELLS = 40_000
@@ -55,8 +55,8 @@ def _columns(mask, out, x0, x1):
 
 
 @kernel
-def _row_envelope(row, f, v, z):
-    """In place: ``row[q]`` ← min over p of ``(q − p)² + row[p]²`` (``row`` holds the column
+def row_envelope(row, f, v, z):
+    """The row pass, a kernel for other kernels (the costmap's inflation uses it). In place: ``row[q]`` ← min over p of ``(q − p)² + row[p]²`` (``row`` holds the column
     distances; inf entries are no parabola). ``f``, ``v``, ``z`` are scratch of length ≥ n, n, n + 1."""
     n = row.shape[0]
     k = -1
@@ -102,7 +102,7 @@ def _rows(out, y0, y1):
     v = np.empty(W, dtype=np.int64)
     z = np.empty(W + 1)
     for y in range(y0, y1):
-        _row_envelope(out[y], f, v, z)
+        row_envelope(out[y], f, v, z)
 
 
 @kernel
