@@ -24,7 +24,7 @@ from numba import get_num_threads, prange
 from .._jit import kernel, kernel_parallel
 from ..raster.edt import row_envelope
 from ..raster.ring import slot, wrap_point
-from ..raster.update import clamp_add, hit_stamp
+from ..raster.update import UNSEEN, clamp_add, hit_stamp
 from ..raster.walk2d import cell_of, dda_setup, dda_span, dda_step, miss_walk
 
 #: Above this many cells of inflation radius the row pass uses the Felzenszwalb–Huttenlocher
@@ -99,6 +99,19 @@ def _walk(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, ex, ey, s, d_miss, l
     return updated, n
 
 
+@kernel
+def _walk_rays(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, rays, n_rays, s, d_miss, lo, hi):
+    """:func:`_walk` of the first ``n_rays`` rays (end cells, lattice (gx, gy) rows of ``rays``)
+    over the part ``xlo ≤ wx < xhi``. Returns (cells updated, cells visited)."""
+    updated = 0
+    visited = 0
+    for k in range(n_rays):
+        a, b = _walk(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, rays[k, 0], rays[k, 1], s, d_miss, lo, hi)
+        updated += a
+        visited += b
+    return updated, visited
+
+
 #: Lattice indices are packed as 31-bit fields offset by this (so keys stay positive int64);
 #: any index within ±2³⁰ cells (over 100,000 km at 0.1 mm) fits.
 _KEY_OFFSET = 1 << 30
@@ -109,8 +122,9 @@ def _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hi
           xlo, xhi, split, side, own_rays, counts):
     """The updates of one part ``xlo ≤ wx < xhi`` of the window: the hits that end in it, and the
     rays it owns (``side`` 0: end column < ``split``; 1: ≥ ``split``; −1: all), one per distinct end
-    cell, walked over its own cells. Owned rays' end cells go to ``own_rays`` (lattice (gx, gy));
-    ``counts`` gets (hits, rays, free updates, cells visited)."""
+    cell (those ending in the window first, in the order of their points), walked over its own
+    cells. Owned rays' end cells go to ``own_rays`` (lattice (gx, gy)); ``counts`` gets (hits,
+    rays, free updates, cells visited)."""
     H, W = rmark.shape
     n = ends.shape[0]
     hits = 0
@@ -127,8 +141,6 @@ def _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hi
                 Lf[k] = clamp_add(Lf[k], d_hit, lo, hi)
                 hits += 1
     rays = 0
-    updated = 0
-    visited = 0
     far = np.empty(n, dtype=np.int64)  # end cells outside the window, packed, for de-duplication
     m = 0
     for i in range(n):
@@ -148,9 +160,6 @@ def _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hi
             own_rays[rays, 0] = gx
             own_rays[rays, 1] = gy
             rays += 1
-            a, b = _walk(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, gx, gy, s, d_miss, lo, hi)
-            updated += a
-            visited += b
         else:
             far[m] = ((gx + _KEY_OFFSET) << 32) | (gy + _KEY_OFFSET)
             m += 1
@@ -164,9 +173,7 @@ def _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hi
             own_rays[rays, 0] = gx
             own_rays[rays, 1] = gy
             rays += 1
-            a, b = _walk(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, gx, gy, s, d_miss, lo, hi)
-            updated += a
-            visited += b
+    updated, visited = _walk_rays(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, own_rays, rays, s, d_miss, lo, hi)
     counts[0] = hits
     counts[1] = rays
     counts[2] = updated
@@ -188,20 +195,6 @@ def _serial(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_
     W = rmark.shape[1]
     _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
           0, W, 0, -1, rays, counts)
-
-
-@kernel
-def _split_column_prefixes(Lf, Sf, H, W, sr, sc, gx0, gy0, u0, v0, rays, n_rays, split, s, d_miss, lo, hi):
-    """The cells in column ``split`` (the sensor's) of the rays whose end lies left of it: the
-    left part skipped them, the right part never walked those rays."""
-    updated = 0
-    visited = 0
-    for k in range(n_rays):
-        a, b = _walk(Lf, Sf, sr, sc, gx0, gy0, H, W, split, split + 1, u0, v0, rays[k, 0], rays[k, 1],
-                     s, d_miss, lo, hi)
-        updated += a
-        visited += b
-    return updated, visited
 
 
 #: Scans with at least this many readings, in windows of at least this many cells, are
@@ -237,8 +230,10 @@ def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kin
     if parallel and 0 < split < W:
         _two_parts(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
                    split, rays, counts)
-        a, b = _split_column_prefixes(Lf, Sf, H, W, sr, sc, gx0, gy0, u0, v0, rays[0], counts[0, 1], split, s,
-                                      d_miss, lo, hi)
+        # the cells in column split (the sensor's) of the rays whose end lies left of it: the left
+        # part skipped them, the right part never walked those rays
+        a, b = _walk_rays(Lf, Sf, sr, sc, gx0, gy0, H, W, split, split + 1, u0, v0, rays[0], counts[0, 1], s,
+                          d_miss, lo, hi)
         counts[0, 2] += a
         counts[0, 3] += b
     else:
@@ -319,7 +314,7 @@ def occupancy(cells, stamps, sr, sc, g, l_prior, out):
         r = slot(y, sr, H)
         for x in range(W):
             c = slot(x, sc, W)
-            if stamps[r, c, 1] == 0:
+            if stamps[r, c, 1] == UNSEEN:
                 out[y, x] = -1
             else:
                 l = l_prior + g * cells[r, c, 0]
@@ -334,7 +329,7 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
         r = slot(y, sr, H)
         for x in range(W):
             c = slot(x, sc, W)
-            if stamps[r, c, 1] == 0:
+            if stamps[r, c, 1] == UNSEEN:
                 out[y, x] = np.nan
             else:
                 out[y, x] = l_prior + g * cells[r, c, 0]
@@ -368,7 +363,7 @@ def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, o
             for x in range(x0, x1):  # branch-free, so it vectorises
                 c = x + off
                 u = cells[r, c, 0]
-                seen = stamps[r, c, 1] != 0
+                seen = stamps[r, c, 1] != UNSEEN
                 lethal = seen & (u >= thr_occ)
                 free = seen & (u < thr_free)
                 out[y, x] = 255 - np.uint8(lethal) - 255 * np.uint8(free)
