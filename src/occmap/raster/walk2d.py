@@ -6,6 +6,7 @@ is a state and a step (:func:`dda_init` / :func:`dda_setup`, :func:`dda_step`); 
 rectangle of cells can be computed without walking (:func:`dda_span`); :func:`miss_walk` walks the
 part of it in a rectangle of a map's flat arrays and applies the miss update
 (:mod:`occmap.raster.update`) to each cell, the hot loop of every 2D map.
+
 The crossing parameters are rounded down to multiples of 2⁻⁵⁰ (a shift of the crossings by
 less than 10⁻¹⁵ of the segment), which makes a walk's additions exact: where a walk is after any
 number of steps can then be computed without walking (:func:`dda_span`).
@@ -21,9 +22,11 @@ from .._jit import inline_kernel, kernel
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from .update import clamp_add, miss_stamp
 
+
 @kernel
 def cell_of(x, y, ox, oy, inv_res):
-    """(ix, iy) of the cell containing world point (x, y)."""
+    """(ix, iy) of the cell containing world point (x, y): the index rule of :mod:`occmap.raster`
+    (``inv_res`` = 1/res; a world-lattice map passes origin (0, 0))."""
     return int(math.floor((x - ox) * inv_res)), int(math.floor((y - oy) * inv_res))
 
 
@@ -153,7 +156,8 @@ def miss_walk(L, S, base, cs, rs, steps, state, x_lo, x_hi, y_lo, y_hi, s, d, lo
     first cell there (:func:`dda_span`) and stops where it leaves. It goes in two phases: while
     both axes can still step in the rectangle, :func:`dda_step`'s rule (along the axis whose next
     boundary comes first, x on ties); then a straight run along the other axis, as long as the
-    walk takes it, with no comparison per cell."""
+    walk takes it, with no comparison per cell. Inlined into each caller: the grid, which ignores
+    the count, then does not pay for it (about 13 % on one thread otherwise, noisy)."""
     ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = state
     if max(ix, ex) < x_lo or min(ix, ex) >= x_hi or max(iy, ey) < y_lo or min(iy, ey) >= y_hi:
         return 0
