@@ -15,7 +15,7 @@ import numpy as np
 from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
-from ..raster.update import clamp_add, hit_stamp
+from ..raster.update import clamp_add, hit_stamp, miss_stamp
 from ..raster.walk2d import cell_of, dda_init, miss_walk
 
 
@@ -243,9 +243,9 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_
                     w = 1.0 if uniform else 1.0 - (phi / half_width) ** 2
                     if hit and d >= reach - 0.5 * arc:
                         L[iy, ix] = clamp_add(L[iy, ix], w * l_occ, l_min, l_max)
-                        stamp[iy, ix] = 2 * s + 1
+                        stamp[iy, ix] = hit_stamp(s)
                     else:
                         L[iy, ix] = clamp_add(L[iy, ix], w * l_free, l_min, l_max)
-                        if stamp[iy, ix] < 2 * s:
-                            stamp[iy, ix] = 2 * s
+                        if stamp[iy, ix] < miss_stamp(s):
+                            stamp[iy, ix] = miss_stamp(s)
     return used, dropped, maxed

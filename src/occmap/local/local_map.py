@@ -1,21 +1,21 @@
 """The local map: a robot-centred rolling window of log-odds cells that forgets, and its costmap.
 
 Layout: world-aligned cells of side ``resolution`` on the world lattice (the grid conventions of
-:mod:`occmap.raster` with the origin at (0, 0)); the window is ``H × W`` of them, ``origin`` the world position of the
-outer corner of its cell (0, 0), always a multiple of the resolution, so cells never resample
-when the window moves.
+:mod:`occmap.raster` with the origin at (0, 0)); the window is ``H × W`` of them, ``origin`` the
+world position of the outer corner of its cell (0, 0), always a multiple of the resolution, so
+cells never resample when the window moves.
 
-Storage is a circular buffer (after ANYbotics' grid_map; index maths in
-:mod:`occmap.raster.ring`): window cell ``(wy, wx)`` lives at ``((wy + sr) mod H, (wx + sc) mod W)``. :meth:`LocalMap.move_to` shifts ``(sr, sc)`` and clears
-only the rows and columns that left the window (they come back in as the entering cells,
-unknown): a move by k cells writes about ``k · width`` cells and copies nothing.
+Storage is a circular buffer (after ANYbotics' grid_map; index maths in :mod:`occmap.raster.ring`):
+window cell ``(wy, wx)`` lives at ``((wy + sr) mod H, (wx + sc) mod W)``. :meth:`LocalMap.move_to`
+shifts ``(sr, sc)`` and clears only the rows and columns that left the window (they come back in
+as the entering cells, unknown): a move by k cells writes about ``k · width`` cells and copies
+nothing.
 
 Sensing follows :class:`~occmap.OccupancyGrid2D` (:mod:`occmap.raster.update`): log-odds
 ``l ← clamp(l + l_sensor − l_prior)``, every cell updated at most once per scan, a hit winning over
-a miss. One ray is cast per
-distinct end cell of a scan, from the sensor position to the centre of that cell (OctoMap's
-``discretize``), which costs the same cells as any ray into that cell and makes dense 3D clouds
-cheap.
+a miss. One ray is cast per distinct end cell of a scan, from the sensor position to the centre of
+that cell (OctoMap's ``discretize``), which costs the same cells as any ray into that cell and
+makes dense 3D clouds cheap.
 
 Forgetting: with ``half_life`` (seconds) every cell relaxes toward the prior,
 ``l − l_prior ← (l − l_prior) · 2^(−Δt / half_life)``, exactly and at no cost per update: cells
