@@ -6,30 +6,23 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
   ``alpha`` noise terms), applied to every particle with its own noise draw. As in AMCL the filter
   runs only once the odometry has moved ``update_min_d`` metres or turned ``update_min_a``
   radians since its last run; between runs the estimate follows the odometry.
-* **measurement** — the likelihood field: the distance ``d`` from a beam's end point to the
-  nearest occupied cell, precomputed once for the whole map with the exact Euclidean distance
-  transform (:mod:`occmap.edt`) and clamped at ``laser_likelihood_max_dist``; each beam scores
-  ``pz = z_hit · exp(−d² / 2σ²) + z_rand / max_range``. Unknown cells are handled as AMCL does:
-  only occupied cells (occupancy above ``occupied_thresh``) are obstacles, an end point in an
-  unknown cell scores by its distance to the nearest obstacle like any other, and an end point
-  off the map scores as if ``max_dist`` away. Readings that are not finite, below ``laser_min_range``
-  or at/beyond the scan's ``max_range`` (no return) carry no information and are skipped. At most
-  ``max_beams`` of the remaining beams are used, evenly spread over the scan. Beams combine as
-  a product (``model="product"``: the sum of log ``pz``, scaled by ``beam_exponent`` to temper the
-  over-confidence that comes from treating neighbouring beams as independent) or by AMCL's ad-hoc
-  ``1 + Σ pz³`` (``model="amcl"``).
-* **resampling** — low-variance (systematic) resampling when the effective sample size
-  ``1 / Σ w²`` falls below ``resample_ess · N``; optional KLD-adaptive particle count (Fox 2003,
-  AMCL's ``kld_err``/``kld_z`` and its 0.5 m × 0.5 m × 10° bins); random particles drawn
-  uniformly over free space are injected with probability ``max(0, 1 − w_fast / w_slow)``
-  (``recovery_alpha_slow``/``recovery_alpha_fast``), which is how a kidnapped robot is
+* **measurement** — the likelihood field (:mod:`~occmap.localize.likelihood_field`): each beam
+  scores by the distance from its end point to the nearest obstacle of the map. Readings that are
+  not finite, at or below ``laser_min_range`` or at/beyond the scan's ``max_range`` (no return)
+  carry no information and are skipped; at most ``max_beams`` of the rest are used, evenly spread
+  over the scan.
+* **resampling** (:mod:`~occmap.localize.resample`) — low-variance (systematic) resampling when the
+  effective sample size ``1 / Σ w²`` falls below ``resample_ess · N``; optional KLD-adaptive
+  particle count (Fox 2003, AMCL's ``kld_err``/``kld_z`` and its 0.5 m × 0.5 m × 10° bins); random
+  particles drawn uniformly over free space are injected with probability ``max(0, 1 − w_fast /
+  w_slow)`` (``recovery_alpha_slow``/``recovery_alpha_fast``), which is how a kidnapped robot is
   found again. Unlike AMCL the averages are not reset after an injection (the book's version:
   injection continues for as long as the short-term likelihood stays below the long-term one),
-  injection starts only once ``w_fast / w_slow`` falls below ``recovery_threshold`` (on the
-  Intel log, stretches where the scans fit the map poorly drop the ratio below 1 while tracking
-  is fine, and a few random particles then win), and the averaged likelihood is the per-beam
-  geometric mean, so it does not depend on how many beams a scan had. Injection is off by
-  default, as in AMCL (``recovery_alpha_slow = recovery_alpha_fast = 0``).
+  injection starts only once ``w_fast / w_slow`` falls below ``recovery_threshold`` (on the Intel
+  log, stretches where the scans fit the map poorly drop the ratio below 1 while tracking is fine,
+  and a few random particles then win), and the averaged likelihood is the per-beam geometric mean,
+  so it does not depend on how many beams a scan had. Injection is off by default, as in AMCL
+  (``recovery_alpha_slow = recovery_alpha_fast = 0``).
 * **tempering** — with ``min_ess`` a scan that would leave fewer effective particles than that
   share of N is applied with its likelihood raised to a power below 1 (adaptive tempering).
 * **estimate** — the weighted mean of the dominant mode of the cloud (circular mean for the
@@ -53,17 +46,15 @@ Two additions beat plain AMCL's accuracy on real logs (measured in ``BENCHMARKS.
   Gaussian whose standard deviation per dimension is ``K · E · N^(−1/3)`` (``E`` the cloud's
   spread, its 2nd–98th percentile range), so the cloud cannot collapse onto a few copies of one
   particle and can follow a pose between the samples it held;
-* ``refine``: a local scan match of the estimate — Gauss–Newton on the bilinearly interpolated
-  distance field, all valid beams, end points farther than ``refine_cutoff`` from any obstacle
-  ignored — which places the pose between the particles and below the grid's resolution; with
-  ``refine_feedback`` the whole cloud is shifted by the correction.
+* ``refine``: a local scan match of the estimate (:mod:`~occmap.localize.scan_match`: Gauss–Newton
+  on the distance field, all valid beams, end points farther than ``refine_cutoff`` from any
+  obstacle ignored), which places the pose between the particles and below the grid's
+  resolution; with ``refine_feedback`` the whole cloud is shifted by the correction.
 
 Poses are ``(x, y, theta)`` of the *sensor* in the map frame unless ``sensor_offset`` (the
 sensor's pose in the robot frame) is given; then particles and estimates are robot poses.
 
-The settings are one :class:`~occmap.localize.params.LocalizationParams`; the measurement model is
-:mod:`~occmap.localize.likelihood_field`, the scan match :mod:`~occmap.localize.scan_match`, the
-resampling steps :mod:`~occmap.localize.resample`; this module runs the filter.
+The settings, with units and defaults, are one :class:`~occmap.localize.params.LocalizationParams`.
 """
 
 from __future__ import annotations
@@ -255,7 +246,7 @@ class MonteCarloLocalizer:
         odometry_pose : (x, y, theta)
             The raw odometry pose at the time of the scan (any frame: only its changes are used).
         ranges : array_like (n,)
-            Readings in metres; non-finite ones, those at or below ``range_min`` and those at or
+            Readings in metres; non-finite ones, those at or below ``laser_min_range`` and those at or
             beyond ``max_range`` are not used.
         angles : array_like (n,)
             Beam angles relative to the sensor's heading.
