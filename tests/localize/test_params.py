@@ -61,6 +61,8 @@ def test_replace_and_unknown_names():
     assert p.refine and p.sigma_hit == 0.1 and LocalizationParams().sigma_hit == 0.2
     with pytest.raises(TypeError):
         LocalizationParams(alpha_slow=0.1)  # the old name: AMCL's is recovery_alpha_slow
+    with pytest.raises(TypeError):
+        LocalizationParams(500)  # keyword-only: no field depends on the order of the others
 
 
 def test_localizer_takes_params_or_keywords(tmp_path):

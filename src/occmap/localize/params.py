@@ -21,11 +21,11 @@ from ..geometry.motion import OdometryMotionModel
 __all__ = ["LocalizationParams"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LocalizationParams:
     """Settings of a :class:`~occmap.localize.MonteCarloLocalizer`, checked when made.
 
-    Numbers follow :mod:`occmap.checks` (``np.float32`` and NumPy integers accepted; bools, NaN and
+    Fields are keyword-only. Numbers follow :mod:`occmap.checks` (``np.float32`` and NumPy integers accepted; bools, NaN and
     inf rejected); a bad value raises :class:`~occmap.errors.InvalidArgumentError` naming the field.
     :meth:`replace` gives a copy with some fields changed (and checked).
 
@@ -33,8 +33,24 @@ class LocalizationParams:
     ----------
     n_particles : int, default 2000
         Particles while tracking (and at each resampling unless ``kld``).
+    min_particles, max_particles : int, default 500, 5000
+        The range of the KLD particle count.
+    kld : bool, default False
+        Adapt the particle count at each resampling (Fox's KLD-sampling) within
+        ``[min_particles, max_particles]``, with ``kld_err`` (default 0.01) and ``kld_z`` (0.99).
     motion : OdometryMotionModel, default AMCL's (0.2, 0.2, 0.2, 0.2)
         Odometry noise; four floats ``(alpha1 .. alpha4)`` are made into one.
+    update_min_d, update_min_a : float, default 0.0, 0.0
+        Odometry translation (m) / rotation (rad) since the last filter run that triggers the next
+        (0 and 0: every scan).
+    max_odom_jump : (float, float), default (1.0, 1.0)
+        Odometry motion (m, rad) between two calls above which it is treated as a jump.
+    sensor_offset : (float, float, float), default (0, 0, 0)
+        Pose ``(x, y, theta)`` of the sensor in the robot frame.
+    laser_min_range : float, default 0.0
+        Readings (m) at or below it are invalid.
+    max_beams : int, default 60
+        Beams per measurement update, evenly spread over a scan's valid readings.
     z_hit, z_rand : float, default 0.95, 0.05
         Likelihood-field mixture: weight of the Gaussian hit term and of the uniform random term
         (``z_rand / max_range`` per metre); not both zero.
@@ -42,8 +58,6 @@ class LocalizationParams:
         Standard deviation (m) of the hit term while tracking.
     laser_likelihood_max_dist : float, default 2.0
         Distance (m) at which the distance field is clamped.
-    max_beams : int, default 60
-        Beams per measurement update, evenly spread over a scan's valid readings.
     model : {"product", "amcl"}, default "product"
         How beams combine: the product of ``pz`` (to the power ``beam_exponent``), or AMCL's
         ``1 + Σ pz³``.
@@ -52,37 +66,24 @@ class LocalizationParams:
     occupied_thresh, free_thresh : float, default 0.65, 0.196
         Occupancy probabilities above which a cell is an obstacle, below which it is free
         (map_server's); ``0 ≤ free_thresh ≤ occupied_thresh ≤ 1``.
-    laser_min_range : float, default 0.0
-        Readings (m) at or below it are invalid.
     resample_ess : float, default 0.5
         Resample when the effective sample size falls below this share of the particles.
-    kld : bool, default False
-        Adapt the particle count at each resampling (Fox's KLD-sampling) within
-        ``[min_particles, max_particles]``, with ``kld_err`` (default 0.01) and ``kld_z`` (0.99).
-    min_particles, max_particles : int, default 500, 5000
+    min_ess : float, default 0.1
+        Adaptive tempering keeps at least this share of effective particles per scan (0: off).
+    roughening : float, default 0.0
+        Gordon's roughening constant ``K`` (0: off).
     recovery_alpha_slow, recovery_alpha_fast : float, default 0.0, 0.0
         Rates of the long- and short-term likelihood averages that drive random-particle
         injection; 0 and 0 turn injection off.
-    update_min_d, update_min_a : float, default 0.0, 0.0
-        Odometry translation (m) / rotation (rad) since the last filter run that triggers the next
-        (0 and 0: every scan).
-    roughening : float, default 0.0
-        Gordon's roughening constant ``K`` (0: off).
+    recovery_threshold : float, default 0.5
+        Inject random particles only while ``w_fast / w_slow`` is below this.
+    reset_averages : bool, default False
+        Reset ``w_slow`` and ``w_fast`` after each injection, as AMCL's code does.
     refine, refine_feedback : bool, default False, False
         Refine the estimate by a scan match against the distance field; also shift the particles
         by its correction.
     refine_cutoff : float, default 0.3
         End points farther (m) than this from any obstacle are left out of the scan match.
-    max_odom_jump : (float, float), default (1.0, 1.0)
-        Odometry motion (m, rad) between two calls above which it is treated as a jump.
-    sensor_offset : (float, float, float), default (0, 0, 0)
-        Pose ``(x, y, theta)`` of the sensor in the robot frame.
-    min_ess : float, default 0.1
-        Adaptive tempering keeps at least this share of effective particles per scan (0: off).
-    recovery_threshold : float, default 0.5
-        Inject random particles only while ``w_fast / w_slow`` is below this.
-    reset_averages : bool, default False
-        Reset ``w_slow`` and ``w_fast`` after each injection, as AMCL's code does.
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
@@ -93,37 +94,48 @@ class LocalizationParams:
         A global localization has converged once its dominant mode holds this share of the weight.
     """
 
+    # particles
     n_particles: int = 2000
+    min_particles: int = 500
+    max_particles: int = 5000
+    # KLD-sampling
+    kld: bool = False
+    kld_err: float = 0.01
+    kld_z: float = 0.99
+    # motion, and when the filter runs
     motion: OdometryMotionModel = field(default_factory=OdometryMotionModel)
+    update_min_d: float = 0.0
+    update_min_a: float = 0.0
+    max_odom_jump: tuple[float, float] = (1.0, 1.0)
+    # the sensor
+    sensor_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    laser_min_range: float = 0.0
+    max_beams: int = 60
+    # the likelihood field
     z_hit: float = 0.95
     z_rand: float = 0.05
     sigma_hit: float = 0.2
     laser_likelihood_max_dist: float = 2.0
-    max_beams: int = 60
+    # how beams combine
     model: str = "product"
     beam_exponent: float = 1.0
+    # the map (map_server's thresholds)
     occupied_thresh: float = 0.65
     free_thresh: float = 0.196
-    laser_min_range: float = 0.0
+    # resampling
     resample_ess: float = 0.5
-    kld: bool = False
-    kld_err: float = 0.01
-    kld_z: float = 0.99
-    min_particles: int = 500
-    max_particles: int = 5000
+    min_ess: float = 0.1
+    roughening: float = 0.0
+    # recovery by random particles
     recovery_alpha_slow: float = 0.0
     recovery_alpha_fast: float = 0.0
-    update_min_d: float = 0.0
-    update_min_a: float = 0.0
-    roughening: float = 0.0
+    recovery_threshold: float = 0.5
+    reset_averages: bool = False
+    # scan-match refinement
     refine: bool = False
     refine_feedback: bool = False
     refine_cutoff: float = 0.3
-    max_odom_jump: tuple[float, float] = (1.0, 1.0)
-    sensor_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    min_ess: float = 0.1
-    recovery_threshold: float = 0.5
-    reset_averages: bool = False
+    # global localization
     global_particles: int = 20_000
     global_sigma_hit: float = 1.0
     global_update_min_d: float = 0.2
