@@ -15,6 +15,7 @@ import numpy as np
 from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
+from .._threads import ThreadChoice
 from ..raster.update import clamp_add, hit_stamp, miss_stamp
 from ..raster.walk2d import cell_of, dda_init, miss_walk
 
@@ -132,6 +133,9 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_c
 
 #: Calls with fewer cells to walk than this run on one thread.
 SPLIT_MIN_CELLS = 20_000
+#: One thread or several, per call, by their measured cost per beam (calls of fewer beams than
+#: this take one thread).
+THREADS = ThreadChoice(min_work=256)
 
 
 def _flat(L, stamp):
@@ -149,16 +153,19 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
     ``scan0 + k`` (see the module's docstring for what they must fit).
     Returns (beams used, readings dropped as NaN/≤ 0, max-range readings).
 
-    With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` where Numba
-    has two threads or more, else never; negative: never) the grid is cut into strips of rows, one
-    per thread (at least two), updated side by side; the result is the same either way."""
-    threads = get_num_threads()
-    if split_min_cells is None:
-        split_min_cells = SPLIT_MIN_CELLS if threads >= 2 else -1
+    With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` when
+    :data:`THREADS` chooses several threads, else never; negative: never) the grid is cut into
+    strips of rows, one per thread (at least two), updated side by side; the result is the same
+    either way."""
     Lf, Sf = _flat(L, stamp)
     H, W = L.shape
-    return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-                            l_hit, l_miss, l_min, l_max, split_min_cells, max(threads, 2))
+    max_parts = max(get_num_threads(), 2)
+    if split_min_cells is not None:
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                                l_hit, l_miss, l_min, l_max, split_min_cells, max_parts)
+    with THREADS.choose(ranges.size) as parallel:
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                                l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts)
 
 
 @kernel

@@ -19,9 +19,10 @@ import math
 
 import numpy as np
 
-from numba import get_num_threads, prange
+from numba import prange
 
 from .._jit import kernel, kernel_parallel
+from .._threads import ThreadChoice
 from ..raster.edt import row_envelope
 from ..raster.ring import slot, wrap_point
 from ..raster.update import UNSEEN, clamp_add, hit_stamp
@@ -197,10 +198,12 @@ def _serial(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_
           0, W, 0, -1, rays, counts)
 
 
-#: Scans with at least this many readings, in windows of at least this many cells, are
-#: integrated by two threads (the window cut at the sensor's column) when Numba has two.
+#: Scans with at least this many readings, in windows of at least this many cells, may be
+#: integrated by two threads (the window cut at the sensor's column), when :data:`THREADS` finds
+#: two threads the cheaper.
 PARALLEL_MIN_POINTS = 4096
 PARALLEL_MIN_CELLS = 40_000
+THREADS = ThreadChoice(min_work=PARALLEL_MIN_POINTS)
 
 
 def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kinds, s, d_hit, d_miss, lo, hi,
@@ -211,7 +214,7 @@ def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kin
     then one ray per distinct end cell, cast to that cell's centre, freeing each cell not yet
     updated in this scan (stamp 2s). Returns (hits applied, rays cast, free updates, cells visited).
 
-    In parallel (default: for big enough scans and windows, two Numba threads) the window is cut
+    In parallel (default: :data:`THREADS` chooses, for big enough scans and windows) the window is cut
     at the sensor's column: each half takes the hits ending in it and the rays whose end lies on
     its side, updating only its own cells; the sensor's column cells of the left rays follow,
     serially. Within a scan each cell's update does not depend on order, so the result is the
@@ -222,7 +225,9 @@ def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kin
     v0 = py * inv_res
     split = int(math.floor(u0)) - gx0
     if parallel is None:
-        parallel = n >= PARALLEL_MIN_POINTS and H * W >= PARALLEL_MIN_CELLS and get_num_threads() >= 2
+        with THREADS.choose(n if H * W >= PARALLEL_MIN_CELLS else 0) as parallel:
+            return integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kinds, s, d_hit, d_miss,
+                             lo, hi, parallel)
     counts = np.zeros((2, 4), dtype=np.int64)
     rays = np.empty((2, n, 2), dtype=np.int64)
     Lf = cells.reshape(-1)

@@ -24,12 +24,15 @@ import numpy as np
 from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
+from .._threads import ThreadChoice
 from ..errors import InvalidArgumentError, ShapeError
 
 __all__ = ["squared_distance_cells", "distance_transform", "row_envelope"]
 
-#: Masks with fewer cells than this run on one thread (thread start-up costs more than it saves).
+#: Masks with fewer cells than this run on one thread (thread start-up costs more than it saves);
+#: larger ones on as many as :data:`THREADS` finds cheaper.
 PARALLEL_MIN_CELLS = 40_000
+THREADS = ThreadChoice(min_work=PARALLEL_MIN_CELLS)
 
 #: Columns per block of the column pass (one block per task; a block's row slice is a few cache lines).
 _COL_BLOCK = 64
@@ -137,9 +140,14 @@ def _squared(mask: np.ndarray, parallel) -> np.ndarray:
     if H == 0 or W == 0:
         return out
     if parallel is None:
-        parallel = H * W >= PARALLEL_MIN_CELLS and get_num_threads() >= 2
+        with THREADS.choose(H * W) as parallel:
+            return _fill(mask, out, parallel)
+    return _fill(mask, out, parallel)
+
+
+def _fill(mask, out, parallel: bool) -> np.ndarray:
     if parallel:
-        _edt_parallel(mask, out, max(1, min(H, 4 * get_num_threads())))
+        _edt_parallel(mask, out, max(1, min(mask.shape[0], 4 * get_num_threads())))
     else:
         _edt_serial(mask, out)
     return out
@@ -150,8 +158,9 @@ def squared_distance_cells(obstacle_mask, parallel: bool | None = None) -> np.nd
 
     ``obstacle_mask`` is a boolean (H, W) array (any other dtype: non-zero is an obstacle).
     Returns float64 (H, W): exact integers (0 on obstacles), ``inf`` everywhere when the mask has
-    no obstacle. ``parallel`` (default: for masks of :data:`PARALLEL_MIN_CELLS` cells or more when
-    Numba has two threads or more) splits both passes over threads; the result is the same.
+    no obstacle. ``parallel`` (default: :data:`THREADS` chooses, for masks of
+    :data:`PARALLEL_MIN_CELLS` cells or more) splits both passes over threads; the result is the
+    same.
     """
     return _squared(_check_mask(obstacle_mask), parallel)
 
