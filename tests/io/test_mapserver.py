@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import os
 
 import numpy as np
@@ -99,6 +101,8 @@ def test_yaml_text_matches_map_saver_layout(tmp_path):
         "negate: 0\n"
         "occupied_thresh: 0.65\n"
         "free_thresh: 0.196\n"
+        "# the image this file was written with; occmap checks it on loading\n"
+        f"occmap_image_sha256: {hashlib.sha256((tmp_path / 'office.pgm').read_bytes()).hexdigest()}\n"
     )
 
 
@@ -127,8 +131,9 @@ def test_scale_mode_png_marks_unknown_transparent(tmp_path):
     np.testing.assert_array_equal(picture[0, :, 1], [0, 255, 255, 255])
     np.testing.assert_array_equal(picture[0, 1:, 0], [255, 128, 0])
     loaded = load_map(tmp_path / "s.yaml").occupancy
-    # p = (255 - 128)/255 = 0.498 → rint(99·(0.498 − 0.196)/(0.65 − 0.196)) = 66
-    np.testing.assert_array_equal(loaded, [[-1, 0, 66, 100]])
+    # nav2: p = (255 - 128)/255 = 0.49804 → rint(100·(0.49804 − 0.196)/(0.65 − 0.196)) = rint(66.53)
+    # = 67 (ROS 1's 1 + 98·0.66528 would give 66, and the old rint(99·ratio) 66 too)
+    np.testing.assert_array_equal(loaded, [[-1, 0, 67, 100]])
 
 
 def test_png_and_bmp_trinary(tmp_path):
@@ -241,8 +246,11 @@ def test_load_scale_mode(tmp_path):
         elif p < 0.196:
             expected.append(0)
         else:
-            expected.append(int(np.rint(99 * (p - 0.196) / (0.65 - 0.196))))
-    assert expected == [0, 4, 47, 90, 100, 100]
+            expected.append(int(np.rint(100 * (p - 0.196) / (0.65 - 0.196))))
+    # by hand, nav2's rint(100·ratio): gray 200 → p 0.21569, ratio 0.04336 → 4; gray 150 → p
+    # 0.41176, ratio 0.47525 → 48; gray 100 → p 0.60784, ratio 0.90714 → 91 (the old
+    # rint(99·ratio) gave 47 and 90)
+    assert expected == [0, 4, 48, 91, 100, 100]
     assert load_map(tmp_path / "s.yaml").occupancy.tolist() == [expected]
 
 
@@ -338,14 +346,14 @@ def test_error_unreadable_image(tmp_path):
 @pytest.mark.parametrize(
     ("text", "line", "words"),
     [
-        (GOOD + "this is not yaml\n", 6, "key: value"),
-        (GOOD + "  indented: 1\n", 6, "indented"),
-        (GOOD + "nested:\n", 6, "no value"),
+        (GOOD + "this is not yaml\n", 7, "key: value"),
+        (GOOD + "  indented: 1\n", 6, "not valid YAML"),
+        (GOOD + "mode:\n", 6, "no value"),
         (GOOD + "resolution: 0.1\n", 6, "repeated"),
-        (GOOD + "list: [1, [2]]\n", 6, "nested"),
-        (GOOD + "list: [1, 2\n", 6, "]"),
-        (GOOD + "name: 'open\n", 6, "unterminated"),
-        (GOOD + "- item\n", 6, "key: value"),
+        (GOOD.replace("[0, 0, 0]", "[0, [0], 0]"), 3, "origin must be a number, got a list"),
+        (GOOD + "list: [1, 2\n", 7, "']'"),
+        (GOOD + "name: 'open\n", 7, "not valid YAML"),
+        (GOOD + "- item\n", 6, "not valid YAML"),
         (GOOD.replace("0.05", "fast"), 2, "number"),
         (GOOD.replace("0.05", "-0.05"), 2, "> 0"),
         (GOOD.replace("0.05", "0"), 2, "> 0"),
@@ -449,7 +457,7 @@ def test_trinary_averages_alpha_in_like_map_server(tmp_path):
     assert load_map(tmp_path / "t.yaml").occupancy.tolist() == [[100, -1]]
     write(tmp_path / "t.yaml", "image: t.png\nmode: scale\nresolution: 0.05\n"
           "origin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
-    assert load_map(tmp_path / "t.yaml").occupancy.tolist() == [[100, 90]]
+    assert load_map(tmp_path / "t.yaml").occupancy.tolist() == [[100, 91]]
 
 
 def test_sixteen_bit_and_palette_images(tmp_path):
