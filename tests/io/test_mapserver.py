@@ -474,3 +474,54 @@ def test_sixteen_bit_and_palette_images(tmp_path):
 def test_negative_zero_origin_prints_as_zero(tmp_path):
     save_map(tmp_path / "z.yaml", np.zeros((1, 1), np.int8), 0.05, np.array([-0.0, -0.0]))
     assert "origin: [0.0, 0.0, 0.0]\n" in (tmp_path / "z.yaml").read_text()
+
+
+# ----------------------------------------------------------------------------------------------
+# real YAML, and pairs from two saves
+
+
+def test_block_style_lists_anchors_and_flow_mappings_are_yaml(tmp_path):
+    write_pgm(tmp_path / "b.pgm", [[0, 254]])
+    write(tmp_path / "b.yaml", (
+        "image: b.pgm\n"
+        "resolution: &res 0.25\n"
+        "origin:\n"
+        "  - -1.5\n"
+        "  - 2\n"
+        "  - 0.0\n"
+        "thresholds: {unused: *res}\n"
+        "occupied_thresh: 0.65\n"
+        "free_thresh: 0.196\n"
+    ))
+    m = load_map(tmp_path / "b.yaml")
+    assert m.origin == (-1.5, 2.0, 0.0) and m.resolution == 0.25
+    assert m.occupancy.tolist() == [[100, 0]]
+
+
+def test_block_style_origin_errors_name_the_item_line(tmp_path):
+    text = GOOD.replace("origin: [0, 0, 0]", "origin:\n  - 0\n  - north\n  - 0")
+    error = load_error(tmp_path, text)
+    assert error.line == 5 and "origin must be a number, got 'north'" in str(error)
+
+
+def test_pair_from_two_saves_fails_to_load(tmp_path):
+    save_map(tmp_path / "m.yaml", np.zeros((3, 4), np.int8), 0.05, (1.0, 2.0))
+    old_yaml = (tmp_path / "m.yaml").read_bytes()
+    save_map(tmp_path / "m.yaml", np.full((5, 2), 100, np.int8), 0.1, (-3.0, 0.0))
+    (tmp_path / "m.yaml").write_bytes(old_yaml)  # a save killed between its image and its YAML
+    error = load_error(tmp_path, old_yaml.decode(), name="m.yaml")
+    assert "m.pgm is not the image this file was saved with" in str(error) and error.line == 9
+
+
+def test_yaml_without_the_digest_loads_as_before(tmp_path):
+    save_map(tmp_path / "m.yaml", np.zeros((3, 4), np.int8), 0.05, (1.0, 2.0))
+    text = (tmp_path / "m.yaml").read_text()
+    (tmp_path / "m.yaml").write_text("".join(ln + "\n" for ln in text.splitlines()[:7]))
+    assert load_map(tmp_path / "m.yaml").occupancy.shape == (3, 4)
+
+
+@pytest.mark.parametrize("name, fmt", [("x.pgm", "pgm"), ("x.png", "png")])
+def test_yaml_path_that_is_its_own_image_is_refused(tmp_path, name, fmt):
+    with pytest.raises(InvalidArgumentError, match="would be its own image"):
+        save_map(tmp_path / name, np.zeros((2, 2), np.int8), 0.05, (0, 0), image_format=fmt)
+    assert list(tmp_path.iterdir()) == []
