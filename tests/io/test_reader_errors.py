@@ -96,3 +96,11 @@ def test_missing_file_is_both_an_occmap_error_and_file_not_found(tmp_path):
                 read(tmp_path / "nope")
         assert isinstance(info.value, OccmapError) and isinstance(info.value, FileNotFoundError)
         assert str(tmp_path / "nope") in str(info.value)
+
+
+def test_map_yaml_number_of_thousands_of_digits(tmp_path):
+    (tmp_path / "m.pgm").write_bytes(b"P5\n1 1\n255\n\x00")
+    (tmp_path / "m.yaml").write_text(f"image: m.pgm\nresolution: {'9' * 5000}\norigin: [0, 0, 0]\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    with pytest.raises(FormatError, match=r"m\.yaml, line 2: resolution must be > 0, got inf"):
+        load_map(tmp_path / "m.yaml")

@@ -273,12 +273,9 @@ def save_map(
 _NUMBER = re.compile(r"^[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?$")
 
 
-def _parse_number(text: str):
-    if not _NUMBER.match(text):
-        return None
-    if re.match(r"^[-+]?\d+$", text):
-        return int(text)
-    return float(text)
+def _parse_number(text: str) -> float | None:
+    """A plain decimal number as float (thousands of digits give inf), or None."""
+    return float(text) if _NUMBER.match(text) else None
 
 
 def _line(node) -> int:
@@ -342,7 +339,7 @@ def _as_number(path, key, node) -> float:
     number = _parse_number(node.value) if node.style is None else None
     if number is None:
         raise FormatError(path, f"{key} must be a number, got {node.value[:40]!r}", line=_line(node))
-    return float(number)
+    return number
 
 
 def _as_string(path, key, node) -> str:
