@@ -49,7 +49,7 @@ import numpy as np
 
 from .._files import write_atomic
 from ..cloud import PointCloud
-from ..errors import FormatError, InvalidArgumentError, ShapeError
+from ..errors import FormatError, InvalidArgumentError, MissingFileError, ShapeError
 from ..geometry.se3 import SE3
 from ._compression import EXTENSIONS, read_bytes
 from . import _text
@@ -554,7 +554,7 @@ def _uos_sidecar(scan_path: Path, suffixes) -> Path:
         if p.exists():
             return p
         tried.append(str(p))
-    raise FileNotFoundError(f"no pose file for {scan_path}: tried {', '.join(tried)}")
+    raise MissingFileError(scan_path, f"no pose file beside the scan: tried {', '.join(tried)}")
 
 
 def _uos_frames(path) -> np.ndarray:
