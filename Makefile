@@ -17,9 +17,11 @@ $(STAMP): pyproject.toml
 
 # Numba checks a cached kernel against its own source file only, not against the kernels it
 # calls from other files, which are compiled into it: after any change to the sources the whole
-# cache goes, so that no stale kernel runs (once one crashed the tests).
-$(KERNELS): $(SOURCES) | $(STAMP)
+# cache goes, so that no stale kernel runs (once one crashed the tests). Then every kernel is
+# compiled once (`occmap warmup`), so that no command, demo or test waits for the compiler.
+$(KERNELS): $(SOURCES) $(STAMP)
 	$(CLEAR_KERNEL_CACHE)
+	$(BIN)/occmap warmup
 	touch $@
 
 demo: $(STAMP) $(KERNELS)
