@@ -37,6 +37,7 @@ bench: $(STAMP) $(KERNELS)
 	$(BIN)/python benchmarks/bench_grid2d.py
 	$(BIN)/python benchmarks/bench_local_map.py
 	$(BIN)/python benchmarks/bench_localize.py
+	$(BIN)/python benchmarks/bench_startup.py
 	$(BIN)/python benchmarks/bench_octree.py
 
 clean: clean-cache

@@ -94,35 +94,32 @@ def geometry(folder: Path) -> None:
 
 
 def grids(folder: Path) -> None:
-    """The 2D grid (lidar and sonar), map_server files, the simulated office."""
+    """The 2D grid (lidar and sonar; fixed, loaded and growing), map_server files, the simulated
+    office, a CARMEN log."""
     from ..grid2d import LidarModel, OccupancyGrid2D, SonarModel
     from ..io.carmen import read_carmen
     from ..mapping2d import map_scans
     from ..sim import World2D, simulate_scans, simulate_sonar
+    from .demo import map_simulated_office
 
+    map_simulated_office(folder)  # a fixed grid, its files and pictures
     world = World2D.default()
     poses = world.default_trajectory(n=20)
-    scans = simulate_scans(world, poses, n_beams=90, max_range=10.0, sigma=0.01, p_outlier=0.01, rng=1)
+    scans = simulate_scans(world, poses, n_beams=90, max_range=10.0, rng=1)
     P = np.array([s.pose for s in scans])
     R = np.array([s.ranges for s in scans])
-    xmin, ymin, xmax, ymax = world.bounds
-    fixed = OccupancyGrid2D(0.1, size=(xmax - xmin, ymax - ymin), origin=(xmin, ymin))
-    fixed.integrate_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
     growing = OccupancyGrid2D(0.1)
     growing.integrate_scan(P[0], R[0], scans[0].angles, max_range=10.0, model=LidarModel(0.7, 0.45))
     growing.integrate_scans(P, R, np.repeat(scans[0].angles[None], len(P), axis=0), max_range=8.0)
     growing.value_at(P[:, :2])
     sonar = simulate_sonar(world, P[0], np.radians(np.arange(0.0, 360.0, 45.0)), rng=2)
+    fixed = OccupancyGrid2D.load(folder / "sim_office.yaml")
     fixed.integrate_sonar(P[:1], sonar.ranges[None], sonar.angles, 5.0)
     fixed.integrate_sonar(P[:1], sonar.ranges[None], sonar.angles, 5.0, model=SonarModel.udacity_exercise())
-    fixed.save(folder / "office.yaml")
-    fixed.save_png(folder / "office.png")
-    OccupancyGrid2D.load(folder / "office.yaml")
     world.free_space(0.1)
     world.clearance(P[:, :2])
     for n in (10, 100_000):  # one thread and many
         world.cast(P[0, :2], np.linspace(-np.pi, np.pi, n))
-    world.render_png(folder / "truth.png", poses=poses)
     log = folder / "office.log"
     log.write_text("".join(
         f"FLASER {len(s.ranges)} " + " ".join(f"{r:.3f}" for r in np.minimum(s.ranges, 10.0))
