@@ -3,7 +3,9 @@
 1. Maps: a simulated office (noisy lidar along a path through every room) mapped at 0.05 m and
    written as ROS map_server files and a picture; with the shared data present, the Intel
    Research Lab (D. Hähnel's corrected log) too.
-2. A tour of the geometry core (printed) and of the motion models (drawn): a differential-drive
+2. Octrees: a simulated Velodyne HDL-32E drive through a town block, written as OctoMap ``.bt``
+   and drawn from above and as a slice; with the shared data, OctoMap's sample scan (scan.dat).
+3. A tour of the geometry core (printed) and of the motion models (drawn): a differential-drive
    robot and a car follow their controls exactly, and the odometry motion model spreads 400
    particles into the crescent-shaped clouds of Thrun, Burgard & Fox, *Probabilistic Robotics*,
    Fig. 5.3.

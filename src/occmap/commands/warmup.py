@@ -69,6 +69,9 @@ def geometry(folder: Path) -> None:
         g.diff_drive_step(pose, 0.5, 0.6, 0.4, 0.1)
         g.bicycle_step(pose, 1.0, 0.1, 0.8, 0.1)
         g.apply_odometry(pose, g.odometry_delta(pose, pose + 0.1), (0.1, 0.1, 0.1, 0.1), rng)
+    g.euler_zyx_to_matrix(0.3, 0.2, 0.1)  # plain floats
+    g.se2_matrix(1.0, 2.0, 0.3)
+    g.rot2(0.3), g.wrap_angle(4.0), g.rot_x(0.1), g.rot_y(0.1), g.rot_z(0.1)
     g.random_rotations(4, rng=1)
     r = g.SO3.from_rotvec(rng.normal(size=(2, 3)))
     (r @ r.inv()).apply(np.zeros((2, 3)))
