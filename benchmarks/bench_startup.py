@@ -151,7 +151,7 @@ def main() -> int:
         f"| `import occmap` | {t['import']:.2f} | |",
         f"| one trivial cached Numba kernel (Numba's floor: its import, SciPy's linear algebra, its registries) | "
         f"{t['numba']:.2f} | |",
-        f"| `occmap info fr_079.bt` ({bt.stat().st_size / 2**20:.0f} MiB, 1.8 M nodes) | {t['info']:.2f} | "
+        f"| `occmap info fr_079.bt` ({bt.stat().st_size / 2**20:.1f} MiB, 1.8 M nodes) | {t['info']:.2f} | "
         f"{t['octomap info']:.2f} |",
         f"| `occmap info` on a two-point tree (fixed cost) | {t['info two']:.2f} | |",
         f"| `occmap map3d scan.dat.bz2` at 0.1 m (88,206 points) | {t['map3d']:.2f} | {t['octomap map3d']:.2f} |",
