@@ -7,7 +7,10 @@ import os
 import platform
 import re
 import statistics
+import subprocess
+import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -30,6 +33,53 @@ def median_times(fns, number: int, repeat: int = 9) -> list[float]:
                 fn()
             out.append((time.perf_counter() - t0) / number)
     return [statistics.median(r) for r in runs]
+
+
+@contextmanager
+def competing_process():
+    """Another program keeping one core busy while the block runs (a robot's computer runs more
+    than the mapper)."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.3)
+        yield
+    finally:
+        busy.kill()
+        busy.wait()
+
+
+def one_thread(fn):
+    """``fn`` run with Numba, and so every occmap kernel and worker pool, limited to one thread."""
+    import numba
+
+    def run():
+        threads = numba.get_num_threads()
+        numba.set_num_threads(1)
+        try:
+            return fn()
+        finally:
+            numba.set_num_threads(threads)
+
+    return run
+
+
+def per_call_table(cases, number: int, repeat: int = 9) -> str:
+    """Markdown rows timing each ``(label, fn)`` (one call = one scan, as a robot streams) with
+    occmap's default threads and on one thread, on an idle machine and beside a competing process;
+    the last column is the one-thread time over the default's under competition (≥ 1: the
+    default is never the slower)."""
+    import numba
+
+    lines = [f"| per call | idle, {numba.get_num_threads()} threads | idle, one thread | busy, "
+             f"{numba.get_num_threads()} threads | busy, one thread | busy: one thread / default |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for label, fn in cases:
+        idle = median_times([fn, one_thread(fn)], number, repeat)
+        with competing_process():
+            busy = median_times([fn, one_thread(fn)], number, repeat)
+        cells = [f"{t * 1e3:.3f} ms" for t in (*idle, *busy)]
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {busy[1] / busy[0]:.2f}× |")
+    return "\n".join(lines)
 
 
 def machine() -> str:

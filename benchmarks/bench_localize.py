@@ -29,6 +29,7 @@ from _report import ROOT, median_times, write_section  # noqa: E402
 from occmap._data import find_shared_data  # noqa: E402
 from occmap.io.carmen import read_carmen  # noqa: E402
 from occmap.localize import _kernels as K  # noqa: E402
+from occmap.localize.likelihood_field import beam_end_points  # noqa: E402
 from occmap.localize.replay import (  # noqa: E402
     convergence_distance, make_localizer, pair_scans, replay, save_error_png, save_track_png, track_errors, travelled,
 )
@@ -53,10 +54,11 @@ def bench_update(grid, raw, ref_pose) -> list[str]:
     for s in scans[:50]:
         loc.update(s.odom, s.ranges, s.angles, s.max_range)
     s = scans[200]
-    bx, by, _, _ = loc._beams(s.ranges, s.angles, s.max_range)
-    table, outside = loc._table(s.max_range, loc.sigma_hit)
+    bx, by, _, _ = beam_end_points(s.ranges, s.angles, s.max_range, loc.params)
+    field = loc.field
+    table, outside = field.table(s.max_range, loc.params.sigma_hit)
     out = np.empty(len(loc.particles))
-    args = (loc.particles, bx, by, table, outside, loc.origin[0], loc.origin[1], 1.0 / loc.resolution, out)
+    args = (loc.particles, bx, by, table, outside, field.origin[0], field.origin[1], 1.0 / field.resolution, out)
     t_upd, t_ser, t_par = median_times(
         [one_update, lambda: K.score_particles(*args), lambda: K.score_particles_parallel(*args)], 20, 9)
     ok = "meets" if t_upd <= 0.010 else "misses"

@@ -1,12 +1,62 @@
-"""The Numba decorators every kernel module uses.
+"""The Numba decorators every kernel module uses, and where their compiled code is kept.
 
 ``cache=True`` keeps compiled code between runs; ``error_model="numpy"`` makes a division by zero
 give inf/NaN (caught by the kernels' own checks) instead of raising inside a loop; ``nogil=True``
 lets Python threads run kernels side by side. No fastmath: the kernels' NaN checks must survive
-compilation.
+compilation. Importing this module sets up the threading layer first (see :mod:`occmap._threads`).
+
+Numba checks a cached kernel against its own source file only, yet a kernel has the kernels it
+calls from other files compiled into it: after an edit or an upgrade a stale kernel could run
+(it once crashed the tests). Here every kernel of the package is checked against a digest of all
+the package's sources instead (:func:`sources_stamp`), so any change anywhere recompiles them,
+however occmap was installed.
 """
 
+from __future__ import annotations
+
+import functools
+import hashlib
+from pathlib import Path
+
 from numba import njit
+from numba.core.caching import CacheImpl, InTreeCacheLocator, UserProvidedCacheLocator, UserWideCacheLocator
+
+from ._threads import prefer_tbb
+
+prefer_tbb()
+
+_PACKAGE = __name__.split(".")[0]
+_PACKAGE_DIR = Path(__file__).resolve().parent
+
+
+@functools.cache
+def sources_stamp() -> str:
+    """SHA-256 of every ``.py`` file of the package (names and contents), once per process."""
+    digest = hashlib.sha256()
+    for path in sorted(_PACKAGE_DIR.rglob("*.py")):
+        digest.update(str(path.relative_to(_PACKAGE_DIR)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+class _PackageStamp:
+    """A cache locator of Numba's, for this package's kernels only, whose stamp is
+    :func:`sources_stamp` instead of the kernel's own file."""
+
+    def get_source_stamp(self):
+        return sources_stamp()
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if py_func.__module__.split(".")[0] != _PACKAGE:
+            return None
+        return super().from_function(py_func, py_file)
+
+
+CacheImpl._locator_classes = [
+    *(type(f"Package{base.__name__}", (_PackageStamp, base), {})
+      for base in (UserProvidedCacheLocator, InTreeCacheLocator, UserWideCacheLocator)),
+    *CacheImpl._locator_classes,
+]
 
 kernel = njit(cache=True, error_model="numpy", nogil=True)
 kernel_parallel = njit(cache=True, error_model="numpy", nogil=True, parallel=True)

@@ -6,13 +6,12 @@ one place. Batched: every method takes arrays of points.
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ._files import write_atomic
+from .png import write_png
 
 
 class Canvas:
@@ -70,7 +69,5 @@ class Canvas:
             self.polyline([(self.xmin, y), (self.xmax, y)], color, 1)
 
     def save(self, path) -> Path:
-        """Write a PNG atomically (temporary file in the same folder, then rename)."""
-        buffer = io.BytesIO()
-        self.image.save(buffer, format="PNG")
-        return write_atomic(path, buffer.getvalue())
+        """Write a PNG atomically (:func:`occmap.png.write_png`)."""
+        return write_png(path, self.image)

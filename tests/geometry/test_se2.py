@@ -21,6 +21,7 @@ from occmap.geometry import (
     so2_angle,
     transform_points,
     wrap_angle,
+    wrap_angle_one,
 )
 
 EPS = np.finfo(np.float64).eps
@@ -69,6 +70,16 @@ def test_wrap_angle_leaves_atan2_output_alone(rng):
     t = np.arctan2(rng.normal(size=100_000), rng.normal(size=100_000))
     t = np.r_[t, PI, np.nextafter(PI, 0), 0.0, 1e-300, -1e-300]
     np.testing.assert_array_equal(wrap_angle(t), t)
+
+
+def test_wrap_angle_one_is_wrap_angle_bit_for_bit(rng):
+    """The scalar twin (for kernels and Python scalars) follows the array rule to the bit, near
+    every odd multiple of π too."""
+    k = np.arange(-9, 10) * PI
+    a = np.r_[rng.uniform(-30, 30, 20_000), k, np.nextafter(k, 100), np.nextafter(k, -100), 0.0, -0.0, 1e300]
+    one = np.array([wrap_angle_one(float(v)) for v in a])
+    np.testing.assert_array_equal(one.view(np.int64), wrap_angle(a).view(np.int64))
+    assert type(wrap_angle_one(7.0)) is float
 
 
 def test_wrap_angle_shapes():

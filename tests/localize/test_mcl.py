@@ -193,7 +193,7 @@ def test_kidnapped_robot_recovers(sim_map, world):
     path = world.default_trajectory(n=600)
     truth = np.concatenate([path[:80], path[380:560]])  # teleported from the first rooms to the far ones
     odo = _drifting_odometry(np.concatenate([path[:80], path[80:80 + 180]]), rng)  # odometry never knew
-    loc = MonteCarloLocalizer(sim_map, 3000, alpha_slow=0.001, alpha_fast=0.1, refine=True, seed=32)
+    loc = MonteCarloLocalizer(sim_map, 3000, recovery_alpha_slow=0.001, recovery_alpha_fast=0.1, refine=True, seed=32)
     loc.initialize(truth[0], np.diag([0.05 ** 2, 0.05 ** 2, 0.02 ** 2]))
     est = _track(loc, world, truth, odo, rng)
     err = np.hypot(*(est[:, :2] - truth[:, :2]).T)

@@ -37,7 +37,7 @@ from .quaternion import (
 )
 from .se2 import SE2, se2_from_matrix, se2_matrix
 from .se3 import SE3, compose_transforms, exp_se3, invert_transform, log_se3, make_transform, transform_points
-from .so2 import SO2, rot2, so2_angle, wrap_angle
+from .so2 import SO2, rot2, so2_angle, wrap_angle, wrap_angle_one
 from .so3 import (
     SO3,
     axis_angle_to_matrix,
@@ -103,4 +103,5 @@ __all__ = [
     "transform_points",
     "vee",
     "wrap_angle",
+    "wrap_angle_one",
 ]

@@ -136,6 +136,21 @@ def check_rotation(R):
             raise Rejected(i)
 
 
+_TWO_PI = 2.0 * math.pi
+
+
+@inline_kernel
+def wrap_angle_one(a):
+    """One angle (radians) wrapped to (−π, π] by :func:`occmap.geometry.so2.wrap_angle`'s rule, to
+    the bit: for kernels, and for scalars in Python (a dispatcher call is cheaper than NumPy's)."""
+    w = a - _TWO_PI * np.rint(a / _TWO_PI)
+    if w <= -math.pi:
+        w += _TWO_PI
+    if w > math.pi:
+        w -= _TWO_PI
+    return w
+
+
 @kernel
 def _atan2(y, x):
     """atan2 in (−π, π]: the −π that atan2 returns for a sine of −0.0 becomes π."""

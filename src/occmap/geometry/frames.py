@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import checks
 from ..errors import (
     ConnectivityError,
     ExtrapolationError,
@@ -215,13 +216,8 @@ class FrameTree:
     """
 
     def __init__(self, cache_time: float = 10.0, max_history: int | None = None):
-        cache_time = float(cache_time)
-        if not (np.isfinite(cache_time) and cache_time > 0):
-            raise InvalidArgumentError(f"cache_time must be a positive number of seconds, got {cache_time!r}")
-        if max_history is not None and (int(max_history) != max_history or max_history < 1):
-            raise InvalidArgumentError(f"max_history must be a positive integer or None, got {max_history!r}")
-        self.cache_time = cache_time
-        self.max_history = None if max_history is None else int(max_history)
+        self.cache_time = checks.positive("cache_time", cache_time, "seconds")
+        self.max_history = None if max_history is None else checks.count("max_history", max_history)
         self._links: dict[str, _Link] = {}  # keyed by child frame
         self._frames: dict[str, None] = {}  # every known frame, in order of first appearance
 

@@ -1,7 +1,9 @@
 """SO(2): planar rotations, angle wrapping, and the batched :class:`SO2` wrapper.
 
 Angles are radians, counter-clockwise positive. Wrapped angles lie in (−π, π], the range of
-``atan2``, so ``wrap_angle(atan2(s, c)) == atan2(s, c)`` exactly.
+``atan2``, so ``wrap_angle(atan2(s, c)) == atan2(s, c)`` exactly. :func:`wrap_angle` wraps arrays;
+:func:`wrap_angle_one` is the same rule, to the bit, for one float: callable from Numba kernels
+(where it is inlined) and cheap on a Python scalar.
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernels as K
+from ._kernels import wrap_angle_one
 from ._arrays import ROTATION_TOL, batch, reject
 
 _TWO_PI = 2.0 * np.pi

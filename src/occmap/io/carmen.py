@@ -67,21 +67,20 @@ Counts and ``PARAM`` values go into a :class:`CarmenStats` the caller may pass t
 
 from __future__ import annotations
 
-import bz2
-import gzip
 import io
-import lzma
 import math
 import os
-import warnings
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import checks
 from ..errors import FormatError, InvalidArgumentError
 from ..geometry.so2 import wrap_angle
 from ..scan import LaserScan, ScanStack, stack_scans
+from ._compression import CORRUPT, open_binary
+from ._text import first_non_number, not_a_number, numbers
 
 __all__ = [
     "DEFAULT_MAX_RANGE",
@@ -205,9 +204,7 @@ class CarmenLog:
 def flaser_angles(n: int) -> np.ndarray:
     """Beam angles (radians, relative to the laser heading) of an ``n``-beam FLASER/RLASER scan,
     by the rules in the module docstring. Returns a new float64 array."""
-    n = int(n)
-    if n < 0:
-        raise InvalidArgumentError(f"beam count must be >= 0, got {n}")
+    n = checks.count("beam count n", n, minimum=0)
     i = np.arange(n, dtype=np.float64)
     if n in (180, 360):
         return -0.5 * np.pi + i * (np.pi / n)
@@ -217,40 +214,15 @@ def flaser_angles(n: int) -> np.ndarray:
 
 
 def _open_text(path) -> io.TextIOBase:
-    with open(path, "rb") as f:
-        magic = f.read(6)
-    if magic[:2] == b"\x1f\x8b":
-        raw = gzip.open(path, "rb")
-    elif magic[:3] == b"BZh":
-        raw = bz2.open(path, "rb")
-    elif magic == b"\xfd7zXZ\x00":
-        raw = lzma.open(path, "rb")
-    else:
-        raw = open(path, "rb")
     # latin-1 never fails to decode; stray bytes then fail as non-numeric fields, with a line number
-    return io.TextIOWrapper(raw, encoding="latin-1", newline=None)
-
-
-def _first_bad_token(text: str) -> tuple[int, str] | None:
-    """Index and text of the first token in ``text`` that is not a number (for error messages)."""
-    for k, tok in enumerate(text.split()):
-        try:
-            float(tok)
-        except ValueError:
-            return k, tok
-    return None
+    return io.TextIOWrapper(open_binary(path), encoding="latin-1", newline=None)
 
 
 def _numbers(text: str) -> np.ndarray:
-    # np.fromstring(sep=' ') is the fastest text → float64 path. On a non-number, NumPy >= 2.x
-    # raises ValueError and older NumPy stops early with a DeprecationWarning (silenced here);
-    # either way the caller sees a short array, finds the count wrong and names the bad field.
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            return np.fromstring(text, dtype=np.float64, sep=" ")
-        except ValueError:
-            return _EMPTY
+    """The numbers of a message body; empty when a token is not a number (the caller, finding
+    the count wrong, names the bad field)."""
+    vals = numbers(text)
+    return _EMPTY if vals is None else vals
 
 
 def _split_tail(rest: str):
@@ -315,14 +287,10 @@ class _Parser:
         return np.array((x, y, float(wrap_angle(t))))
 
     def _bad_numbers(self, lineno, kind, text, layout):
-        bad = _first_bad_token(text)
+        bad = first_non_number(text)
         if bad is not None:
-            k, tok = bad
-            return self._fail(
-                lineno,
-                f"{kind}: field {k + 2} (the message name is field 1) is {tok!r}, "
-                f"expected a number ({layout})",
-            )
+            k, tok = bad  # field 1 is the message name
+            return not_a_number(self.path, lineno, k + 2, tok, f"{kind} {layout}")
         return None
 
     # -- messages ------------------------------------------------------------------------------
@@ -457,11 +425,9 @@ def iter_carmen(
     InvalidArgumentError
         A bad ``kinds``, ``every`` or ``max_range`` (raised at the call, before any reading).
     """
-    every = int(every)
-    if every < 1:
-        raise InvalidArgumentError(f"every must be >= 1, got {every}")
-    if max_range is not None and not (float(max_range) > 0 and math.isfinite(float(max_range))):
-        raise InvalidArgumentError(f"max_range must be a positive finite number, got {max_range!r}")
+    every = checks.count("every", every)
+    if max_range is not None:
+        max_range = checks.positive("max_range", max_range, "metres")
     if isinstance(kinds, str):
         kinds = (kinds,)
     wanted = {str(k).upper() for k in kinds}
@@ -522,7 +488,7 @@ def _scan_lines(path_str, wanted, lenient, every, parser, stats) -> Iterator[Las
             else:
                 stats.skipped_unknown += 1
                 stats.unknown_types[kind] = stats.unknown_types.get(kind, 0) + 1
-    except (EOFError, OSError, lzma.LZMAError) as exc:
+    except CORRUPT as exc:
         raise FormatError(
             path_str, f"compressed stream is corrupt or ends early ({exc})", line=lineno + 1
         ) from exc

@@ -68,8 +68,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import checks
 from .._files import write_atomic
 from ..errors import FormatError, InvalidArgumentError, ShapeError
+from ..png import write_png
+from ._compression import read_bytes
 
 __all__ = ["MapFile", "load_map", "save_map", "save_probability_png"]
 
@@ -131,16 +134,6 @@ def _yaml_string(text: str) -> str:
     return f'"{escaped}"'
 
 
-def _check_finite(name: str, value) -> float:
-    try:
-        result = float(value)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(result):
-        raise InvalidArgumentError(f"{name} must be finite, got {value!r}")
-    return result
-
-
 def save_map(
     path_yaml,
     occupancy,
@@ -181,10 +174,8 @@ def save_map(
     if occ.dtype.kind not in "iu":
         raise InvalidArgumentError(f"occupancy must be an integer array, got dtype {occ.dtype}")
     occ = occ.astype(np.int64, copy=False)
-    res = _check_finite("resolution", resolution)
-    if res <= 0:
-        raise InvalidArgumentError(f"resolution must be > 0, got {resolution!r}")
-    origin_vals = [_check_finite("origin", v) for v in np.asarray(origin, dtype=object).ravel()]
+    res = checks.resolution(resolution)
+    origin_vals = [checks.finite("origin", v) for v in np.asarray(origin, dtype=object).ravel()]
     if len(origin_vals) == 2:
         origin_vals.append(0.0)
     if len(origin_vals) != 3:
@@ -196,8 +187,8 @@ def save_map(
         raise InvalidArgumentError(
             f"image_format must be one of {tuple(_IMAGE_FORMATS)}, got {image_format!r}"
         )
-    occ_t = _check_finite("occupied_thresh", occupied_thresh)
-    free_t = _check_finite("free_thresh", free_thresh)
+    occ_t = checks.finite("occupied_thresh", occupied_thresh)
+    free_t = checks.finite("free_thresh", free_thresh)
     if not (0.0 <= free_t < occ_t <= 1.0):
         raise InvalidArgumentError(
             f"thresholds must satisfy 0 <= free_thresh < occupied_thresh <= 1, "
@@ -453,7 +444,7 @@ def load_map(path_yaml) -> MapFile:
     """
     path_yaml = Path(path_yaml)
     try:
-        raw = path_yaml.read_bytes()
+        raw = read_bytes(path_yaml)
     except FileNotFoundError:
         raise FormatError(path_yaml, "map YAML file not found") from None
     except OSError as error:
@@ -626,8 +617,6 @@ def save_probability_png(path, probability, unknown_mask=None) -> Path:
         ShapeError: not a non-empty 2-D array, or the mask's shape differs.
         InvalidArgumentError: a probability outside [0, 1].
     """
-    from PIL import Image
-
     prob = np.asarray(probability, dtype=np.float64)
     if prob.ndim != 2 or prob.shape[0] == 0 or prob.shape[1] == 0:
         raise ShapeError(f"probability must be a non-empty (H, W) array, got shape {prob.shape}")
@@ -649,8 +638,4 @@ def save_probability_png(path, probability, unknown_mask=None) -> Path:
     gray = np.rint(255.0 * (1.0 - np.where(unknown, 0.0, prob))).astype(np.uint8)
     rgb = np.repeat(gray[:, :, None], 3, axis=-1)
     rgb[unknown] = UNKNOWN_RGB
-    buffer = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(rgb[::-1])).save(buffer, format="PNG")
-    path = Path(path)
-    write_atomic(path, buffer.getvalue())
-    return path
+    return write_png(path, rgb[::-1])

@@ -42,12 +42,7 @@ XYZ and PLY have no pose, so a cloud goes out in the world frame.
 
 from __future__ import annotations
 
-import bz2
-import gzip
-import lzma
 import re
-import warnings
-import zlib
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +51,8 @@ from .._files import write_atomic
 from ..cloud import PointCloud
 from ..errors import FormatError, InvalidArgumentError, ShapeError
 from ..geometry.se3 import SE3
+from ._compression import EXTENSIONS, read_bytes
+from ._text import Table
 
 __all__ = [
     "read_cloud",
@@ -77,30 +74,6 @@ _MAX_HEADER = 1 << 16  # bytes of PCD / PLY header searched for the end of the h
 
 # --------------------------------------------------------------------------------------------
 # shared helpers
-
-
-def _load(path) -> bytes:
-    """The whole file, decompressed when it starts with a gzip, bzip2 or xz signature.
-
-    A file that starts like a compressed one but does not decompress is an error when its name
-    ends in .gz/.bz2/.xz, and is taken as it is otherwise (a binary scan may start with those
-    bytes by chance)."""
-    with open(path, "rb") as f:
-        raw = f.read()
-    if raw[:2] == b"\x1f\x8b":
-        unpack = gzip.decompress
-    elif raw[:3] == b"BZh":
-        unpack = bz2.decompress
-    elif raw[:6] == b"\xfd7zXZ\x00":
-        unpack = lzma.decompress
-    else:
-        return raw
-    try:
-        return unpack(raw)
-    except (OSError, EOFError, ValueError, zlib.error, lzma.LZMAError) as e:
-        if str(path).lower().endswith((".gz", ".bz2", ".xz")):
-            raise FormatError(path, f"compressed data is truncated or corrupt ({e})") from None
-        return raw
 
 
 def _finite_cloud(points: np.ndarray, *, pose=None, drop_origin=False, dropped=0) -> PointCloud:
@@ -129,91 +102,7 @@ def _parse_pose(pose) -> SE3 | None:
     return SE3(pose)
 
 
-_BLANK = np.zeros(256, dtype=bool)
-_BLANK[[9, 10, 11, 12, 13, 32]] = True  # the bytes str.split() and np.fromstring skip
-
-
-class _Table:
-    """Whitespace-separated numbers of an ASCII block, tokenised with NumPy.
-
-    ``values`` holds every number in file order; row ``i`` (the ``i``-th non-blank line) starts at
-    ``values[starts[i]]`` and has ``counts[i]`` numbers; ``lines[i]`` is its 1-based line number.
-    """
-
-    __slots__ = ("values", "starts", "counts", "lines")
-
-    def __init__(self, path, data: bytes, line0: int, comments: bool):
-        b = np.frombuffer(data, dtype=np.uint8)
-        nl = np.flatnonzero(b == 10)  # newline positions
-        blank = _BLANK[b]
-        text = data
-        if comments and b"#" in data:
-            # blank out from the first '#' of a line to its end
-            hashes = np.flatnonzero(b == 35)
-            hline = np.searchsorted(nl, hashes)
-            first = np.flatnonzero(np.r_[True, hline[1:] != hline[:-1]])
-            begin = hashes[first]
-            end = np.append(nl, b.size)[hline[first]]
-            mark = np.zeros(b.size + 1, dtype=np.int8)
-            mark[begin] = 1
-            mark[end] -= 1
-            in_comment = np.cumsum(mark[:-1], dtype=np.int8).astype(bool)
-            blank |= in_comment
-            text = np.where(in_comment, np.uint8(32), b).tobytes()
-        token_start = ~blank
-        token_start[1:] &= blank[:-1]
-        tline = np.searchsorted(nl, np.flatnonzero(token_start))  # 0-based line of each token
-        del blank, token_start
-        self.starts = np.flatnonzero(np.r_[True, tline[1:] != tline[:-1]]) if tline.size else tline
-        self.lines = tline[self.starts] + line0
-        self.counts = np.diff(np.append(self.starts, tline.size))
-        total = int(tline.size)
-        # np.fromstring(sep=" ") is the fastest text → float64 path; it reads NaN/inf spellings
-        # and fails (or, on old NumPy, stops early) at the first token that is not a number.
-        # It returns [-1.] for all-blank text, hence the guard.
-        values = _numbers(text.decode("latin-1")) if total else np.zeros(0)
-        if values is None or values.size != total:
-            _raise_bad_token(path, text, line0)
-            raise FormatError(path, "text could not be read as numbers")  # pragma: no cover
-        self.values = values
-
-    def __len__(self) -> int:
-        return int(self.counts.shape[0])
-
-    def columns(self, cols) -> np.ndarray:
-        """(rows, len(cols)) float64 of the given 0-based columns (callers checked the counts)."""
-        idx = self.starts[:, None] + np.asarray(cols, dtype=np.intp)[None, :]
-        return self.values[idx]
-
-    def require(self, path, *, at_least: int | None = None, exactly: int | None = None, what: str):
-        """Raise FormatError at the first row with too few (or not exactly the right) numbers."""
-        bad = self.counts < at_least if at_least is not None else self.counts != exactly
-        if bad.any():
-            i = int(np.argmax(bad))
-            need = f"at least {at_least}" if at_least is not None else f"{exactly}"
-            raise FormatError(path, f"expected {need} fields ({what}), got {self.counts[i]}", line=int(self.lines[i]))
-
-
-def _numbers(text: str) -> np.ndarray | None:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            return np.fromstring(text, dtype=np.float64, sep=" ")
-        except ValueError:
-            return None
-
-
-def _raise_bad_token(path, text: bytes, line0: int):
-    """Error path only: find the first field that NumPy does not read as a number (the same
-    parser as the fast path) and raise naming its line."""
-    for k, line in enumerate(text.decode("latin-1").split("\n")):
-        for j, tok in enumerate(line.split()):
-            got = _numbers(tok)
-            if got is None or got.size != 1:
-                raise FormatError(path, f"field {j + 1} {tok[:40]!r} is not a number", line=line0 + k)
-
-
-def _declared_columns(path, table: "_Table", cols, dtypes, names) -> np.ndarray:
+def _declared_columns(path, table: Table, cols, dtypes, names) -> np.ndarray:
     """Columns ``cols`` of an ASCII table, rounded to the type the header declares for each (a
     ``float`` column written as ``0.1`` holds float32(0.1), as it would in a binary file).
     Integer columns must hold whole numbers within the type's range. Returns float64 (N, k)."""
@@ -288,14 +177,14 @@ _RAW = object()  # sentinel: _read_xyz returns the raw (N, 3) array
 
 
 def _read_xyz(path, pose, scale=1.0, first_line_header=None) -> np.ndarray | PointCloud:
-    data = _load(path)
+    data = read_bytes(path)
     start, line0 = 0, 1
     if first_line_header is not None:
         end = data.find(b"\n")
         first = data[: end if end >= 0 else len(data)].decode("latin-1")
         if first_line_header.fullmatch(first.strip()):
             start, line0 = (end + 1 if end >= 0 else len(data)), 2
-    table = _Table(path, data[start:] if start else data, line0, comments=True)
+    table = Table(path, data[start:] if start else data, line0, comments=True)
     table.require(path, at_least=3, what="x y z")
     pts = table.columns((0, 1, 2))
     if scale != 1.0:
@@ -336,7 +225,7 @@ def read_pcd(path, drop_origin: bool = True) -> PointCloud:
     ``pose`` comes from ``VIEWPOINT tx ty tz qw qx qy qz`` (identity when absent); its
     quaternion is normalised (a norm off by more than 1e-3 is an error). ``stamp`` is None.
     """
-    data = _load(path)
+    data = read_bytes(path)
     hdr: dict[str, tuple[int, list[str]]] = {}
     data_start = None
     last_line = 0
@@ -421,7 +310,7 @@ def read_pcd(path, drop_origin: bool = True) -> PointCloud:
     data_line, data_kind = hdr["DATA"]
     kind = data_kind[0].lower() if data_kind else ""
     if kind == "ascii":
-        table = _Table(path, data[data_start:], data_line + 1, comments=False)
+        table = Table(path, data[data_start:], data_line + 1, comments=False)
         ncols = sum(counts)
         table.require(path, exactly=ncols, what=" ".join(fields)[:80])
         if len(table) != n_points:
@@ -480,7 +369,7 @@ def read_ply(path) -> PointCloud:
 
     The pose is identity (PLY has none); non-finite points are dropped and counted.
     """
-    data = _load(path)
+    data = read_bytes(path)
     if data[:3] != b"ply":
         raise FormatError(path, "not a PLY file: it does not start with 'ply'", offset=0)
     fmt = None
@@ -543,7 +432,7 @@ def read_ply(path) -> PointCloud:
         start = _nth_newline_end(data, data_start, skip)
         stop = _nth_newline_end(data, start, count)
         line0 = header_lines + skip + 1
-        table = _Table(path, data[start:stop], line0, comments=False)
+        table = Table(path, data[start:stop], line0, comments=False)
         if len(table) != count:
             raise FormatError(path, f"expected {count} vertex lines, found {len(table)}", line=line0 + len(table))
         table.require(path, exactly=len(props), what=" ".join(pnames)[:80])
@@ -589,7 +478,7 @@ def read_kitti_bin(path, pose=None) -> PointCloud:
     Reflectance is not kept. ``pose`` (SE3 or 4×4, default identity) is attached as given.
     A size that is not a multiple of 16 bytes raises FormatError at the incomplete record.
     """
-    data = _load(path)
+    data = read_bytes(path)
     n, rest = divmod(len(data), 16)
     if rest:
         raise FormatError(
@@ -673,7 +562,7 @@ def _uos_sidecar(scan_path: Path, suffixes) -> Path:
 
 
 def _uos_frames(path) -> np.ndarray:
-    table = _Table(path, _load(path), 1, comments=True)
+    table = Table(path, read_bytes(path), 1, comments=True)
     if len(table) == 0:
         raise FormatError(path, "frames file holds no matrix", line=1)
     n = int(table.counts[-1])
@@ -688,7 +577,7 @@ def _uos_frames(path) -> np.ndarray:
 
 
 def _uos_pose_file(path) -> np.ndarray:
-    table = _Table(path, _load(path), 1, comments=False)
+    table = Table(path, read_bytes(path), 1, comments=False)
     if table.values.size < 6 or len(table) < 2 or table.counts[0] != 3 or table.counts[1] != 3:
         line = int(table.lines[min(len(table), 2) - 1]) if len(table) else 1
         raise FormatError(path, "expected 'x y z' (cm) on line 1 and 'rx ry rz' (degrees) on line 2", line=line)
@@ -744,7 +633,6 @@ def read_uos(scan_path, pose="frames") -> PointCloud:
 # --------------------------------------------------------------------------------------------
 # dispatch
 
-_COMPRESSED = (".gz", ".bz2", ".xz")
 _READERS = {
     ".xyz": "xyz", ".txt": "xyz", ".dat": "xyz", ".pts": "xyz", ".asc": "xyz",
     ".pcd": "pcd", ".ply": "ply", ".bin": "bin", ".3d": "uos",
@@ -757,7 +645,7 @@ def read_cloud(path, **kw) -> PointCloud:
     ``.ply`` → :func:`read_ply`, ``.bin`` → :func:`read_kitti_bin`, ``.3d`` → :func:`read_uos`.
     Keyword arguments go to that reader."""
     suffixes = [s.lower() for s in Path(path).suffixes]
-    if suffixes and suffixes[-1] in _COMPRESSED:
+    if suffixes and suffixes[-1] in EXTENSIONS:
         suffixes.pop()
     kind = _READERS.get(suffixes[-1] if suffixes else "")
     if kind is None:

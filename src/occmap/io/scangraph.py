@@ -40,6 +40,7 @@ from ..cloud import PointCloud
 from ..errors import FormatError, InvalidArgumentError, ShapeError
 from ..geometry.quaternion import quat_to_matrix
 from ..geometry.se3 import SE3
+from ._compression import read_bytes
 
 __all__ = ["ScanGraph", "read_scangraph", "write_scangraph"]
 
@@ -171,9 +172,9 @@ def _poses_to_se3(path, recs: np.ndarray, base: int, stride: int, pose_off: int,
 
 
 def read_scangraph(path) -> ScanGraph:
-    """Read an OctoMap ``.graph`` file into a :class:`ScanGraph` (layout in the module docstring)."""
-    with open(path, "rb") as f:
-        data = f.read()
+    """Read an OctoMap ``.graph`` file (plain, .gz, .bz2 or .xz) into a :class:`ScanGraph` (layout in
+    the module docstring; byte offsets in errors count the decompressed data)."""
+    data = read_bytes(path)
     size = len(data)
     pos = 0
 

@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
+from ._compression import read_bytes
+from ._text import Table
 
 #: Transducer directions of the shared data set, relative to the heading (degrees).
 RING_BEARINGS_DEG = (-90.0, -37.5, -22.5, -7.5, 7.5, 22.5, 37.5, 90.0)
@@ -33,20 +35,13 @@ class SonarLog:
 
 
 def _table(path: Path, columns: int | None) -> np.ndarray:
-    rows = []
-    with open(path) as f:
-        for lineno, line in enumerate(f, 1):
-            if not line.strip() or line.lstrip().startswith("#"):
-                continue
-            try:
-                row = [float(v) for v in line.split()]
-            except ValueError:
-                raise FormatError(path, f"expected numbers, got {line.strip()!r}", line=lineno) from None
-            if columns is not None and len(row) != columns:
-                raise FormatError(path, f"expected {columns} numbers, got {len(row)}", line=lineno)
-            columns = len(row)
-            rows.append(row)
-    return np.array(rows, dtype=np.float64).reshape(-1, columns or 0)
+    """The file's rows of numbers, ``columns`` each (default: as many as the first row has)."""
+    table = Table(path, read_bytes(path), 1, comments=True)
+    if not len(table):
+        return np.zeros((0, columns or 0))
+    columns = int(table.counts[0]) if columns is None else columns
+    table.require(path, exactly=columns, what="numbers per line")
+    return table.columns(range(columns))
 
 
 def read_sonar_ring(folder, bearings_deg=RING_BEARINGS_DEG, no_echo_mm: float = NO_ECHO_MM) -> SonarLog:

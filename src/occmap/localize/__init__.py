@@ -2,5 +2,6 @@
 replay of a recorded log against a map (``occmap localize``)."""
 
 from .mcl import LocalizationWarning, MonteCarloLocalizer, PoseEstimate
+from .params import LocalizationParams
 
-__all__ = ["LocalizationWarning", "MonteCarloLocalizer", "PoseEstimate"]
+__all__ = ["LocalizationParams", "LocalizationWarning", "MonteCarloLocalizer", "PoseEstimate"]

@@ -16,6 +16,7 @@ import math
 from numba import prange
 
 from .._jit import kernel, kernel_parallel
+from ..geometry.so2 import wrap_angle_one
 
 
 @kernel
@@ -154,7 +155,6 @@ def systematic_indices(cum, u0, out):
         out[k] = i
 
 
-
 @kernel
 def weighted_moments(p, w, mean, cov):
     """Weighted mean (circular for the heading) and covariance (heading residuals wrapped about
@@ -179,8 +179,7 @@ def weighted_moments(p, w, mean, cov):
     for i in range(n):
         dx = p[i, 0] - sx
         dy = p[i, 1] - sy
-        dt = p[i, 2] - mean[2]
-        dt -= 2.0 * math.pi * math.floor((dt + math.pi) / (2.0 * math.pi))
+        dt = wrap_angle_one(p[i, 2] - mean[2])
         wi = w[i]
         cov[0, 0] += wi * dx * dx
         cov[0, 1] += wi * dx * dy

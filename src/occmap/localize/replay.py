@@ -24,6 +24,7 @@ import numpy as np
 from .._files import write_atomic
 from ..errors import InvalidArgumentError
 from ..geometry.so2 import wrap_angle
+from ..png import write_png
 from .mcl import LocalizationWarning, MonteCarloLocalizer
 
 __all__ = [
@@ -179,10 +180,11 @@ def save_track_png(path, localizer: MonteCarloLocalizer, result: ReplayResult, r
 
     from ..canvas import Canvas
 
-    occ, free = localizer.occupied, localizer.free
+    field = localizer.field
+    occ, free = field.occupied, field.free
     H, W = occ.shape
-    res = localizer.resolution
-    ox, oy = localizer.origin
+    res = field.resolution
+    ox, oy = field.origin
     odo = anchor_odometry(result.odometry, result.poses[0])
     pts = [result.poses[:, :2], np.array([[ox, oy], [ox + W * res, oy + H * res]])]
     lo = np.min([p.min(axis=0) for p in pts], axis=0)
@@ -264,11 +266,7 @@ def save_error_png(path, distance, position_error, heading_error, title: str = "
             x_leg -= w
             draw.line((x_leg, 14, x_leg + 14, 14), fill=colour, width=3)
             draw.text((x_leg + 17, 8), label, fill=(0, 0, 0))
-    import io
-
-    buf = io.BytesIO()
-    img.save(buf, format="PNG")
-    return write_atomic(path, buf.getvalue())
+    return write_png(path, img)
 
 
 def make_localizer(grid, *, particles: int = 2000, beams: int = 60, seed=0, plain: bool = False,

@@ -1,0 +1,138 @@
+"""How occmap uses more than one core, in one place.
+
+**Threading layer.** Numba's parallel kernels run on Intel TBB when the ``tbb`` package is there
+(a dependency wherever it has wheels): TBB's threads steal work and sleep when idle, so a call
+never spins waiting for a thread the scheduler has taken away, and a process that forks after a
+parallel kernel (``multiprocessing``'s default on Linux) keeps working, where GNU OpenMP, Numba's
+other layer, aborts the child. The ``tbb`` wheel puts ``libtbb.so.12`` into the environment's
+``lib`` folder, which the dynamic loader does not search: :func:`prefer_tbb` loads it by path before
+Numba picks its layer. ``NUMBA_THREADING_LAYER``, when the user sets it, wins. Without TBB,
+OpenMP's threads are told to wait passively (``OMP_WAIT_POLICY``, unless set).
+
+**Threads per call.** Robots stream one scan per call on computers where other processes compete
+for the cores: there a second thread waits for a core and a parallel call takes longer than one
+thread would; on an idle machine it takes less. :class:`ThreadChoice` measures both paths of a
+kernel as the calls come and runs the cheaper one, trying the other now and then.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+import sys
+from contextlib import contextmanager
+from importlib import metadata
+from pathlib import Path
+from time import perf_counter
+
+_TBB_SONAME = "libtbb.so.12"
+
+
+def _tbb_library() -> Path | None:
+    """Path of the ``tbb`` wheel's shared library, if installed."""
+    try:
+        dist = metadata.distribution("tbb")
+    except metadata.PackageNotFoundError:
+        return None
+    for f in dist.files or ():
+        if f.name == _TBB_SONAME:
+            path = Path(dist.locate_file(f)).resolve()
+            if path.is_file():
+                return path
+    candidate = Path(sys.prefix) / "lib" / _TBB_SONAME
+    return candidate if candidate.is_file() else None
+
+
+def prefer_tbb() -> str | None:
+    """Make TBB available to Numba (see the module's docstring); returns the path loaded, or None
+    when TBB is not installed, cannot be loaded, or the user chose a layer."""
+    if os.environ.get("NUMBA_THREADING_LAYER"):
+        return None
+    path = _tbb_library() if sys.platform.startswith("linux") else None
+    if path is not None:
+        try:
+            ctypes.CDLL(str(path), mode=ctypes.RTLD_GLOBAL)
+            return str(path)
+        except OSError:
+            pass
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    return None
+
+
+#: Weight of the newest call in a path's average cost.
+_ALPHA = 0.3
+#: Calls between tries of the path that is not chosen: at first, and at most (the interval
+#: doubles each time a try confirms the choice, and starts again when a try changes it).
+_FIRST_INTERVAL = 8
+_MAX_INTERVAL = 256
+
+
+class ThreadChoice:
+    """Chooses, call by call, between a kernel's one-thread and many-thread paths: whichever has
+    cost less per unit of work lately (an exponential average of the measured calls).
+
+    Calls with less than ``min_work`` units of work, or with Numba limited to one thread, take
+    one thread and are not measured. The first measured calls try each path once; after that the
+    other path is tried again every few calls, from every 8th call up to every 256th while it
+    stays the slower one, so that a change in the machine's load is noticed. Both paths must give
+    the same result: only the time differs. Safe to share between threads (a race only blurs an
+    average).
+
+    Examples
+    --------
+    >>> choice = ThreadChoice(min_work=20_000)
+    >>> with choice.choose(work=cells) as parallel:   # doctest: +SKIP
+    ...     kernel(..., parallel)
+    """
+
+    def __init__(self, min_work: float):
+        self.min_work = float(min_work)
+        self._cost = [math.nan, math.nan]  # seconds per unit of work: one thread, several
+        self._since = 0
+        self._interval = _FIRST_INTERVAL
+
+    @property
+    def costs(self) -> tuple[float, float]:
+        """Average seconds per unit of work on one thread and on several (NaN: not measured)."""
+        return self._cost[0], self._cost[1]
+
+    @contextmanager
+    def choose(self, work: float):
+        """Yields whether the block should run on several threads; times the block and learns
+        from it."""
+        if not work >= self.min_work or _threads() < 2:
+            yield False
+            return
+        parallel, trying = self._pick()
+        start = perf_counter()
+        yield parallel
+        self._learn(parallel, trying, (perf_counter() - start) / work)
+
+    def _pick(self) -> tuple[bool, bool]:
+        serial, several = self._cost
+        if math.isnan(several):
+            return True, True
+        if math.isnan(serial):
+            return False, True
+        best = several < serial
+        self._since += 1
+        if self._since >= self._interval:
+            self._since = 0
+            return not best, True
+        return best, False
+
+    def _learn(self, parallel: bool, trying: bool, cost: float) -> None:
+        i = int(parallel)
+        before = self._cost[1] < self._cost[0]
+        old = self._cost[i]
+        self._cost[i] = cost if math.isnan(old) else old + _ALPHA * (cost - old)
+        if trying and not math.isnan(self._cost[1 - i]):
+            changed = (self._cost[1] < self._cost[0]) != before
+            self._interval = _FIRST_INTERVAL if changed else min(2 * self._interval, _MAX_INTERVAL)
+
+
+def _threads() -> int:
+    from numba import get_num_threads
+
+    return get_num_threads()

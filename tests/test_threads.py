@@ -1,0 +1,92 @@
+"""The threading layer and the per-call choice between one thread and several."""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import platform
+import subprocess
+import sys
+import time
+
+import numba
+import numpy as np
+import pytest
+
+from occmap._threads import ThreadChoice, _tbb_library
+
+two_threads = pytest.mark.skipif(numba.get_num_threads() < 2, reason="Numba has one thread here")
+
+
+def _run(choice: ThreadChoice, serial_s: float, parallel_s: float, calls: int) -> list[bool]:
+    """Feed ``calls`` calls whose paths take the given times; the paths chosen."""
+    chosen = []
+    for _ in range(calls):
+        with choice.choose(work=1.0) as parallel:
+            time.sleep(parallel_s if parallel else serial_s)
+        chosen.append(parallel)
+    return chosen
+
+
+@two_threads
+def test_the_cheaper_path_runs_and_a_change_in_load_is_followed():
+    choice = ThreadChoice(min_work=1.0)
+    first = _run(choice, serial_s=0.004, parallel_s=0.001, calls=40)
+    assert first[0] is True and first[1] is False  # each path measured once
+    assert sum(first[2:]) >= 34  # several threads: the cheaper, tried the other way now and then
+    # the machine gets busy: several threads now cost more; within a few calls one thread runs
+    after = _run(choice, serial_s=0.001, parallel_s=0.006, calls=60)
+    switched = after.index(False)
+    assert switched <= 16
+    assert sum(after[switched + 8:]) <= 4
+    assert choice.costs[0] < choice.costs[1]
+
+
+@two_threads
+def test_tries_of_the_slower_path_grow_rarer():
+    choice = ThreadChoice(min_work=1.0)
+    chosen = _run(choice, serial_s=0.0, parallel_s=0.002, calls=120)
+    tries = [i for i, p in enumerate(chosen) if p][1:]  # after the first call's measurement
+    gaps = np.diff(tries)
+    assert len(tries) <= 5 and np.all(gaps[1:] >= 2 * gaps[:-1] - 1)
+
+
+def test_small_work_takes_one_thread_unmeasured():
+    choice = ThreadChoice(min_work=100.0)
+    with choice.choose(work=99.0) as parallel:
+        assert parallel is False
+    with choice.choose(work=float("nan")) as parallel:
+        assert parallel is False
+    assert np.isnan(choice.costs).all()
+
+
+@pytest.mark.skipif(not (sys.platform.startswith("linux") and platform.machine() == "x86_64"),
+                    reason="the tbb dependency is for Linux x86_64")
+def test_parallel_kernels_run_on_tbb():
+    assert _tbb_library() is not None, "the tbb package is a dependency on this platform"
+    code = ("import numpy as np, numba; from occmap.raycast import traverse_2d; "
+            "from occmap.edt import distance_transform; "
+            "distance_transform(np.zeros((400, 400), bool) | (np.arange(400) == 7), parallel=True); "
+            "print(numba.threading_layer())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.stdout.strip() == "tbb", out.stderr
+
+
+def _child_integrates(_):
+    from occmap import OccupancyGrid2D
+
+    grid = OccupancyGrid2D(0.05)
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    grid.integrate_scan((0.0, 0.0, 0.0), np.full(720, 4.0), angles, max_range=10.0)
+    return int((grid.occupancy() == 100).sum())
+
+
+def test_processes_forked_after_a_parallel_kernel_work():
+    """GNU OpenMP aborts a child forked after a parallel region; the children must map."""
+    from occmap.edt import distance_transform
+
+    distance_transform(np.zeros((400, 400), bool) | (np.arange(400) == 7), parallel=True)
+    expected = _child_integrates(None)
+    for method in ("fork", "spawn"):
+        with mp.get_context(method).Pool(2) as pool:
+            result = pool.map_async(_child_integrates, range(4))
+            assert result.get(timeout=240) == [expected] * 4, method
