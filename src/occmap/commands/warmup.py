@@ -10,7 +10,6 @@ is the only state they share.
 
 from __future__ import annotations
 
-import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -96,6 +95,22 @@ def geometry(folder: Path) -> None:
     model.sample(particles, particles[0], particles[0] + 0.1, rng)
 
 
+def _office_log(folder: Path) -> Path:
+    """A CARMEN log of 40 simulated scans in the office (written once per folder): the commands
+    read scans from logs, whose arrays (shared angles, read-only) type the kernels their own way."""
+    from ..sim import World2D, simulate_scans
+
+    path = folder / "office.log"
+    if not path.exists():
+        world = World2D.default()
+        scans = simulate_scans(world, world.default_trajectory(n=40), n_beams=180, max_range=10.0, rng=3)
+        path.write_text("".join(
+            f"FLASER {len(s.ranges)} " + " ".join(f"{r:.3f}" for r in np.minimum(s.ranges, 10.0))
+            + f" {s.pose[0]} {s.pose[1]} {s.pose[2]} {s.pose[0]} {s.pose[1]} {s.pose[2]} {k}.0 warmup {k}.0\n"
+            for k, s in enumerate(scans)))
+    return path
+
+
 def grids(folder: Path) -> None:
     """The 2D grid (lidar and sonar; fixed, loaded and growing), map_server files, the simulated
     office, a CARMEN log."""
@@ -123,19 +138,20 @@ def grids(folder: Path) -> None:
     world.clearance(P[:, :2])
     for n in (10, 100_000):  # one thread and many
         world.cast(P[0, :2], np.linspace(-np.pi, np.pi, n))
-    log = folder / "office.log"
-    log.write_text("".join(
-        f"FLASER {len(s.ranges)} " + " ".join(f"{r:.3f}" for r in np.minimum(s.ranges, 10.0))
-        + f" {s.pose[0]} {s.pose[1]} {s.pose[2]} {s.pose[0]} {s.pose[1]} {s.pose[2]} {k}.0 warmup {k}.0\n"
-        for k, s in enumerate(scans)))
-    map_scans(read_carmen(log).stack(), 0.1, 10.0)
+    map_scans(read_carmen(_office_log(folder)).stack(), 0.1, 10.0)
 
 
 def local_map(folder: Path) -> None:
     """The rolling costmap: moving, scans, clouds, costs, path checks."""
+    from ..io.carmen import iter_carmen
     from ..local import LocalMap, inflate
     from ..local.replay import frame_image
 
+    replayed = LocalMap(size=(8.0, 8.0), resolution=0.1, half_life=30.0)
+    for scan in iter_carmen(_office_log(folder)):
+        replayed.move_to(float(scan.pose[0]), float(scan.pose[1]))
+        replayed.integrate_scan(scan.pose, scan.ranges, scan.angles, scan.stamp, max_range=scan.max_range)
+    replayed.costmap()
     for half_life in (None, 2.0):
         local = LocalMap(size=(8.0, 8.0), resolution=0.1, half_life=half_life)
         angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
@@ -160,24 +176,24 @@ def local_map(folder: Path) -> None:
 
 
 def localization(folder: Path) -> None:
-    """Monte Carlo localization, tracking and global, plain and refined, in the simulated office."""
+    """Monte Carlo localization, tracking and global, plain and refined, in the simulated office
+    (the map and the scans from its log, as ``occmap localize`` reads them)."""
     from ..grid2d import OccupancyGrid2D
-    from ..localize.replay import make_localizer, replay
-    from ..sim import World2D, simulate_scans
+    from ..io.carmen import read_carmen
+    from ..localize.replay import make_localizer, replay, save_track_png, write_track_csv
+    from ..mapping2d import map_scans
 
-    world = World2D.default()
-    poses = world.default_trajectory(n=40)
-    scans = simulate_scans(world, poses, n_beams=180, max_range=10.0, rng=3)
-    xmin, ymin, xmax, ymax = world.bounds
-    grid = OccupancyGrid2D(0.1, size=(xmax - xmin, ymax - ymin), origin=(xmin, ymin))
-    grid.integrate_scans(np.array([s.pose for s in scans]), np.array([s.ranges for s in scans]), scans[0].angles,
-                         max_range=10.0)
-    scans = [dataclasses.replace(s, odom=s.pose) for s in scans]
+    log = read_carmen(_office_log(folder))
+    map_scans(log.stack(), 0.1, 10.0).grid.save(folder / "localize.yaml")
+    grid = OccupancyGrid2D.load(folder / "localize.yaml")
+    scans = log.scans[:10]
     for plain in (False, True):
         # the default 20,000 particles of a global start score on many threads, 200 on one
         loc = make_localizer(grid, particles=200, beams=30, seed=0, plain=plain, kld=plain)
-        replay(loc, scans[:10], init=tuple(poses[0]), cov=np.diag([0.01, 0.01, 0.01]))
-        replay(loc, scans[:10], global_localization=True)
+        result = replay(loc, scans, init=tuple(scans[0].pose), cov=np.diag([0.01, 0.01, 0.01]))
+        replay(loc, scans, global_localization=True)
+    write_track_csv(folder / "track.csv", result)
+    save_track_png(folder / "track.png", loc, result)
 
 
 def octree(folder: Path) -> None:
