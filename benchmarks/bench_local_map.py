@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import median_times, write_section  # noqa: E402
 
 from occmap._data import find_shared_data  # noqa: E402
-from occmap.edt import distance_transform  # noqa: E402
+from occmap.raster.edt import distance_transform  # noqa: E402
 from occmap.io.pointclouds import read_pcd  # noqa: E402
 from occmap.local import LocalMap  # noqa: E402
 
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
         verdict = "meets" if t[0] * 1e3 <= target[size] else "misses"
         print(f"{size:.0f} m window ({W}×{H}): full cycle {t[0] * 1e3:.2f} ms ({verdict} ≤ {target[size]:.0f} ms); "
               f"move {t[1] * 1e3:.3f}, integrate {t[2] * 1e3:.2f}, costmap {t[3] * 1e3:.2f} ms; scipy inflation "
-              f"{t[4] * 1e3:.2f} ms ({t[4] / t[3]:.1f}× ours); occmap.edt alone {t[5] * 1e3:.2f} ms", flush=True)
+              f"{t[4] * 1e3:.2f} ms ({t[4] / t[3]:.1f}× ours); occmap.raster.edt alone {t[5] * 1e3:.2f} ms", flush=True)
         # the peer computes the same costs
         ours, _ = cyc.lm.costmap()
         assert np.array_equal(ours, scipy_inflation(cyc.lm)), "scipy inflation disagrees"
@@ -126,7 +126,7 @@ def main(argv=None) -> int:
     print(f"check_path, 1,000 poses, 4-corner footprint: {t_path * 1e3:.3f} ms ({'meets' if t_path <= 1e-3 else 'misses'} "
           f"≤ 1 ms); one pose {t_one * 1e6:.1f} µs; first collision at pose {res.first_collision}")
 
-    lines += ["| window | cells | full cycle | target | move | integrate | costmap (ours) | scipy EDT + NumPy costs | ratio | occmap.edt alone |",
+    lines += ["| window | cells | full cycle | target | move | integrate | costmap (ours) | scipy EDT + NumPy costs | ratio | occmap.raster.edt alone |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for size, H, W, t, info in rows:
         lines.append(f"| {size:.0f} m × {size:.0f} m at 0.1 m | {W}×{H} | **{t[0] * 1e3:.2f} ms** | ≤ {target[size]:.0f} ms | "

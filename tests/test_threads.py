@@ -6,48 +6,64 @@ import multiprocessing as mp
 import platform
 import subprocess
 import sys
-import time
 
 import numba
 import numpy as np
 import pytest
 
+import occmap._threads
 from occmap._threads import ThreadChoice, _tbb_library
 
 two_threads = pytest.mark.skipif(numba.get_num_threads() < 2, reason="Numba has one thread here")
 
 
-def _run(choice: ThreadChoice, serial_s: float, parallel_s: float, calls: int) -> list[bool]:
+class _Clock:
+    """A stand-in for the timer: each call "takes" the time its path is given."""
+
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self):
+        return self.now
+
+
+@pytest.fixture
+def clock(monkeypatch):
+    fake = _Clock()
+    monkeypatch.setattr(occmap._threads, "perf_counter", fake)
+    return fake
+
+
+def _run(choice: ThreadChoice, clock: _Clock, serial_s: float, parallel_s: float, calls: int) -> list[bool]:
     """Feed ``calls`` calls whose paths take the given times; the paths chosen."""
     chosen = []
     for _ in range(calls):
         with choice.choose(work=1.0) as parallel:
-            time.sleep(parallel_s if parallel else serial_s)
+            clock.now += parallel_s if parallel else serial_s
         chosen.append(parallel)
     return chosen
 
 
 @two_threads
-def test_the_cheaper_path_runs_and_a_change_in_load_is_followed():
+def test_the_cheaper_path_runs_and_a_change_in_load_is_followed(clock):
     choice = ThreadChoice(min_work=1.0)
-    first = _run(choice, serial_s=0.004, parallel_s=0.001, calls=40)
-    assert first[0] is True and first[1] is False  # each path measured once
-    assert sum(first[2:]) >= 34  # several threads: the cheaper, tried the other way now and then
+    first = _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=40)
+    # each path measured once, then several threads, one thread tried again 8, then 16 calls later
+    assert [i for i, p in enumerate(first) if not p] == [1, 9, 25]
     # the machine gets busy: several threads now cost more; within a few calls one thread runs
-    after = _run(choice, serial_s=0.001, parallel_s=0.006, calls=60)
+    after = _run(choice, clock, serial_s=0.001, parallel_s=0.006, calls=60)
     switched = after.index(False)
-    assert switched <= 16
-    assert sum(after[switched + 8:]) <= 4
+    assert switched <= 32
+    assert sum(after[switched + 8:]) <= 3
     assert choice.costs[0] < choice.costs[1]
 
 
 @two_threads
-def test_tries_of_the_slower_path_grow_rarer():
+def test_tries_of_the_slower_path_grow_rarer(clock):
     choice = ThreadChoice(min_work=1.0)
-    chosen = _run(choice, serial_s=0.0, parallel_s=0.002, calls=120)
-    tries = [i for i, p in enumerate(chosen) if p][1:]  # after the first call's measurement
-    gaps = np.diff(tries)
-    assert len(tries) <= 5 and np.all(gaps[1:] >= 2 * gaps[:-1] - 1)
+    chosen = _run(choice, clock, serial_s=0.001, parallel_s=0.002, calls=300)
+    tries = [i for i, p in enumerate(chosen) if p][1:]  # after the first measurement
+    assert tries == [9, 25, 57, 121, 249]  # 8, 16, 32, 64, 128 calls apart
 
 
 def test_small_work_takes_one_thread_unmeasured():
@@ -63,8 +79,8 @@ def test_small_work_takes_one_thread_unmeasured():
                     reason="the tbb dependency is for Linux x86_64")
 def test_parallel_kernels_run_on_tbb():
     assert _tbb_library() is not None, "the tbb package is a dependency on this platform"
-    code = ("import numpy as np, numba; from occmap.raycast import traverse_2d; "
-            "from occmap.edt import distance_transform; "
+    code = ("import numpy as np, numba; from occmap.raster.walk2d import traverse_2d; "
+            "from occmap.raster.edt import distance_transform; "
             "distance_transform(np.zeros((400, 400), bool) | (np.arange(400) == 7), parallel=True); "
             "print(numba.threading_layer())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -82,7 +98,7 @@ def _child_integrates(_):
 
 def test_processes_forked_after_a_parallel_kernel_work():
     """GNU OpenMP aborts a child forked after a parallel region; the children must map."""
-    from occmap.edt import distance_transform
+    from occmap.raster.edt import distance_transform
 
     distance_transform(np.zeros((400, 400), bool) | (np.arange(400) == 7), parallel=True)
     expected = _child_integrates(None)

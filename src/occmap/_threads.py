@@ -127,7 +127,7 @@ class ThreadChoice:
         before = self._cost[1] < self._cost[0]
         old = self._cost[i]
         self._cost[i] = cost if math.isnan(old) else old + _ALPHA * (cost - old)
-        if trying and not math.isnan(self._cost[1 - i]):
+        if trying and not (math.isnan(old) or math.isnan(self._cost[1 - i])):  # a try, not a first measurement
             changed = (self._cost[1] < self._cost[0]) != before
             self._interval = _FIRST_INTERVAL if changed else min(2 * self._interval, _MAX_INTERVAL)
 

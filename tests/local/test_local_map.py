@@ -10,17 +10,17 @@ import pytest
 from occmap.errors import InvalidArgumentError, NonFiniteError
 from occmap.grid2d.sensor_models import logit
 from occmap.local import LETHAL, LocalMap
-from occmap.raycast import traverse_2d
+from occmap.raster.walk2d import traverse_2d
 
 L_HIT, L_MISS, L_MIN, L_MAX = logit(0.7), logit(0.4), logit(0.1192), logit(0.971)
 
 
-# ------------------------------------------------------------------ a reference built from occmap.raycast
+# ------------------------------------------------------------------ a reference built from occmap.raster.walk2d
 
 
 def reference_log_odds(lm: LocalMap, scans):
     """Log-odds (window order, NaN unknown) from first principles: per scan, every end cell of a
-    return is hit once, then one exact traversal (occmap.raycast) from the sensor to the centre
+    return is hit once, then one exact traversal (occmap.raster.walk2d) from the sensor to the centre
     of each distinct end cell frees the cells before it that this scan has not yet updated."""
     H, W = lm.shape
     res = lm.resolution

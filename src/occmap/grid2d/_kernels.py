@@ -1,10 +1,8 @@
 """Numba kernels of the 2D occupancy grid: plain arrays in, arrays updated in place.
 
-Per-cell state is ``L`` (float32 log-odds) and ``stamp`` (unsigned integers, uint16 in the grid):
-``stamp == 0`` means never observed; within scan code ``s`` (s ≥ 1) a free update sets ``2s`` and
-a hit sets ``2s + 1``, so one array says both "already updated in this scan" and "hit wins over
-miss". Codes rise within a call; the caller keeps ``2s + 1`` within the stamp's dtype and every
-older stamp below ``2s`` (the grid lowers all of them to 1 when it runs out of codes). Two
+Per-cell state is ``L`` (float32 log-odds) and ``stamp`` (unsigned integers, uint16 in the grid),
+updated by the rules of :mod:`occmap.raster.update` (codes ``scan0 + k`` rise within a call; the
+caller keeps them within the stamp's dtype); rays are walked by :mod:`occmap.raster.walk2d`. Two
 separate arrays, 6 bytes a cell in all, keep more of a scan's cells in the caches than one 8-byte
 record did (5–7 % faster on the benchmark's 10 m beams, medians of alternating rounds).
 """
@@ -17,12 +15,9 @@ import numpy as np
 from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
-from ..raycast import dda_init, dda_span
-
-
-@kernel
-def _update(L, iy, ix, l_delta, l_min, l_max):
-    L[iy, ix] = min(max(L[iy, ix] + l_delta, l_min), l_max)
+from .._threads import ThreadChoice
+from ..raster.update import clamp_add, hit_stamp, miss_stamp
+from ..raster.walk2d import cell_of, dda_init, miss_walk
 
 
 # ---------------------------------------------------------------------------------------------
@@ -34,88 +29,6 @@ def _update(L, iy, ix, l_delta, l_min, l_max):
 # grid, or strips of rows); each part goes through the scans in order, applies the hits that end
 # in it and walks every beam over its own cells only. Parts own disjoint cells, so they run on
 # separate threads without any synchronisation and still give the serial result bit for bit.
-
-
-@kernel
-def _walk_inside(Lf, Sf, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max):
-    """Free update along a traversal from (ix, iy), a cell of the part, while it stays in the part:
-    ``rx``, ``ry`` steps are left to the end cell (excluded), of which ``cx``, ``cy`` (≤ rx, ry)
-    stay in the part. Amanatides–Woo in two phases: while both axes can still step, along the one
-    whose next boundary comes first (x on ties); then a straight run along the other, as long as
-    the walk takes it."""
-    idx = iy * rs + ix
-    stx = sx
-    sty = sy * rs
-    while cx > 0 and cy > 0:
-        i = np.uint64(idx)  # unsigned: no wrap-around test for negative indices
-        if Sf[i] < s2:  # not yet updated by this scan (stamp s2, or s2 + 1 for a hit)
-            Sf[i] = s2
-            Lf[i] = min(max(Lf[i] + l_miss, l_min), l_max)
-        if tmx <= tmy:
-            idx += stx
-            tmx += tdx
-            rx -= 1
-            cx -= 1
-        else:
-            idx += sty
-            tmy += tdy
-            ry -= 1
-            cy -= 1
-    # one axis can no longer step in the part (cx or cy is 0): a straight run along the other, of
-    # all its steps in the part where the first axis has reached the end cell, else of those
-    # before the first one's next crossing (the step that leaves the part)
-    if cx == 0:
-        st, m, more = sty, cy, ry > cy
-        if rx > 0:
-            m, t = 0, tmy
-            while m < cy and t < tmx:
-                t += tdy
-                m += 1
-            more = True
-    else:
-        st, m, more = stx, cx, rx > cx
-        if ry > 0:
-            m, t = 0, tmx
-            while m < cx and t <= tmy:
-                t += tdx
-                m += 1
-            more = True
-    cells = m + (1 if more else 0)  # the walk goes on after the run: its last cell is no end cell
-    for _ in range(cells):
-        i = np.uint64(idx)
-        if Sf[i] < s2:
-            Sf[i] = s2
-            Lf[i] = min(max(Lf[i] + l_miss, l_min), l_max)
-        idx += st
-
-
-@kernel
-def _walk_beam(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, x1, y1, ox, oy, inv_res, s2, l_miss, l_min, l_max):
-    """Free update of the cells from (x0, y0) to (x1, y1), end cell excluded, that lie in the part
-    ``[x_lo, x_hi) × [y_lo, y_hi)`` (which lies in the grid). The traversal is monotone in both
-    axes, so its cells in a rectangle are one run: start the walk at its first cell there (see
-    :func:`occmap.raycast.dda_span`) and stop it where it leaves."""
-    steps, st = dda_init(x0, y0, x1, y1, ox, oy, inv_res)
-    ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = st
-    if max(ix, ex) < x_lo or min(ix, ex) >= x_hi or max(iy, ey) < y_lo or min(iy, ey) >= y_hi:
-        return
-    rx = abs(ex - ix)
-    ry = abs(ey - iy)
-    if not (x_lo <= ix < x_hi and y_lo <= iy < y_hi):  # the walk enters the part later
-        s_in, s_out, jx, jy = dda_span(st, x_lo, x_hi, y_lo, y_hi)
-        if s_out <= s_in or s_in == steps:  # no cell in the part, or only the end cell
-            return
-        rx -= jx
-        ry -= jy
-        if jx > 0:  # (an axis that never steps has infinite t_dx)
-            tmx += jx * tdx
-            ix += sx * jx
-        if jy > 0:
-            tmy += jy * tdy
-            iy += sy * jy
-    cx = min(rx, x_hi - 1 - ix if sx > 0 else ix - x_lo)  # the steps that stay in the part
-    cy = min(ry, y_hi - 1 - iy if sy > 0 else iy - y_lo)
-    _walk_inside(Lf, Sf, rs, ix, iy, rx, ry, cx, cy, sx, sy, tmx, tmy, tdx, tdy, s2, l_miss, l_min, l_max)
 
 
 @kernel
@@ -136,8 +49,8 @@ def _beam_end(x0, y0, th, r, a, max_range):
 def _part(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
           l_hit, l_miss, l_min, l_max):
     """All scans' updates of the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
-    first the scan's hits, each cell once (stamp ``2s + 1``), then the free cells along each of its
-    beams (stamp ``2s``)."""
+    first the scan's hits, then the free cells along each of its beams (stamps:
+    :mod:`occmap.raster.update`)."""
     n_scans, n_beams = ranges.shape
     ex = np.empty(n_beams)
     ey = np.empty(n_beams)
@@ -148,17 +61,15 @@ def _part(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_
         for b in range(n_beams):
             kind[b], ex[b], ey[b] = _beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
             if kind[b] == 1:
-                ix = int(math.floor((ex[b] - ox) * inv_res))
-                iy = int(math.floor((ey[b] - oy) * inv_res))
-                if x_lo <= ix < x_hi and y_lo <= iy < y_hi:
-                    idx = iy * rs + ix
-                    if Sf[idx] != 2 * s + 1:
-                        Sf[idx] = 2 * s + 1
-                        Lf[idx] = min(max(Lf[idx] + l_hit, l_min), l_max)
+                ix, iy = cell_of(ex[b], ey[b], ox, oy, inv_res)
+                i = iy * rs + ix
+                if x_lo <= ix < x_hi and y_lo <= iy < y_hi and Sf[i] != hit_stamp(s):
+                    Sf[i] = hit_stamp(s)
+                    Lf[i] = clamp_add(Lf[i], l_hit, l_min, l_max)
         for b in range(n_beams):
             if kind[b] != 0:
-                _walk_beam(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, x0, y0, ex[b], ey[b], ox, oy, inv_res, 2 * s,
-                           l_miss, l_min, l_max)
+                steps, state = dda_init(x0, y0, ex[b], ey[b], ox, oy, inv_res)
+                miss_walk(Lf, Sf, 0, 1, rs, steps, state, x_lo, x_hi, y_lo, y_hi, s, l_miss, l_min, l_max)
 
 
 @kernel_parallel
@@ -195,10 +106,8 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_c
         kind, x1, y1 = _beam_end(x0, y0, poses[k, 2], ranges[k, b], angles[k, b], max_range)
         if kind == 0:
             continue
-        u0 = int(math.floor((x0 - ox) * inv_res))
-        v0 = int(math.floor((y0 - oy) * inv_res))
-        u1 = int(math.floor((x1 - ox) * inv_res))
-        v1 = int(math.floor((y1 - oy) * inv_res))
+        u0, v0 = cell_of(x0, y0, ox, oy, inv_res)
+        u1, v1 = cell_of(x1, y1, ox, oy, inv_res)
         c = abs(u1 - u0) + abs(v1 - v0) + 1.0
         lo, hi = max(min(v0, v1), 0), min(max(v0, v1), H - 1)
         if lo <= hi:  # the beam's cells spread evenly over its rows in the grid
@@ -224,6 +133,9 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_c
 
 #: Calls with fewer cells to walk than this run on one thread.
 SPLIT_MIN_CELLS = 20_000
+#: One thread or several, per call, by their measured cost per beam (calls of fewer beams than
+#: this take one thread).
+THREADS = ThreadChoice(min_work=256)
 
 
 def _flat(L, stamp):
@@ -241,16 +153,19 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
     ``scan0 + k`` (see the module's docstring for what they must fit).
     Returns (beams used, readings dropped as NaN/≤ 0, max-range readings).
 
-    With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` where Numba
-    has two threads or more, else never; negative: never) the grid is cut into strips of rows, one
-    per thread (at least two), updated side by side; the result is the same either way."""
-    threads = get_num_threads()
-    if split_min_cells is None:
-        split_min_cells = SPLIT_MIN_CELLS if threads >= 2 else -1
+    With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` when
+    :data:`THREADS` chooses several threads, else never; negative: never) the grid is cut into
+    strips of rows, one per thread (at least two), updated side by side; the result is the same
+    either way."""
     Lf, Sf = _flat(L, stamp)
     H, W = L.shape
-    return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-                            l_hit, l_miss, l_min, l_max, split_min_cells, max(threads, 2))
+    max_parts = max(get_num_threads(), 2)
+    if split_min_cells is not None:
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                                l_hit, l_miss, l_min, l_max, split_min_cells, max_parts)
+    with THREADS.choose(ranges.size) as parallel:
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                                l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts)
 
 
 @kernel
@@ -334,10 +249,10 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_
                         continue
                     w = 1.0 if uniform else 1.0 - (phi / half_width) ** 2
                     if hit and d >= reach - 0.5 * arc:
-                        _update(L, iy, ix, w * l_occ, l_min, l_max)
-                        stamp[iy, ix] = 2 * s + 1
+                        L[iy, ix] = clamp_add(L[iy, ix], w * l_occ, l_min, l_max)
+                        stamp[iy, ix] = hit_stamp(s)
                     else:
-                        _update(L, iy, ix, w * l_free, l_min, l_max)
-                        if stamp[iy, ix] < 2 * s:
-                            stamp[iy, ix] = 2 * s
+                        L[iy, ix] = clamp_add(L[iy, ix], w * l_free, l_min, l_max)
+                        if stamp[iy, ix] < miss_stamp(s):
+                            stamp[iy, ix] = miss_stamp(s)
     return used, dropped, maxed

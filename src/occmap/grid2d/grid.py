@@ -1,9 +1,9 @@
 """The 2D occupancy grid: per-cell log-odds under the static-state binary Bayes filter.
 
-Conventions (see ``DESIGN.md``): cell ``(iy, ix)`` is row ``iy``, column ``ix``; ``origin`` is the
-world position of the outer corner of cell (0, 0); the centre of cell (iy, ix) is
-``origin + ((ix + 0.5)·res, (iy + 0.5)·res)``. Each cell holds ``l = log(p / (1 − p))``, updated
-``l ← clamp(l + l_sensor − l_prior)``; a cell no reading ever touched is *unknown*.
+Grid conventions (cells ``(iy, ix)``, the origin at the outer corner of cell (0, 0), the index
+rule): :mod:`occmap.raster`. Each cell holds ``l = log(p / (1 − p))``, updated
+``l ← clamp(l + l_sensor − l_prior)`` at most once per scan (:mod:`occmap.raster.update`); a cell
+no reading ever touched is *unknown*.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
+from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _kernels as K
 from .sensor_models import LidarModel, SonarModel, logit
 
@@ -20,14 +21,9 @@ from .sensor_models import LidarModel, SonarModel, logit
 _GROW_MARGIN_CELLS = 64
 
 
-#: Scan codes available to the uint16 stamps (free ``2c``, hit ``2c + 1``); past the last, every
-#: stamp drops to 1 (observed before) and codes start again at 1.
-_LAST_CODE = 32767
-
-
 def _new_cells(shape, l_prior: float) -> tuple[np.ndarray, np.ndarray]:
-    """Cell storage: float32 log-odds at the prior and uint16 stamps, 0 (never observed), both
-    (H, W). Zeroed buffers come from the OS and are only paged in where rays go."""
+    """Cell storage: float32 log-odds at the prior and uint16 stamps, UNSEEN (0), both (H, W).
+    Zeroed buffers come from the OS and are only paged in where rays go."""
     L = np.zeros(shape, dtype=np.float32) if l_prior == 0.0 else np.full(shape, l_prior, dtype=np.float32)
     return L, np.zeros(shape, dtype=np.uint16)
 
@@ -70,7 +66,7 @@ class OccupancyGrid2D:
         if not self.l_min < self.l_prior < self.l_max:
             raise InvalidArgumentError(f"prior {prior!r} must lie strictly between the clamping bounds {clamp!r}")
         self.growing = size is None
-        self._code = 0  # stamp code of the last scan integrated (see _in_runs)
+        self._codes = ScanCodes(np.uint16)
         self.stats = {"scans": 0, "beams": 0, "dropped": 0, "max_range": 0}
         if size is None:
             self.origin = None if origin is None else np.array(origin, dtype=np.float64)
@@ -121,7 +117,7 @@ class OccupancyGrid2D:
     @property
     def observed(self) -> np.ndarray:
         """True for cells some reading has touched."""
-        return self._stamp != 0
+        return self._stamp != UNSEEN
 
     def probability(self) -> np.ndarray:
         """Occupancy probability per cell (float64); unobserved cells hold the prior."""
@@ -148,7 +144,7 @@ class OccupancyGrid2D:
         inside = (iy >= 0) & (iy < H) & (ix >= 0) & (ix < W)
         out = np.full(iy.shape, np.nan)
         jy, jx = iy[inside], ix[inside]
-        seen = self._stamp[jy, jx] != 0
+        seen = self._stamp[jy, jx] != UNSEEN
         vals = np.where(seen, self._L[jy, jx], np.nan)
         out[inside] = vals
         return out
@@ -243,19 +239,14 @@ class OccupancyGrid2D:
 
     def _in_runs(self, n: int, integrate) -> tuple[int, int, int]:
         """Integrate a call's ``n`` scans as ``integrate(i, j, code)`` over runs ``[i, j)`` whose
-        stamp codes ``code .. code + j − i − 1`` fit the uint16 stamps; returns the summed counts.
-        Between runs, once the codes are used up, every stamp drops to 1 (observed, before every
-        coming scan) and codes start again at 1."""
+        stamp codes ``code .. code + j − i − 1`` fit the uint16 stamps (:class:`ScanCodes`);
+        returns the summed counts."""
         totals = np.zeros(3, dtype=np.int64)
         i = 0
         while i < n:
-            if self._code == _LAST_CODE:
-                np.minimum(self._stamp, 1, out=self._stamp)
-                self._code = 0
-            j = min(n, i + _LAST_CODE - self._code)
-            totals += integrate(i, j, self._code + 1)
-            self._code += j - i
-            i = j
+            code, k = self._codes.take(n - i, self._stamp)
+            totals += integrate(i, i + k, code)
+            i += k
         return tuple(totals)
 
     def _record(self, scans: int, beams, dropped, maxed) -> dict:
@@ -327,7 +318,7 @@ class OccupancyGrid2D:
         known = occ >= 0
         p = np.clip(occ / 100.0, 1e-9, 1 - 1e-9)
         grid._L[known] = np.clip(np.log(p / (1.0 - p)), grid.l_min, grid.l_max)[known]
-        grid._stamp[known] = 1  # known from a file: below every scan's stamps (2c, 2c + 1 for c ≥ 1)
+        grid._stamp[known] = SEEN  # known from a file: before every scan
         return grid
 
     def __repr__(self) -> str:

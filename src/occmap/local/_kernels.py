@@ -3,14 +3,14 @@
 Storage (see :class:`occmap.local.LocalMap`): ``cells`` float32 (H, W, 2) and ``stamps``, an
 int32 view of the same buffer; per cell ``cells[r, c, 0]`` is the *scaled* log-odds
 ``u = (l − l_prior) / g`` (``g`` the map's global decay factor) and ``stamps[r, c, 1]`` the scan
-stamp: 0 never observed (or cleared); within scan ``s`` a free update writes ``2s`` and a hit
-``2s + 1``, so one compare says both "already updated in this scan" and "hit wins over miss".
+stamp (:mod:`occmap.raster.update`). The sensing kernels see them flat: ``Lf = cells.reshape(-1)``
+and ``Sf = stamps.reshape(-1)[1:]``, so cell ``(r, c)`` is index ``2·(r·W + c)`` of both.
 ``rmark`` (int32, (H, W)) holds, per end cell, the last scan that cast a ray to it.
 
-The storage is a circular buffer: window cell ``(wy, wx)`` (row 0 at the window's origin) lives
-at storage ``((wy + sr) mod H, (wx + sc) mod W)``. Window cell (wy, wx) is the cell
-``(gy0 + wy, gx0 + wx)`` of the world lattice, whose cell (j, i) covers
-``[i·res, (i+1)·res) × [j·res, (j+1)·res)``, indexed as ``floor(x · (1/res))``.
+The storage is a circular buffer, one ring per axis (:mod:`occmap.raster.ring`): window cell
+``(wy, wx)`` (row 0 at the window's origin) lives at storage ``(slot(wy, sr, H), slot(wx, sc, W))``.
+Window cell (wy, wx) is the cell ``(gy0 + wy, gx0 + wx)`` of the world lattice (the grid
+conventions of :mod:`occmap.raster` with the origin at (0, 0)).
 """
 
 from __future__ import annotations
@@ -19,11 +19,14 @@ import math
 
 import numpy as np
 
-from numba import get_num_threads, prange
+from numba import prange
 
 from .._jit import kernel, kernel_parallel
-from ..edt import _row_envelope
-from ..raycast import dda_setup, dda_span
+from .._threads import ThreadChoice
+from ..raster.edt import row_envelope
+from ..raster.ring import slot, wrap_point
+from ..raster.update import UNSEEN, clamp_add, hit_stamp
+from ..raster.walk2d import cell_of, dda_setup, dda_span, dda_step, miss_walk
 
 #: Above this many cells of inflation radius the row pass uses the Felzenszwalb–Huttenlocher
 #: lower envelope instead of the direct (2R + 1)-wide window minimum.
@@ -41,9 +44,7 @@ def clear_columns(cells, c0, n):
     touched = 0
     for y in range(H):
         for k in range(n):
-            c = c0 + k
-            if c >= W:
-                c -= W
+            c = slot(k, c0, W)
             cells[y, c, 0] = 0.0
             cells[y, c, 1] = 0.0  # all-zero bits: stamp 0
             touched += 1
@@ -56,9 +57,7 @@ def clear_rows(cells, r0, n):
     H, W = cells.shape[0], cells.shape[1]
     touched = 0
     for k in range(n):
-        r = r0 + k
-        if r >= H:
-            r -= H
+        r = slot(k, r0, H)
         for c in range(W):
             cells[r, c, 0] = 0.0
             cells[r, c, 1] = 0.0
@@ -71,52 +70,47 @@ def clear_rows(cells, r0, n):
 
 
 @kernel
-def _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, ex, ey, s2, d_miss, lo, hi):
+def _walk(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, ex, ey, s, d_miss, lo, hi):
     """Free update of the cells from lattice point (u0, v0) (cell units) to the centre of lattice
     cell (ex, ey), end cell excluded, that lie in the part ``xlo ≤ wx < xhi`` of the window (all
-    rows), each at most once per scan: the walk of :mod:`occmap.raycast`, started at its first
-    cell in the part (:func:`occmap.raycast.dda_span`), with the storage indices stepped with
-    their wrap-around. Returns (cells updated, cells visited)."""
+    rows), each at most once per scan: the walk of :mod:`occmap.raster.walk2d`, over each of the
+    (at most four) rectangles of the part whose storage does not wrap (a window range lies in at
+    most two runs of a ring, :func:`occmap.raster.ring.wrap_point`), so no step wraps.
+    Returns (cells updated, cells visited)."""
     steps, state = dda_setup(u0, v0, ex + 0.5, ey + 0.5)
-    ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy = state
-    s_in, s_out, jx, jy = dda_span(state, gx0 + xlo, gx0 + xhi, gy0, gy0 + H)
+    s_in, s_out, _, _ = dda_span(state, gx0 + xlo, gx0 + xhi, gy0, gy0 + H)
     n = min(s_out, steps) - s_in
     if n <= 0:
         return 0, 0
-    rx = abs(ex - ix) - jx  # steps left along x and along y
-    ry = abs(ey - iy) - jy
-    if jx > 0:  # (an axis that never steps has infinite t_dx)
-        tmx += jx * tdx
-    if jy > 0:
-        tmy += jy * tdy
-    r = iy + sy * jy - gy0 + sr
-    if r >= H:
-        r -= H
-    c = ix + sx * jx - gx0 + sc
-    if c >= W:
-        c -= W
-    rs = sy * W * 2  # flat step of one row in the (H, W, 2) buffer
-    row_wrap = H * W * 2
-    cf = cells.reshape(-1)
-    sf = stamps.reshape(-1)
-    base = r * W * 2  # start of the storage row
+    px = wrap_point(sc, W)
+    py = wrap_point(sr, H)
     updated = 0
-    for _ in range(n):
-        i = base + 2 * c
-        if sf[i + 1] < s2:
-            sf[i + 1] = s2
-            cf[i] = min(max(cf[i] + d_miss, lo), hi)
-            updated += 1
-        bx = ry == 0 or (rx > 0 and tmx <= tmy)
-        c += sx if bx else 0
-        c = 0 if c == W else (W - 1 if c < 0 else c)
-        base += 0 if bx else rs
-        base = 0 if base == row_wrap else (row_wrap - 2 * W if base < 0 else base)
-        tmx += tdx if bx else 0.0
-        tmy += 0.0 if bx else tdy
-        rx -= 1 if bx else 0
-        ry -= 0 if bx else 1
+    for qy in range(2):
+        ya, yb = (0, py) if qy == 0 else (py, H)
+        dy = sr if qy == 0 else sr - H  # storage row = window row + dy in this run
+        for qx in range(2):
+            xa, xb = (max(xlo, 0), min(xhi, px)) if qx == 0 else (max(xlo, px), min(xhi, W))
+            if ya >= yb or xa >= xb:
+                continue
+            dx = sc if qx == 0 else sc - W
+            # lattice cell (gx, gy) is storage (gy − gy0 + dy, gx − gx0 + dx), two floats a cell
+            base = 2 * ((dy - gy0) * W + (dx - gx0))
+            updated += miss_walk(Lf, Sf, base, 2, 2 * W, steps, state, gx0 + xa, gx0 + xb, gy0 + ya, gy0 + yb,
+                                 s, d_miss, lo, hi)
     return updated, n
+
+
+@kernel
+def _walk_rays(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, rays, n_rays, s, d_miss, lo, hi):
+    """:func:`_walk` of the first ``n_rays`` rays (end cells, lattice (gx, gy) rows of ``rays``)
+    over the part ``xlo ≤ wx < xhi``. Returns (cells updated, cells visited)."""
+    updated = 0
+    visited = 0
+    for k in range(n_rays):
+        a, b = _walk(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, rays[k, 0], rays[k, 1], s, d_miss, lo, hi)
+        updated += a
+        visited += b
+    return updated, visited
 
 
 #: Lattice indices are packed as 31-bit fields offset by this (so keys stay positive int64);
@@ -125,68 +119,48 @@ _KEY_OFFSET = 1 << 30
 
 
 @kernel
-def _cell_index(x, inv_res):
-    return int(math.floor(x * inv_res))
-
-
-@kernel
-def _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+def _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
           xlo, xhi, split, side, own_rays, counts):
     """The updates of one part ``xlo ≤ wx < xhi`` of the window: the hits that end in it, and the
     rays it owns (``side`` 0: end column < ``split``; 1: ≥ ``split``; −1: all), one per distinct end
-    cell, walked over its own cells. Owned rays' end cells go to ``own_rays`` (lattice (gx, gy));
-    ``counts`` gets (hits, rays, free updates, cells visited)."""
+    cell (those ending in the window first, in the order of their points), walked over its own
+    cells. Owned rays' end cells go to ``own_rays`` (lattice (gx, gy)); ``counts`` gets (hits,
+    rays, free updates, cells visited)."""
     H, W = rmark.shape
     n = ends.shape[0]
-    s2 = 2 * s
-    s1 = 2 * s + 1
     hits = 0
     for i in range(n):
         if kinds[i] != 1:
             continue
-        wx = _cell_index(ends[i, 0], inv_res) - gx0
-        wy = _cell_index(ends[i, 1], inv_res) - gy0
+        gx, gy = cell_of(ends[i, 0], ends[i, 1], 0.0, 0.0, inv_res)
+        wx = gx - gx0
+        wy = gy - gy0
         if xlo <= wx < xhi and 0 <= wy < H:
-            r = wy + sr
-            if r >= H:
-                r -= H
-            c = wx + sc
-            if c >= W:
-                c -= W
-            if stamps[r, c, 1] != s1:
-                stamps[r, c, 1] = s1
-                cells[r, c, 0] = min(max(cells[r, c, 0] + d_hit, lo), hi)
+            k = 2 * (slot(wy, sr, H) * W + slot(wx, sc, W))
+            if Sf[k] != hit_stamp(s):
+                Sf[k] = hit_stamp(s)
+                Lf[k] = clamp_add(Lf[k], d_hit, lo, hi)
                 hits += 1
     rays = 0
-    updated = 0
-    visited = 0
     far = np.empty(n, dtype=np.int64)  # end cells outside the window, packed, for de-duplication
     m = 0
     for i in range(n):
         if kinds[i] == 0:
             continue
-        gx = _cell_index(ends[i, 0], inv_res)
-        gy = _cell_index(ends[i, 1], inv_res)
+        gx, gy = cell_of(ends[i, 0], ends[i, 1], 0.0, 0.0, inv_res)
         wx = gx - gx0
         wy = gy - gy0
         if side >= 0 and (wx < split) != (side == 0):
             continue
         if 0 <= wx < W and 0 <= wy < H:
-            r = wy + sr
-            if r >= H:
-                r -= H
-            c = wx + sc
-            if c >= W:
-                c -= W
+            r = slot(wy, sr, H)
+            c = slot(wx, sc, W)
             if rmark[r, c] == s:
                 continue
             rmark[r, c] = s
             own_rays[rays, 0] = gx
             own_rays[rays, 1] = gy
             rays += 1
-            a, b = _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, gx, gy, s2, d_miss, lo, hi)
-            updated += a
-            visited += b
         else:
             far[m] = ((gx + _KEY_OFFSET) << 32) | (gy + _KEY_OFFSET)
             m += 1
@@ -200,9 +174,7 @@ def _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, 
             own_rays[rays, 0] = gx
             own_rays[rays, 1] = gy
             rays += 1
-            a, b = _walk(cells, stamps, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, gx, gy, s2, d_miss, lo, hi)
-            updated += a
-            visited += b
+    updated, visited = _walk_rays(Lf, Sf, sr, sc, gx0, gy0, H, W, xlo, xhi, u0, v0, own_rays, rays, s, d_miss, lo, hi)
     counts[0] = hits
     counts[1] = rays
     counts[2] = updated
@@ -210,41 +182,28 @@ def _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, 
 
 
 @kernel_parallel
-def _two_parts(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+def _two_parts(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
                split, rays, counts):
     W = rmark.shape[1]
     for p in prange(2):
-        _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+        _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
               0 if p == 0 else split, split if p == 0 else W, split, p, rays[p], counts[p])
 
 
 @kernel
-def _serial(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+def _serial(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
             rays, counts):
     W = rmark.shape[1]
-    _part(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+    _part(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
           0, W, 0, -1, rays, counts)
 
 
-@kernel
-def _split_column_prefixes(cells, stamps, sr, sc, gx0, gy0, u0, v0, rays, n_rays, split, s2, d_miss, lo, hi):
-    """The cells in column ``split`` (the sensor's) of the rays whose end lies left of it: the
-    left part skipped them, the right part never walked those rays."""
-    H, W = cells.shape[0], cells.shape[1]
-    updated = 0
-    visited = 0
-    for k in range(n_rays):
-        a, b = _walk(cells, stamps, sr, sc, gx0, gy0, H, W, split, split + 1, u0, v0, rays[k, 0], rays[k, 1],
-                     s2, d_miss, lo, hi)
-        updated += a
-        visited += b
-    return updated, visited
-
-
-#: Scans with at least this many readings, in windows of at least this many cells, are
-#: integrated by two threads (the window cut at the sensor's column) when Numba has two.
+#: Scans with at least this many readings, in windows of at least this many cells, may be
+#: integrated by two threads (the window cut at the sensor's column), when :data:`THREADS` finds
+#: two threads the cheaper.
 PARALLEL_MIN_POINTS = 4096
 PARALLEL_MIN_CELLS = 40_000
+THREADS = ThreadChoice(min_work=PARALLEL_MIN_POINTS)
 
 
 def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kinds, s, d_hit, d_miss, lo, hi,
@@ -255,7 +214,7 @@ def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kin
     then one ray per distinct end cell, cast to that cell's centre, freeing each cell not yet
     updated in this scan (stamp 2s). Returns (hits applied, rays cast, free updates, cells visited).
 
-    In parallel (default: for big enough scans and windows, two Numba threads) the window is cut
+    In parallel (default: :data:`THREADS` chooses, for big enough scans and windows) the window is cut
     at the sensor's column: each half takes the hits ending in it and the rays whose end lies on
     its side, updating only its own cells; the sensor's column cells of the left rays follow,
     serially. Within a scan each cell's update does not depend on order, so the result is the
@@ -266,18 +225,24 @@ def integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kin
     v0 = py * inv_res
     split = int(math.floor(u0)) - gx0
     if parallel is None:
-        parallel = n >= PARALLEL_MIN_POINTS and H * W >= PARALLEL_MIN_CELLS and get_num_threads() >= 2
+        with THREADS.choose(n if H * W >= PARALLEL_MIN_CELLS else 0) as parallel:
+            return integrate(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, px, py, ends, kinds, s, d_hit, d_miss,
+                             lo, hi, parallel)
     counts = np.zeros((2, 4), dtype=np.int64)
     rays = np.empty((2, n, 2), dtype=np.int64)
+    Lf = cells.reshape(-1)
+    Sf = stamps.reshape(-1)[1:]
     if parallel and 0 < split < W:
-        _two_parts(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+        _two_parts(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
                    split, rays, counts)
-        a, b = _split_column_prefixes(cells, stamps, sr, sc, gx0, gy0, u0, v0, rays[0], counts[0, 1], split, 2 * s,
-                                      d_miss, lo, hi)
+        # the cells in column split (the sensor's) of the rays whose end lies left of it: the left
+        # part skipped them, the right part never walked those rays
+        a, b = _walk_rays(Lf, Sf, sr, sc, gx0, gy0, H, W, split, split + 1, u0, v0, rays[0], counts[0, 1], s,
+                          d_miss, lo, hi)
         counts[0, 2] += a
         counts[0, 3] += b
     else:
-        _serial(cells, stamps, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
+        _serial(Lf, Sf, rmark, sr, sc, gx0, gy0, inv_res, u0, v0, ends, kinds, s, d_hit, d_miss, lo, hi,
                 rays[0], counts[0])
     t = counts.sum(axis=0)
     return int(t[0]), int(t[1]), int(t[2]), int(t[3])
@@ -341,17 +306,6 @@ def rescale(cells, factor):
             cells[r, c, 0] *= factor
 
 
-@kernel
-def restamp(stamps, rmark):
-    """Restart the scan counter: every observed cell gets stamp 1 (below any scan's), marks 0."""
-    H, W = rmark.shape
-    for r in range(H):
-        for c in range(W):
-            if stamps[r, c, 1] != 0:
-                stamps[r, c, 1] = 1
-            rmark[r, c] = 0
-
-
 # ---------------------------------------------------------------------------------------------
 # read-outs
 
@@ -362,14 +316,10 @@ def occupancy(cells, stamps, sr, sc, g, l_prior, out):
     round(100·p) with ``l = l_prior + g·u``."""
     H, W = out.shape
     for y in range(H):
-        r = y + sr
-        if r >= H:
-            r -= H
+        r = slot(y, sr, H)
         for x in range(W):
-            c = x + sc
-            if c >= W:
-                c -= W
-            if stamps[r, c, 1] == 0:
+            c = slot(x, sc, W)
+            if stamps[r, c, 1] == UNSEEN:
                 out[y, x] = -1
             else:
                 l = l_prior + g * cells[r, c, 0]
@@ -381,14 +331,10 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
     """Log-odds (float32, window order) into ``out``; NaN where never observed."""
     H, W = out.shape
     for y in range(H):
-        r = y + sr
-        if r >= H:
-            r -= H
+        r = slot(y, sr, H)
         for x in range(W):
-            c = x + sc
-            if c >= W:
-                c -= W
-            if stamps[r, c, 1] == 0:
+            c = slot(x, sc, W)
+            if stamps[r, c, 1] == UNSEEN:
                 out[y, x] = np.nan
             else:
                 out[y, x] = l_prior + g * cells[r, c, 0]
@@ -411,11 +357,9 @@ def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, o
     C = R + 1
     # pass 1: classes and downward column distances, one window row at a time; the row's storage
     # columns wrap once, at window column W − sc
-    split = W - sc
+    split = wrap_point(sc, W)
     for y in range(H):
-        r = y + sr
-        if r >= H:
-            r -= H
+        r = slot(y, sr, H)
         yp = y - 1 if y > 0 else 0
         for seg in range(2):
             x0 = 0 if seg == 0 else split
@@ -424,7 +368,7 @@ def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, o
             for x in range(x0, x1):  # branch-free, so it vectorises
                 c = x + off
                 u = cells[r, c, 0]
-                seen = stamps[r, c, 1] != 0
+                seen = stamps[r, c, 1] != UNSEEN
                 lethal = seen & (u >= thr_occ)
                 free = seen & (u < thr_free)
                 out[y, x] = 255 - np.uint8(lethal) - 255 * np.uint8(free)
@@ -467,7 +411,7 @@ def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, o
         else:
             for x in range(W):
                 row[x] = g[y, x] if g[y, x] < C else np.inf
-            _row_envelope(row, f, v, z)
+            row_envelope(row, f, v, z)
             for x in range(W):
                 d2[x] = big if row[x] >= big else int(row[x])
         for x in range(W):
@@ -496,8 +440,9 @@ def cost_at(cost, gx0, gy0, inv_res, pts, out):
             out[i] = 255
             bad += 1
             continue
-        wx = _cell_index(x, inv_res) - gx0
-        wy = _cell_index(y, inv_res) - gy0
+        gx, gy = cell_of(x, y, 0.0, 0.0, inv_res)
+        wx = gx - gx0
+        wy = gy - gy0
         out[i] = cost[wy, wx] if (0 <= wx < W and 0 <= wy < H) else 255
     return bad
 
@@ -561,22 +506,16 @@ def check_path(cost, gx0, gy0, inv_res, poses, footprint, radius, unknown_collid
                 vmax = max(vmax, vs[k])
             us[M] = us[0]
             vs[M] = vs[0]
-            for k in range(M):  # the outline: the cells each edge crosses (Amanatides–Woo, inline)
+            for k in range(M):  # the outline: the cells each edge crosses (the one 2D walk)
                 u0 = us[k]
                 v0 = vs[k]
                 u1 = us[k + 1]
                 v1 = vs[k + 1]
-                steps, (ix, iy, ex, ey, sx, sy, tmx, tmy, tdx, tdy) = dda_setup(u0, v0, u1, v1)
-                c = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
-                best = max(best, c)
-                lethal = lethal or c == 254
-                for _ in range(steps):
-                    if iy == ey or (ix != ex and tmx <= tmy):
-                        ix += sx
-                        tmx += tdx
-                    else:
-                        iy += sy
-                        tmy += tdy
+                steps, state = dda_setup(u0, v0, u1, v1)
+                for t in range(steps + 1):
+                    if t > 0:
+                        state = dda_step(state)
+                    ix, iy = state[0], state[1]
                     c = cost[iy, ix] if (0 <= ix < W and 0 <= iy < H) else 255
                     best = max(best, c)
                     lethal = lethal or c == 254

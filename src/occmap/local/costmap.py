@@ -16,7 +16,7 @@ Unknown cells stay 255 unless within the inscribed radius of an obstacle, where 
 (Nav2's default ``inflate_unknown: false``). Defaults as Nav2: inflation radius 0.55 m, cost
 scaling factor 10. Unlike Nav2, whose cell inflation radius is ``ceil(radius / resolution)``
 cells, the radius here is exact in metres: a cell is inflated when ``d ≤ inflation_radius``.
-Distances are exact (:mod:`occmap.edt`): every cell gets the cost of its true nearest obstacle,
+Distances are exact (:mod:`occmap.raster.edt`): every cell gets the cost of its true nearest obstacle,
 where Nav2's wavefront can be off by a cell at some angles.
 
 Footprints follow Nav2: a polygon of (x, y) vertices in the robot's body frame (x forward),

@@ -1,21 +1,21 @@
 """The local map: a robot-centred rolling window of log-odds cells that forgets, and its costmap.
 
-Layout (see ``DESIGN.md``): world-aligned cells of side ``resolution`` on the world lattice
-(cell ``(j, i)`` covers ``[i·res, (i+1)·res) × [j·res, (j+1)·res)``, a point's cell is
-``floor(x · (1/res))``); the window is ``H × W`` of them, ``origin`` the world position of the
-outer corner of its cell (0, 0), always a multiple of the resolution, so cells never resample
-when the window moves.
+Layout: world-aligned cells of side ``resolution`` on the world lattice (the grid conventions of
+:mod:`occmap.raster` with the origin at (0, 0)); the window is ``H × W`` of them, ``origin`` the
+world position of the outer corner of its cell (0, 0), always a multiple of the resolution, so
+cells never resample when the window moves.
 
-Storage is a circular buffer (after ANYbotics' grid_map): window cell ``(wy, wx)`` lives at
-``((wy + sr) mod H, (wx + sc) mod W)``. :meth:`LocalMap.move_to` shifts ``(sr, sc)`` and clears
-only the rows and columns that left the window (they come back in as the entering cells,
-unknown): a move by k cells writes about ``k · width`` cells and copies nothing.
+Storage is a circular buffer (after ANYbotics' grid_map; index maths in :mod:`occmap.raster.ring`):
+window cell ``(wy, wx)`` lives at ``((wy + sr) mod H, (wx + sc) mod W)``. :meth:`LocalMap.move_to`
+shifts ``(sr, sc)`` and clears only the rows and columns that left the window (they come back in
+as the entering cells, unknown): a move by k cells writes about ``k · width`` cells and copies
+nothing.
 
-Sensing follows :class:`~occmap.OccupancyGrid2D`: log-odds ``l ← clamp(l + l_sensor − l_prior)``,
-every cell updated at most once per scan, a hit winning over a miss. One ray is cast per
-distinct end cell of a scan, from the sensor position to the centre of that cell (OctoMap's
-``discretize``), which costs the same cells as any ray into that cell and makes dense 3D clouds
-cheap.
+Sensing follows :class:`~occmap.OccupancyGrid2D` (:mod:`occmap.raster.update`): log-odds
+``l ← clamp(l + l_sensor − l_prior)``, every cell updated at most once per scan, a hit winning over
+a miss. One ray is cast per distinct end cell of a scan, from the sensor position to the centre of
+that cell (OctoMap's ``discretize``), which costs the same cells as any ray into that cell and
+makes dense 3D clouds cheap.
 
 Forgetting: with ``half_life`` (seconds) every cell relaxes toward the prior,
 ``l − l_prior ← (l − l_prior) · 2^(−Δt / half_life)``, exactly and at no cost per update: cells
@@ -37,6 +37,8 @@ import numpy as np
 
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..grid2d.sensor_models import LidarModel, logit
+from ..raster.ring import slot
+from ..raster.update import ScanCodes
 from . import _kernels as K
 from .costmap import InflationParams, as_footprint, inscribed_radius as _inscribed_radius
 
@@ -44,8 +46,6 @@ __all__ = ["LocalMap", "PathCheck"]
 
 #: The global decay factor is folded into the cells when it falls below this.
 _RESCALE_BELOW = 2.0 ** -30
-#: The scan counter restarts (all stamps set to 1) before stamps 2s + 1 could overflow int32.
-_MAX_SCAN = 2 ** 30 - 2
 
 
 class PathCheck(NamedTuple):
@@ -136,7 +136,7 @@ class LocalMap:
         self._sr = 0
         self._sc = 0
         self._g = 1.0
-        self._scan = 0
+        self._codes = ScanCodes(np.int32)
         self._time = None
         self._version = 0
         self._cost_cache = None
@@ -211,13 +211,13 @@ class LocalMap:
             if dx:
                 # leaving: window columns [0, dx) when moving +x, [W + dx, W) when moving −x;
                 # they are the storage columns that the entering ones take over
-                c0 = self._sc if dx > 0 else (self._sc + W + dx) % W
+                c0 = self._sc if dx > 0 else slot(dx, self._sc, W)
                 touched += K.clear_columns(self._cells, c0, abs(dx))
-                self._sc = (self._sc + dx) % W
+                self._sc = slot(dx, self._sc, W)
             if dy:
-                r0 = self._sr if dy > 0 else (self._sr + H + dy) % H
+                r0 = self._sr if dy > 0 else slot(dy, self._sr, H)
                 touched += K.clear_rows(self._cells, r0, abs(dy))
-                self._sr = (self._sr + dy) % H
+                self._sr = slot(dy, self._sr, H)
         self._gx0, self._gy0 = gx0, gy0
         self.stats["cells_cleared_by_moves"] += touched
         self._changed()
@@ -249,11 +249,10 @@ class LocalMap:
         self._advance(stamp)
 
     def _next_scan(self) -> int:
-        if self._scan >= _MAX_SCAN:
-            K.restamp(self._stamps, self._rmark)
-            self._scan = 0
-        self._scan += 1
-        return self._scan
+        code, _ = self._codes.take(1, self._stamps[..., 1])
+        if code == 1:  # the codes start (again): the ray marks of earlier scans must not match
+            self._rmark[...] = 0
+        return code
 
     def _changed(self) -> None:
         self._version += 1
@@ -357,8 +356,7 @@ class LocalMap:
     @property
     def observed(self) -> np.ndarray:
         """True for window cells observed since they entered the window (window order)."""
-        s = self._stamps[..., 1] != 0
-        return np.roll(s, (-self._sr, -self._sc), axis=(0, 1))
+        return ~np.isnan(self.log_odds())
 
     def to_occupancy_grid(self) -> tuple[np.ndarray, np.ndarray]:
         """``(data, origin)``: nav_msgs/OccupancyGrid values (int8 (H, W), row 0 at the origin;

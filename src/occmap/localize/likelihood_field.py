@@ -1,8 +1,8 @@
 """The likelihood field of a map: AMCL's measurement model (Thrun et al., *Probabilistic Robotics* §6.4).
 
 The distance ``d`` from a beam's end point to the nearest occupied cell is precomputed once for
-the whole map with the exact Euclidean distance transform (:mod:`occmap.edt`) and clamped at
-``laser_likelihood_max_dist``; each beam scores ``pz = z_hit · exp(−d² / 2σ²) + z_rand / max_range``.
+the whole map with the exact Euclidean distance transform (:mod:`occmap.raster.edt`) and clamped
+at ``laser_likelihood_max_dist``; each beam scores ``pz = z_hit · exp(−d² / 2σ²) + z_rand / max_range``.
 Only occupied cells (occupancy above ``occupied_thresh``) are obstacles; an end point in an
 unknown cell scores by its distance like any other, one off the map as if ``max_dist`` away.
 Beams combine as a product (the sum of ``beam_exponent · log pz``) or by AMCL's ``1 + Σ pz³``
@@ -19,11 +19,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import get_num_threads
 
-from ..edt import distance_transform
+from .._threads import ThreadChoice
 from ..errors import InvalidArgumentError
 from ..geometry.so2 import wrap_angle
+from ..raster.edt import distance_transform
 from . import _kernels as K
 from .params import LocalizationParams
 
@@ -52,8 +52,9 @@ class LikelihoodField:
         The clamp (``params.laser_likelihood_max_dist``).
     """
 
-    #: particles × beams from which the measurement runs on all threads
-    parallel_min = 500_000
+    #: One thread or all, per call, by their measured cost per particle × beam (calls with fewer
+    #: than ``THREADS.min_work`` take one thread).
+    THREADS = ThreadChoice(min_work=500_000)
 
     def __init__(self, grid, params: LocalizationParams):
         H, W = grid.shape
@@ -114,9 +115,9 @@ class LikelihoodField:
         ``particles`` (N, 3)."""
         table, outside = self.table(max_range, sigma)
         out = np.empty(len(particles))
-        big = len(particles) * bx.size >= self.parallel_min and get_num_threads() > 1
-        fn = K.score_particles_parallel if big else K.score_particles
-        fn(particles, bx, by, table, outside, self.origin[0], self.origin[1], 1.0 / self.resolution, out)
+        with self.THREADS.choose(len(particles) * bx.size) as parallel:
+            fn = K.score_particles_parallel if parallel else K.score_particles
+            fn(particles, bx, by, table, outside, self.origin[0], self.origin[1], 1.0 / self.resolution, out)
         if self.params.model == "amcl":
             out = np.log1p(out)
         return out

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
+from ..raster.walk2d import cell_of
 from ..scan import LaserScan
 from . import _kernels
 
@@ -313,8 +314,7 @@ class World2D:
         passable = inside & ~occ
         if start is None:
             start = self.default_trajectory(n=2)[0, :2]
-        sx = int(math.floor((start[0] - org[0]) / res))
-        sy = int(math.floor((start[1] - org[1]) / res))
+        sx, sy = cell_of(float(start[0]), float(start[1]), org[0], org[1], 1.0 / res)
         out = np.zeros((H, W), dtype=np.bool_)
         if 0 <= sx < W and 0 <= sy < H:
             _kernels.flood_fill(passable, sy, sx, out)

@@ -7,8 +7,8 @@ parabolas ``(x − q)² + g(q)²``. Both passes are linear in the number of cell
 transform is O(H·W) whatever the obstacles look like, and every value is exact: squared
 distances are sums of squared integers (exact in float64 up to 2⁵³).
 
-Cells are ``(row, col)`` = ``(iy, ix)`` as everywhere in occmap; the distance between cells is
-measured between their centres, in cells (:func:`squared_distance_cells`) or in metres
+Cells are ``(row, col)`` = ``(iy, ix)`` (grid conventions: :mod:`occmap.raster`); the distance
+between cells is measured between their centres, in cells (:func:`squared_distance_cells`) or in metres
 (:func:`distance_transform`). An obstacle cell is at distance 0; where the mask holds no
 obstacle at all, the distance is ``inf``.
 
@@ -23,13 +23,16 @@ import math
 import numpy as np
 from numba import get_num_threads, prange
 
-from ._jit import kernel, kernel_parallel
-from .errors import InvalidArgumentError, ShapeError
+from .._jit import kernel, kernel_parallel
+from .._threads import ThreadChoice
+from ..errors import InvalidArgumentError, ShapeError
 
-__all__ = ["squared_distance_cells", "distance_transform"]
+__all__ = ["squared_distance_cells", "distance_transform", "row_envelope"]
 
-#: Masks with fewer cells than this run on one thread (thread start-up costs more than it saves).
+#: Masks with fewer cells than this run on one thread (thread start-up costs more than it saves);
+#: larger ones on as many as :data:`THREADS` finds cheaper.
 PARALLEL_MIN_CELLS = 40_000
+THREADS = ThreadChoice(min_work=PARALLEL_MIN_CELLS)
 
 #: Columns per block of the column pass (one block per task; a block's row slice is a few cache lines).
 _COL_BLOCK = 64
@@ -55,8 +58,8 @@ def _columns(mask, out, x0, x1):
 
 
 @kernel
-def _row_envelope(row, f, v, z):
-    """In place: ``row[q]`` ← min over p of ``(q − p)² + row[p]²`` (``row`` holds the column
+def row_envelope(row, f, v, z):
+    """The row pass, a kernel for other kernels (the costmap's inflation uses it). In place: ``row[q]`` ← min over p of ``(q − p)² + row[p]²`` (``row`` holds the column
     distances; inf entries are no parabola). ``f``, ``v``, ``z`` are scratch of length ≥ n, n, n + 1."""
     n = row.shape[0]
     k = -1
@@ -102,7 +105,7 @@ def _rows(out, y0, y1):
     v = np.empty(W, dtype=np.int64)
     z = np.empty(W + 1)
     for y in range(y0, y1):
-        _row_envelope(out[y], f, v, z)
+        row_envelope(out[y], f, v, z)
 
 
 @kernel
@@ -137,9 +140,14 @@ def _squared(mask: np.ndarray, parallel) -> np.ndarray:
     if H == 0 or W == 0:
         return out
     if parallel is None:
-        parallel = H * W >= PARALLEL_MIN_CELLS and get_num_threads() >= 2
+        with THREADS.choose(H * W) as parallel:
+            return _fill(mask, out, parallel)
+    return _fill(mask, out, parallel)
+
+
+def _fill(mask, out, parallel: bool) -> np.ndarray:
     if parallel:
-        _edt_parallel(mask, out, max(1, min(H, 4 * get_num_threads())))
+        _edt_parallel(mask, out, max(1, min(mask.shape[0], 4 * get_num_threads())))
     else:
         _edt_serial(mask, out)
     return out
@@ -150,8 +158,9 @@ def squared_distance_cells(obstacle_mask, parallel: bool | None = None) -> np.nd
 
     ``obstacle_mask`` is a boolean (H, W) array (any other dtype: non-zero is an obstacle).
     Returns float64 (H, W): exact integers (0 on obstacles), ``inf`` everywhere when the mask has
-    no obstacle. ``parallel`` (default: for masks of :data:`PARALLEL_MIN_CELLS` cells or more when
-    Numba has two threads or more) splits both passes over threads; the result is the same.
+    no obstacle. ``parallel`` (default: :data:`THREADS` chooses, for masks of
+    :data:`PARALLEL_MIN_CELLS` cells or more) splits both passes over threads; the result is the
+    same.
     """
     return _squared(_check_mask(obstacle_mask), parallel)
 

@@ -1,4 +1,5 @@
-"""2D grid traversal: exact cell sets, order and robustness (Amanatides & Woo)."""
+"""occmap.raster.walk2d, the one 2D walk: exact cell sets, order and robustness (Amanatides & Woo),
+where a walk is in a rectangle, and the miss walk over a rectangle of flat arrays."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from occmap.errors import InvalidArgumentError, NonFiniteError, ShapeError
-from occmap.raycast import dda_init, dda_span, dda_step, traverse_2d
+from occmap.raster.walk2d import dda_init, dda_span, dda_step, miss_walk, traverse_2d
 
 
 def segment_hits_cell(a, b, iy, ix, res, origin, tol=1e-9):
@@ -129,3 +130,28 @@ def test_span_in_a_rectangle_is_where_the_walk_is_there(x0, y0, x1, y1, res, x_l
         assert at[6] == t_max_x + jx * t_dx
     if jy:
         assert at[7] == t_max_y + jy * t_dy
+
+
+@settings(max_examples=300, deadline=None)
+@given(coord, coord, coord, coord, st.sampled_from([0.05, 0.37, 1.0]),
+       st.integers(-60, 60), st.integers(1, 80), st.integers(-60, 60), st.integers(1, 80), st.integers(1, 3))
+def test_miss_walk_updates_the_walks_cells_in_a_rectangle_once(x0, y0, x1, y1, res, x_lo, w, y_lo, h, cs):
+    """miss_walk on a rectangle laid out in flat arrays with any strides (here: ``cs`` slots a
+    cell, rows padded) frees exactly the walk's cells there, end cell excluded, each once."""
+    origin = (-3.0, 1.5)
+    rs = w * cs + 5
+    base = 1 - (y_lo * rs + x_lo * cs)
+    n = 2 + (h - 1) * rs + (w - 1) * cs + 1
+    L = np.zeros(n, dtype=np.float32)
+    S = np.zeros(n, dtype=np.uint16)
+    steps, state = dda_init(x0, y0, x1, y1, origin[0], origin[1], 1.0 / res)
+    got = miss_walk(L, S, base, cs, rs, steps, state, x_lo, x_lo + w, y_lo, y_lo + h, 3, -0.4, -2.0, 3.5)
+    iy, ix, _ = traverse_2d([x0, y0], [x1, y1], res, origin)
+    inside = [(y, x) for y, x in zip(iy[:-1].tolist(), ix[:-1].tolist()) if x_lo <= x < x_lo + w and y_lo <= y < y_lo + h]
+    expected = np.zeros(n, dtype=bool)
+    for y, x in inside:
+        expected[base + y * rs + x * cs] = True
+    assert got == len(inside)
+    np.testing.assert_array_equal(S != 0, expected)
+    assert (S[expected] == 6).all() and (L[expected] == np.float32(-0.4)).all()
+    assert miss_walk(L, S, base, cs, rs, steps, state, x_lo, x_lo + w, y_lo, y_lo + h, 3, -0.4, -2.0, 3.5) == 0

@@ -1,9 +1,9 @@
-"""occmap.edt: exact Euclidean distance transform against brute force and scipy."""
+"""occmap.raster.edt: exact Euclidean distance transform against brute force and scipy."""
 
 import numpy as np
 import pytest
 
-from occmap.edt import distance_transform, squared_distance_cells
+from occmap.raster.edt import distance_transform, squared_distance_cells
 from occmap.errors import InvalidArgumentError, ShapeError
 
 ndimage = pytest.importorskip("scipy.ndimage")
