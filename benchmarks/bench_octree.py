@@ -33,7 +33,8 @@ import octomap  # noqa: E402
 from occmap._data import find_shared_data  # noqa: E402
 from occmap.geometry import SE3  # noqa: E402
 from occmap.io.pointclouds import read_pcd, read_uos, read_xyz  # noqa: E402
-from occmap.octree import OcTree, formats  # noqa: E402
+from occmap.io import octomap as formats  # noqa: E402
+from occmap.octree import OcTree  # noqa: E402
 from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive  # noqa: E402
 
 
@@ -144,15 +145,15 @@ def raycast_rows(scans, res, n_rays=20_000):
 
 
 def bt_rows(path: Path):
-    tree = formats.load(path)
+    tree = formats.read_octree(path)
     out = Path(tempfile.mkdtemp()) / "out.bt"
     ref = octomap.OcTree(0.1)
     t_read, t_read_ref = median_times(
-        [lambda: formats.read_binary(path), lambda: octomap.OcTree(0.1).readBinary(str(path).encode())],
+        [lambda: formats.read_bt(path), lambda: octomap.OcTree(0.1).readBinary(str(path).encode())],
         number=1, repeat=5)
     ref.readBinary(str(path).encode())
     t_write, t_write_ref = median_times(
-        [lambda: formats.write_binary(tree, out), lambda: ref.writeBinary(str(out).encode())], number=1, repeat=5)
+        [lambda: formats.write_bt(tree, out), lambda: ref.writeBinary(str(out).encode())], number=1, repeat=5)
     return (t_read, t_read_ref), (t_write, t_write_ref), tree.num_nodes()
 
 

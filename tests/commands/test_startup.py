@@ -50,11 +50,12 @@ def test_help_loads_no_kernels():
 
 
 def test_info_loads_only_the_octree(tmp_path):
+    from occmap.io.octomap import write_bt
     from occmap.octree import OcTree
 
     tree = OcTree(0.5)
     tree.insert_point_cloud(np.array([[2.0, 0.0, 0.0], [0.0, 3.0, 1.0]]), np.zeros(3))
-    tree.write_binary(tmp_path / "t.bt")
+    write_bt(tree, tmp_path / "t.bt")
     code = ("import json, sys\nfrom occmap.cli import main\nassert main(['info', sys.argv[1]]) == 0\n"
             "print(json.dumps(sorted(sys.modules)))")
     loaded = set(json.loads(_python(code, tmp_path / "t.bt").splitlines()[-1]))

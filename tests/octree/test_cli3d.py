@@ -8,6 +8,7 @@ from PIL import Image
 
 from occmap.cli import main
 from occmap.geometry import SE3
+from occmap.io.octomap import read_bt, read_octree, write_ot
 from occmap.io.pointclouds import read_ply, write_pcd, write_xyz
 from occmap.octree import OcTree
 from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive
@@ -37,7 +38,7 @@ def test_map3d_builds_the_same_tree_as_the_library(tmp_path, capsys, clouds):
     tree = OcTree(0.2)
     for c in clouds:
         tree.insert_point_cloud(c.world_points(), c.origin, max_range=30.0)
-    loaded = OcTree.read_binary(out)
+    loaded = read_bt(out)
     probe = np.random.default_rng(0).uniform([-5, 0, -1], [60, 40, 8], size=(5000, 3))
     np.testing.assert_array_equal(loaded.occupancy_at(probe), tree.occupancy_at(probe))
     assert Image.open(tmp_path / "map.png").size[0] > 100
@@ -47,12 +48,12 @@ def test_info_convert_render(tmp_path, capsys, clouds):
     tree = OcTree(0.25)
     for c in clouds:
         tree.insert_point_cloud(c.world_points(), c.origin, max_range=30.0)
-    tree.write(tmp_path / "map.ot")
+    write_ot(tree, tmp_path / "map.ot")
     assert main(["info", str(tmp_path / "map.ot")]) == 0
     text = capsys.readouterr().out
     assert f"{tree.num_nodes():,}" in text and "occupied" in text
     assert main(["convert", str(tmp_path / "map.ot"), str(tmp_path / "map.bt")]) == 0
-    assert OcTree.load(tmp_path / "map.bt").num_nodes() <= tree.num_nodes()
+    assert read_octree(tmp_path / "map.bt").num_nodes() <= tree.num_nodes()
     assert main(["convert", str(tmp_path / "map.ot"), str(tmp_path / "map.ply")]) == 0
     assert len(read_ply(tmp_path / "map.ply")) == len(tree.occupied_centers())
     assert main(["render", str(tmp_path / "map.ot"), "-o", str(tmp_path / "top.png")]) == 0
@@ -82,7 +83,7 @@ def test_pose_moves_the_map(tmp_path, clouds):
     write_pcd(tmp_path / "s.pcd", c.points, viewpoint=shifted)
     for name in ("a", "s"):
         assert main(["map3d", str(tmp_path / f"{name}.pcd"), "-o", str(tmp_path / f"{name}.bt"), "--resolution", "0.5"]) == 0
-    lo_a, hi_a = OcTree.read_binary(tmp_path / "a.bt").metric_bounds()
-    lo_s, hi_s = OcTree.read_binary(tmp_path / "s.bt").metric_bounds()
+    lo_a, hi_a = read_bt(tmp_path / "a.bt").metric_bounds()
+    lo_s, hi_s = read_bt(tmp_path / "s.bt").metric_bounds()
     np.testing.assert_allclose(lo_s - lo_a, [100, 0, 0], atol=0.5)
     np.testing.assert_allclose(hi_s - hi_a, [100, 0, 0], atol=0.5)

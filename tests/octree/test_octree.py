@@ -1,5 +1,6 @@
 """The octree against OctoMap: its own unit tests' figures (octomap/src/testing) and voxel-by-voxel
-agreement with octomap-python on the same inputs."""
+agreement with octomap-python on the same inputs (skipped without octomap-python), and the
+tests that need no peer (they run without it)."""
 
 from __future__ import annotations
 
@@ -11,12 +12,16 @@ import numpy as np
 import pytest
 
 from occmap.errors import InvalidArgumentError, ShapeError
-from occmap.octree import OcTree, formats
-
-octomap = pytest.importorskip("octomap")
+from occmap.io.octomap import encode_ot, read_bt
+from occmap.octree import OcTree
 
 
 # ----------------------------------------------------------------------------- helpers
+
+def _octomap():
+    """octomap-python, for a test that compares with OctoMap (skipped, saying so, without it)."""
+    return pytest.importorskip("octomap", reason="compares with OctoMap itself: octomap-python is not installed")
+
 
 @numba.njit(cache=False)
 def _rotate_ip(v, pitch, yaw):
@@ -197,6 +202,7 @@ def test_pruning_sequence_matches_octomap_test():
 def test_random_scans_match_octomap(res):
     """Several overlapping scans from different origins, with a max range: identical trees after
     every scan (pruning, expansion of pruned nodes and clamping all exercised)."""
+    octomap = _octomap()
     rng = np.random.default_rng(int(res * 1000))
     ours, ref = OcTree(res), octomap.OcTree(res)
     for k in range(4):
@@ -212,6 +218,7 @@ def test_random_scans_match_octomap(res):
 def test_large_scans_match_octomap(res):
     """Scans large enough to be split between two threads and to use the dense cube around the
     sensor, with rays that leave the cube (a 16 m room) and rays cut at max range."""
+    octomap = _octomap()
     rng = np.random.default_rng(11)
     ours, ref = OcTree(res), octomap.OcTree(res)
     for origin in ((0.3, -0.2, 0.1), (3.1, 2.4, -1.7)):
@@ -219,7 +226,7 @@ def test_large_scans_match_octomap(res):
         ours.insert_point_cloud(pts, np.array(origin), max_range=9.0)
         ref.insertPointCloud(pts, np.array(origin), 9.0)
     assert ours.num_nodes() == ref.size()
-    assert formats.encode_ot(ours) == ref.write()  # every node and value, in OctoMap's own bytes
+    assert encode_ot(ours) == ref.write()  # every node and value, in OctoMap's own bytes
 
 
 def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
@@ -227,13 +234,14 @@ def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
     y key 32767, but its walk never crosses y = 0 before the range test stops it, 64 voxels out,
     past the dense cube. OctoMap marks the end voxel occupied all the same (it was once marked at
     the walk's last voxel instead)."""
+    octomap = _octomap()
     rng = np.random.default_rng(13)
     pts = np.vstack([[[6.48370, -4.12815e-16, 1.84829]], _room_cloud(rng, 5000, half=3.0)])
     ours, ref = OcTree(0.1), octomap.OcTree(0.1)
     ours.insert_point_cloud(pts, np.zeros(3))
     ref.insertPointCloud(pts, np.zeros(3))
     assert ours.occupancy_at(np.array([[6.45, -0.05, 1.85]]))[0] == 1
-    assert formats.encode_ot(ours) == ref.write()
+    assert encode_ot(ours) == ref.write()
 
 
 @pytest.mark.parametrize("res, one_sided", [(0.05, False), (0.2, False), (0.05, True), (0.2, True)])
@@ -243,8 +251,8 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     step-by-step walk (``ray_voxels``), voxel for voxel, hits included; also with a scan that
     lies on one side of its sensor (+x, +y, −z), which moves the cube to that side; on one
     thread and on two (taking runs of rays in turn)."""
-    from occmap.octree import _insert as I
-    from occmap.octree import tree as tree_module
+    from occmap.octree import blocks, insertion, marking
+    from occmap.octree.keys import unpack
 
     rng = np.random.default_rng(14)
     d = rng.normal(size=(6000, 3))
@@ -254,21 +262,21 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         d = np.abs(d) * (1.0, 1.0, -1.0)
     pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.2, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
     origin = np.array([0.013, -0.021, 0.034], np.float32)
-    ends, hit, _, _ = I.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32))
-    corner = I.cube_corner(origin, ends, res)
+    ends, hit, _, _ = marking.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32))
+    corner = marking.cube_corner(origin, ends, res)
     sensor_block = (np.floor(origin.astype(np.float64) * (1 / res)).astype(np.int64) + 32768) >> 3
-    shift = sensor_block - (np.array([corner & 0xFFFFF, (corner >> 20) & 0xFFFFF, corner >> 40]) >> 3)
+    shift = sensor_block - (np.array(unpack(corner)) >> 3)
     if one_sided and res == 0.05:  # rays out to 180 voxels: the cube goes to their side
         np.testing.assert_array_equal(shift, [0, 0, 15])
     else:  # centred (within a block): at 0.2 m every ray lies in the centred cube
         assert np.all(np.abs(shift - 8) <= 1)
-    ref_keys, ref_hit = I.ray_voxels(origin[None], ends, hit, res)
+    ref_keys, ref_hit = marking.ray_voxels(origin[None], ends, hit, res)
     unique, inverse = np.unique(ref_keys, return_inverse=True)
     unique_hit = np.zeros(len(unique), bool)
     np.logical_or.at(unique_hit, inverse, ref_hit)
-    monkeypatch.setattr(tree_module, "_PARALLEL_RAYS", 1000)
+    monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
     for threads in (False, True):
-        keys, is_hit = I.block_voxels(*tree_module._mark(origin, ends, hit, res, True, threads),
+        keys, is_hit = blocks.block_voxels(*insertion.mark(origin, ends, hit, res, True, threads),
                                       np.empty((0, 3), np.int64))
         order = np.argsort(keys)
         np.testing.assert_array_equal(keys[order], unique)
@@ -278,19 +286,21 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
 def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
     """The tree updated on two threads with slot ranges far too small: each thread stops where
     its range is full and the rest is applied on one thread; the tree is still OctoMap's."""
-    from occmap.octree import tree as tree_module
-    monkeypatch.setattr(tree_module, "_ROOM_PER_VOXEL", 0)
-    monkeypatch.setattr(tree_module, "_PARALLEL_VOXELS", 1000)
+    octomap = _octomap()
+    from occmap.octree import insertion
+    monkeypatch.setattr(insertion, "_ROOM_PER_VOXEL", 0)
+    monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
     rng = np.random.default_rng(12)
     ours, ref = OcTree(0.2), octomap.OcTree(0.2)
     for origin in ((0.3, -0.2, 0.1), (1.1, 0.4, -0.7)):
         pts = _room_cloud(rng, 3000, half=6.0)
         ours.insert_point_cloud(pts, np.array(origin))
         ref.insertPointCloud(pts, np.array(origin))
-    assert formats.encode_ot(ours) == ref.write()
+    assert encode_ot(ours) == ref.write()
 
 
 def test_discretize_matches_octomap():
+    octomap = _octomap()
     rng = np.random.default_rng(7)
     pts = _room_cloud(rng, 5000)
     origin = np.array([0.1, -0.2, 0.3])
@@ -303,6 +313,7 @@ def test_discretize_matches_octomap():
 def test_lazy_insertion_then_update_and_prune_matches_octomap():
     """Lazy scans leave inner nodes stale and nothing pruned, as OctoMap's lazy_eval; updating the
     inner nodes gives OctoMap's lazy tree, and pruning then gives the eagerly built one."""
+    octomap = _octomap()
     rng = np.random.default_rng(8)
     ours, lazy_ref, eager_ref = OcTree(0.1), octomap.OcTree(0.1), octomap.OcTree(0.1)
     for _ in range(3):
@@ -319,6 +330,7 @@ def test_lazy_insertion_then_update_and_prune_matches_octomap():
 
 
 def test_real_scan_matches_octomap(data_dir):
+    octomap = _octomap()
     pts = np.loadtxt(bz2.open(data_dir / "octomap" / "scan.dat.bz2"))
     assert pts.shape == (88206, 3)
     ours, ref = OcTree(0.2), octomap.OcTree(0.2)
@@ -329,6 +341,7 @@ def test_real_scan_matches_octomap(data_dir):
 
 
 def test_queries_match_octomap():
+    octomap = _octomap()
     rng = np.random.default_rng(9)
     ours, ref = OcTree(0.1), octomap.OcTree(0.1)
     pts = _room_cloud(rng, 4000)
@@ -361,6 +374,7 @@ def test_bbx_leaves_match_octomap():
     """The leaves overlapping a box. OctoMap's bbx iterator also returns coarse leaves that end one
     voxel before the box's lower corner (its overlap test adds one key above each node); occmap
     returns exactly the overlapping ones, which are OctoMap's minus those."""
+    octomap = _octomap()
     rng = np.random.default_rng(10)
     res = 0.1
     ours, ref = OcTree(res), octomap.OcTree(res)
@@ -430,6 +444,30 @@ def test_bad_input_raises_clear_errors():
     assert tree.num_nodes() == 0
 
 
+def test_nodes_and_from_nodes_round_trip():
+    """The public node arrays: read-only views of the pool; a tree built from copies of them is
+    the same tree (same queries, same file bytes) and keeps growing; bad arrays are refused."""
+    rng = np.random.default_rng(5)
+    tree = OcTree(0.1, prob_hit=0.8)
+    tree.insert_point_cloud(_room_cloud(rng, 2000), np.zeros(3))
+    nodes = tree.nodes()
+    assert nodes.count == tree.num_nodes() and nodes.value.dtype == np.float32 and nodes.child.dtype == np.int32
+    with pytest.raises(ValueError):
+        nodes.value[0] = 1.0  # read-only
+    copy = OcTree.from_nodes(0.1, nodes.value.copy(), nodes.child.copy(), nodes.count, prob_hit=0.8)
+    assert encode_ot(copy) == encode_ot(tree) and copy.num_leaves() == tree.num_leaves()
+    pts = _room_cloud(rng, 2000)
+    for t in (tree, copy):
+        t.insert_point_cloud(pts, np.array([0.3, 0.1, 0.0]))
+    assert encode_ot(copy) == encode_ot(tree)
+    with pytest.raises(ShapeError):
+        OcTree.from_nodes(0.1, nodes.value.astype(np.float64), nodes.child.copy(), nodes.count)
+    with pytest.raises(InvalidArgumentError):
+        OcTree.from_nodes(0.1, nodes.value[:-1].copy(), nodes.child[:-1].copy(), nodes.count)
+    with pytest.raises(InvalidArgumentError):
+        OcTree.from_nodes(0.1, nodes.value, nodes.child, nodes.count)  # read-only views: not taken over
+
+
 def test_occupancy_and_unknown_readout():
     tree = OcTree(0.1)
     tree.insert_point_cloud(np.array([[1.05, 0.05, 0.05]]), np.array([0.05, 0.05, 0.05]))
@@ -441,6 +479,7 @@ def test_occupancy_and_unknown_readout():
 def test_real_3d_scans_with_poses_match_octomap(data_dir):
     """The Osnabrück scans placed by their registered poses and the HDL-32E pair placed by its
     relative transform, inserted in order: identical trees."""
+    octomap = _octomap()
     from occmap.geometry import SE3
     from occmap.io.pointclouds import read_pcd, read_uos
 
@@ -489,6 +528,7 @@ def test_bbx_limit_matches_octomap_test():
 
 
 def test_bbx_limited_scans_match_octomap():
+    octomap = _octomap()
     rng = np.random.default_rng(12)
     ours, ref = OcTree(0.1), octomap.OcTree(0.1)
     lo, hi = np.array([-2.0, -1.5, -3.0]), np.array([2.5, 3.0, 1.0])
@@ -511,7 +551,7 @@ def test_bbx_limited_scans_match_octomap():
 def test_iterators_on_geb079(data_dir):
     """test_iterators: every leaf of geb079 once (143,729 occupied + 284,415 free); leaves down
     to a coarser depth count the nodes there as leaves; the bbx leaves are those overlapping it."""
-    tree = OcTree.read_binary(data_dir / "octomap" / "geb079.bt")
+    tree = read_bt(data_dir / "octomap" / "geb079.bt")
     lv = tree.leaves()
     assert len(lv.sizes) == 143729 + 284415
     assert (lv.log_odds >= 0).sum() == 143729

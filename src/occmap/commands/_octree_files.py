@@ -18,10 +18,12 @@ def check_octree_output(path) -> None:
 def save_octree(tree, path) -> None:
     """Write ``tree`` as ``.bt``, ``.ot`` or a ``.ply`` of its occupied voxels, by extension."""
     check_octree_output(path)
+    from ..io.octomap import write_bt, write_ot
+
     suffix = Path(path).suffix.lower()
     if suffix == ".bt":
-        tree.write_binary(path)
+        write_bt(tree, path)
     elif suffix == ".ot":
-        tree.write(path)
+        write_ot(tree, path)
     else:
         tree.export_ply(path)

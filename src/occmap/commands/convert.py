@@ -15,10 +15,10 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from ..octree import OcTree
+    from ..io.octomap import read_octree
 
     check_octree_output(args.output)
     check_outputs({"OUTPUT": args.output}, {"INPUT": args.input})
-    save_octree(OcTree.load(args.input), args.output)
+    save_octree(read_octree(args.input), args.output)
     print(f"wrote {args.output}")
     return 0

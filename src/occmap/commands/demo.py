@@ -142,6 +142,7 @@ def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[s
     """Drive a simulated Velodyne HDL-32E through the synthetic town block, build the octree,
     save it as OctoMap .bt and draw it from above and as a slice at 1 m."""
     from .._clock import WorkClock
+    from ..io.octomap import write_bt
     from ..octree import OcTree
     from ..sim.world3d import VELODYNE_HDL32, simulate_drive
 
@@ -153,7 +154,7 @@ def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[s
             tree.insert_point_cloud(cloud.world_points(), cloud.origin, max_range=40.0)
     seconds = clock.seconds
     points = sum(len(c) for c in clouds)
-    tree.write_binary(out / "town.bt")
+    write_bt(tree, out / "town.bt")
     tree.save_height_png(out / "town_height.png")
     tree.save_slice_png(out / "town_slice_1m.png", 1.0)
     occupied = len(tree.occupied_centers())
@@ -169,6 +170,7 @@ def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[s
 def map_scan_dat(out: Path, data: Path, resolution: float = 0.1) -> list[str]:
     """OctoMap's sample 3D scan (scan.dat) mapped and drawn."""
     from .._clock import WorkClock
+    from ..io.octomap import write_bt
     from ..io.pointclouds import read_xyz
     from ..octree import OcTree
 
@@ -178,7 +180,7 @@ def map_scan_dat(out: Path, data: Path, resolution: float = 0.1) -> list[str]:
     with clock.running():
         tree.insert_point_cloud(cloud.world_points(), cloud.origin)
     seconds = clock.seconds
-    tree.write_binary(out / "scan_dat.bt")
+    write_bt(tree, out / "scan_dat.bt")
     tree.save_height_png(out / "scan_dat_height.png")
     return [
         f"OctoMap sample scan (scan.dat): {len(cloud):,} points at {resolution:g} m in {seconds:.2f} s, "

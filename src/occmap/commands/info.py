@@ -12,9 +12,9 @@ def add_parser(subparsers):
 def run(args) -> int:
     import numpy as np
 
-    from ..octree import OcTree
+    from ..io.octomap import read_octree
 
-    tree = OcTree.load(args.file)
+    tree = read_octree(args.file)
     lv = tree.leaves()
     occupied = lv.log_odds >= tree.occupancy_log_odds
     n_occupied = int(occupied.sum())

@@ -17,10 +17,10 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from ..octree import OcTree
+    from ..io.octomap import read_octree
 
     check_outputs({"-o": args.output}, {"FILE": args.file})
-    tree = OcTree.load(args.file)
+    tree = read_octree(args.file)
     if args.slice is None:
         tree.save_height_png(args.output, args.pixel)
     else:

@@ -198,6 +198,7 @@ def localization(folder: Path) -> None:
 
 def octree(folder: Path) -> None:
     """Octree insertion (small and large scans, discretized, lazy), queries, ray casts, files."""
+    from ..io.octomap import read_octree, write_bt, write_ot
     from ..io.pointclouds import read_cloud, write_pcd
     from ..octree import OcTree
     from ..sim.world3d import VELODYNE_HDL32, World3D, simulate_drive
@@ -229,9 +230,10 @@ def octree(folder: Path) -> None:
     tree.occupied_centers()
     tree.num_leaves()
     tree.metric_bounds()
-    for name in ("t.bt", "t.ot"):
-        tree.write_binary(folder / name) if name.endswith(".bt") else tree.write(folder / name)
-        OcTree.load(folder / name)
+    write_bt(tree, folder / "t.bt")
+    write_ot(tree, folder / "t.ot")
+    read_octree(folder / "t.bt")
+    read_octree(folder / "t.ot")
     tree.save_height_png(folder / "h.png")
     tree.save_slice_png(folder / "s.png", 1.0)
     tree.export_ply(folder / "t.ply")

@@ -1,5 +1,6 @@
-"""3D occupancy octree with OctoMap's semantics (:class:`OcTree`)."""
+"""3D occupancy octree with OctoMap's semantics (:class:`OcTree`); its files are read and written
+by :mod:`occmap.io.octomap`."""
 
-from .tree import Leaves, OcTree
+from .tree import Leaves, Nodes, OcTree
 
-__all__ = ["Leaves", "OcTree"]
+__all__ = ["Leaves", "Nodes", "OcTree"]

@@ -12,34 +12,14 @@ Points are metres in the map frame; rays start at the sensor origin.
 from __future__ import annotations
 
 import math
-from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import InvalidArgumentError, ShapeError
-from . import _insert as I
-from . import _kernels as K
-from . import views
-
-_INITIAL_SLOTS = 1 << 12
-#: Scans with at least this many rays are marked by two threads, in this many runs of rays.
-_PARALLEL_RAYS = 20_000
-_MARK_RUNS = 8
-#: Scans with at least this many marked blocks list their voxels on two threads.
-_PARALLEL_BLOCKS = 256
-#: Scans with at least this many voxels update the tree on two threads.
-_PARALLEL_VOXELS = 20_000
-#: Slots a thread's range holds: this many a voxel, and a margin.
-_ROOM_PER_VOXEL = 2
-_ROOM_MARGIN = 8 * 16 * 8
-#: Scans with at least this many rays mark the voxels near the sensor in a dense cube (see
-#: occmap.octree._insert.CUBE).
-_CUBE_RAYS = 4096
-_POOL = ThreadPoolExecutor(max_workers=2, thread_name_prefix="occmap-octree")
-#: Traces the next scan of insert_point_clouds while the tree takes the current one.
-_PIPELINE = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occmap-octree-next")
+from . import insertion, pool, query, views
+from .keys import CENTER, MAX_KEY, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
+from .marking import prepare_rays, ray_voxels
 
 
 def _logodds32(p: float) -> np.float32:
@@ -71,60 +51,6 @@ def _origin(origin) -> np.ndarray:
     return o
 
 
-def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int):
-    """Block masks of the runs ``(start, stop)`` of rays this thread takes from ``runs`` (shared
-    by the threads, each run taken once) until none is left, grown until they fit, a block
-    possibly listed twice; with a cube (``corner`` ≥ 0) the voxels around the sensor are marked
-    in a dense one of this thread's."""
-    storage = I.new_blocks(capacity)
-    cube = I.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.uint8))
-    while True:
-        try:
-            start, stop = runs.popleft()
-        except IndexError:
-            break
-        while True:
-            start = I.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
-            if start == stop:
-                break
-            storage = I.grow_blocks(*storage)
-    table, slots, codes, hits, frees, count = storage
-    n = int(count[0])
-    blocks = codes[:n], hits[:n], frees[:n]
-    if corner >= 0:  # and the cube's (merge_blocks ors a block marked in both)
-        blocks = tuple(np.concatenate(pair) for pair in zip(blocks, I.cube_blocks(*cube, corner)))
-    return blocks
-
-
-def _mark(origin, ends, hit, res, rays: bool, threads: bool):
-    """The scan's voxels as Morton-sorted blocks of hit and free bits (only hits unless ``rays``);
-    with ``threads``, large scans are marked by two threads (the kernels release the GIL), which
-    take runs of rays in turn: the work of a run is hard to foresee (a step outside the cube
-    costs several inside it), so a thread that is done early takes more."""
-    n = len(ends)
-    corner = I.cube_corner(origin, ends, res) if rays and n >= _CUBE_RAYS else -1
-    if not threads or n < _PARALLEL_RAYS:
-        parts = [_mark_runs(origin, ends, hit, res, rays, corner, deque([(0, n)]), max(64, n // 8))]
-    else:
-        bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
-        runs = deque(zip(bounds[:-1], bounds[1:]))
-        futures = [_POOL.submit(_mark_runs, origin, ends, hit, res, rays, corner, runs, max(64, n // 16))
-                   for _ in range(2)]
-        parts = [f.result() for f in futures]
-    return I.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
-
-
-def _voxels(blocks, kbox, threads: bool):
-    """:func:`occmap.octree._insert.block_voxels` of Morton-sorted blocks; with ``threads``, many
-    blocks are listed by two threads, each a half (Morton order kept)."""
-    n = len(blocks[0])
-    if not threads or n < _PARALLEL_BLOCKS:
-        return I.block_voxels(*blocks, kbox)
-    halves = [_POOL.submit(I.block_voxels, *(b[a:z] for b in blocks), kbox) for a, z in ((0, n // 2), (n // 2, n))]
-    (k0, h0), (k1, h1) = (f.result() for f in halves)
-    return np.concatenate([k0, k1]), np.concatenate([h0, h1])
-
-
 class Leaves(NamedTuple):
     """Leaf nodes as arrays: centres (M, 3) and edge lengths (M,) in metres, log-odds (M,) and
     depth (M,) (16 = one voxel of ``resolution``)."""
@@ -135,8 +61,27 @@ class Leaves(NamedTuple):
     depths: np.ndarray
 
 
+class Nodes(NamedTuple):
+    """An octree's nodes as arrays (OctoMap's node pointers as slot indices). Nodes live in
+    *slots*; the eight children of an inner node occupy one *block* of 8 consecutive slots, child
+    ``i`` (= x-bit + 2·y-bit + 4·z-bit) at ``block + i``; slot 0 is the root, alone in block 0.
+
+    value : float32 (slots,)
+        Log-odds of the node in each slot; NaN where the slot holds no node.
+    child : int32 (slots,)
+        First slot of the node's block of children; −1 for a leaf. (In a slot holding no node it
+        may link unused blocks together: read it only where ``value`` is not NaN.)
+    count : int
+        The number of nodes (OctoMap's ``size()``).
+    """
+
+    value: np.ndarray
+    child: np.ndarray
+    count: int
+
+
 class OcTree:
-    """A probabilistic 3D occupancy octree with OctoMap's update rules and file formats.
+    """A probabilistic 3D occupancy octree with OctoMap's update rules (its files: :mod:`occmap.io.octomap`).
 
     Parameters
     ----------
@@ -166,6 +111,7 @@ class OcTree:
         self._l_min = _logodds32(self.clamp[0])
         self._l_max = _logodds32(self.clamp[1])
         self._l_occ = _logodds32(self.occupancy_threshold)
+        self._rule = (self._l_hit, self._l_miss, self._l_min, self._l_max)  # what insertion.apply takes
         self.stats = {"scans": 0, "points": 0, "dropped": 0}
         self._bbx = None
         self.clear()
@@ -174,9 +120,7 @@ class OcTree:
 
     def clear(self) -> None:
         """Forget every node (the map becomes all unknown)."""
-        self._value = np.full(_INITIAL_SLOTS, np.nan, dtype=np.float32)
-        self._child = np.full(_INITIAL_SLOTS, -1, dtype=np.int32)
-        self._meta = np.array([8, -1, 0], dtype=np.int64)
+        self._pool = pool.Pool()
 
     @property
     def log_odds_hit(self) -> float:
@@ -219,9 +163,7 @@ class OcTree:
     def _bbx_keys(self) -> np.ndarray:
         if self._bbx is None:
             return np.empty((0, 3), np.int64)
-        lo = np.floor(self._bbx[0] * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
-        hi = np.floor(self._bbx[1] * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
-        return np.clip(np.stack([lo, hi]), 0, K.MAX_KEY)
+        return np.clip(coord_to_keys(np.stack(self._bbx), self.resolution), 0, MAX_KEY)
 
     # ------------------------------------------------------------------ keys
 
@@ -229,26 +171,23 @@ class OcTree:
         """Depth-16 keys (N, 3) int64 of points (N, 3) in metres, OctoMap's ``coordToKey``
         (``floor(x / res) + 32768`` on the float64 coordinate). Raises on keys outside 0..65535."""
         P = _points("points", points)
-        keys = np.floor(P * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
-        bad = np.flatnonzero(~np.all((keys >= 0) & (keys <= K.MAX_KEY), axis=1))
+        keys = coord_to_keys(P, self.resolution)
+        bad = np.flatnonzero(~keys_in_range(keys))
         if bad.size:
             raise self._out_of_range("point", int(bad[0]), P[bad[0]])
         return keys
 
-    def _out_of_range(self, what: str, i: int, p) -> InvalidArgumentError:
+    def _out_of_range(self, what: str, i: int, p, ray: bool = False) -> InvalidArgumentError:
+        also = ", or its ray from the origin is too long for OctoMap's float32 arithmetic" if ray else ""
         return InvalidArgumentError(
             f"{what} {i} {np.asarray(p).tolist()} lies outside the octree's key range "
-            f"(±{K.CENTER * self.resolution:g} m at resolution {self.resolution:g} m)")
+            f"(±{CENTER * self.resolution:g} m at resolution {self.resolution:g} m){also}")
 
     def key_to_coord(self, keys, depth: int = 16) -> np.ndarray:
         """Centres (N, 3) of the nodes at ``depth`` that hold the given keys, computed as OctoMap's
         ``keyToCoord(key, depth)`` (bit for bit)."""
         k = np.asarray(keys, dtype=np.int64)
-        return self._centers(k, np.full(k.shape[:-1], depth, np.int64))
-
-    def _centers(self, keys: np.ndarray, depths: np.ndarray) -> np.ndarray:
-        cells = (1 << (16 - depths))[..., None]
-        return (np.floor_divide(keys - K.CENTER, cells) + 0.5) * (self.resolution * cells)
+        return node_centers(k, np.full(k.shape[:-1], depth, np.int64), self.resolution)
 
     # ------------------------------------------------------------------ insertion
 
@@ -266,7 +205,7 @@ class OcTree:
         :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
         """
         keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
-        self._apply(keys, is_hit, lazy, threads=True)
+        insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=True)
         return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
@@ -287,10 +226,11 @@ class OcTree:
         pending = None
         for k in range(len(pairs)):
             current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, True)
-            pending = (_PIPELINE.submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
+            pending = (insertion.PIPELINE.submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
                        if k + 1 < len(pairs) else None)
             keys, is_hit, summary = current
-            self._apply(keys, is_hit, lazy, threads=pending is None)  # (the second core traces the next scan)
+            # (the second core traces the next scan)
+            insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=pending is None)
             self._count(summary)
             total["scans"] += 1
             for name in ("points", "dropped", "beyond_max_range"):
@@ -311,13 +251,13 @@ class OcTree:
             _, first = np.unique(keys, axis=0, return_index=True)
             P = self.key_to_coord(keys[np.sort(first)])
         box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
-        ends, hit, more, bad = I.prepare_rays(P, o32[None, :], float(max_range), self.resolution, box)
+        ends, hit, more, bad = prepare_rays(P, o32[None, :], float(max_range), self.resolution, box)
         if bad >= 0:
-            raise self._out_of_range("point", bad, P[bad])
+            raise self._out_of_range("point", bad, P[bad], ray=True)
         kbox = self._bbx_keys()
         # with a box, a ray's free voxels are those before it first leaves the box: none from outside
         rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
-        keys, is_hit = _voxels(_mark(o32, ends, hit, self.resolution, rays, threads), kbox, threads)
+        keys, is_hit = insertion.scan_voxels(o32, ends, hit, self.resolution, rays, kbox, threads)
         summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
         return keys, is_hit, summary
 
@@ -341,12 +281,12 @@ class OcTree:
             raise InvalidArgumentError("ray origins and ends must be finite")
         O32 = O.astype(np.float32)
         self.coord_to_key(O32.astype(np.float64))
-        E32, with_end, _, bad = I.prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
+        E32, with_end, _, bad = prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
                                                np.empty((0, 3), np.float32))
         if bad >= 0:
-            raise self._out_of_range("ray end", bad, E[bad])
-        keys, is_hit = I.ray_voxels(O32, E32, with_end, self.resolution)
-        self._apply(keys, is_hit, lazy)
+            raise self._out_of_range("ray end", bad, E[bad], ray=True)
+        keys, is_hit = ray_voxels(O32, E32, with_end, self.resolution)
+        insertion.apply(self._pool, keys, is_hit, self._rule, lazy)
 
     def insert_ray(self, origin, end, max_range: float = -1.0, lazy: bool = False) -> None:
         """One ray (see :meth:`insert_rays`)."""
@@ -360,80 +300,18 @@ class OcTree:
             raise InvalidArgumentError("points must be finite")
         occ = np.broadcast_to(np.asarray(occupied, dtype=bool), P.shape[:1])
         k = self.coord_to_key(P.astype(np.float32).astype(np.float64))
-        self._apply(k[:, 0] | (k[:, 1] << 16) | (k[:, 2] << 32), np.ascontiguousarray(occ), lazy)
-
-    def _apply(self, keys: np.ndarray, is_hit: np.ndarray, lazy: bool, threads: bool = False) -> None:
-        """Update the voxels ``keys`` (packed) in order; with ``threads`` (the keys of one scan:
-        each once, in Morton order) many voxels on two threads."""
-        if threads and len(keys) >= _PARALLEL_VOXELS and self._apply_halves(keys, is_hit, lazy):
-            return
-        self._apply_range(keys, is_hit, lazy, 0, len(keys))
-
-    def _apply_range(self, keys, is_hit, lazy: bool, start: int, stop: int) -> bool:
-        """Voxels ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
-        keys, is_hit = keys[:stop], is_hit[:stop]
-        top = int(self._meta[K.TOP])
-        changed = False
-        while True:
-            start, ch = I.apply_voxels(self._value, self._child, self._meta, keys, is_hit, start, self._l_hit,
-                                       self._l_miss, self._l_min, self._l_max, not lazy, self._value.shape[0], 0)
-            changed |= ch
-            if start == len(keys):
-                return changed
-            # out of slots: room for the rest at the rate of slots per voxel so far, and a margin
-            used = int(self._meta[K.TOP])
-            rate = (used - top) / max(start, 1)
-            self._value, self._child = K.grow(self._value, self._child, int(used + 1.25 * rate * (len(keys) - start)))
-
-    def _apply_halves(self, keys, is_hit, lazy: bool) -> bool:
-        """The voxels on two threads, when the path to the node all of them share exists down to
-        its children: each thread updates whole subtrees below that node, allocating slots from
-        its own range, and the shared path is settled afterwards. False (nothing done) where the
-        path does not exist yet even after the first voxel (a pruned leaf on it absorbs it)."""
-        shared = I.shared_depth(keys[0], keys[-1])  # depth of that node
-        path = K.path_to(self._value, self._child, keys[0], shared)
-        first = 0
-        if not len(path):  # make it: the first voxel's update creates (or expands) the nodes on its way
-            self._apply_range(keys, is_hit, lazy, 0, 1)
-            path, first = K.path_to(self._value, self._child, keys[0], shared), 1
-            if not len(path):
-                return False
-        split = I.subtree_split(keys, shared, first)
-        # slot ranges: the first thread from the top of the pool (and the free list), the second
-        # above its range; a thread that runs out leaves its rest to this one
-        top = int(self._meta[K.TOP])
-        room_a = 8 * ((_ROOM_PER_VOXEL * (split - first) + _ROOM_MARGIN) // 8 + 1)
-        room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
-        if self._value.shape[0] < top + room_a + room_b:
-            self._value, self._child = K.grow(self._value, self._child, top + room_a + room_b)
-        meta_a = np.array([top, self._meta[K.FREE], 0], np.int64)
-        meta_b = np.array([top + room_a, -1, 0], np.int64)
-        args = (self._l_hit, self._l_miss, self._l_min, self._l_max, not lazy)
-        runs = [_POOL.submit(I.apply_voxels, self._value, self._child, meta_a, keys[:split], is_hit[:split], first,
-                             *args, top + room_a, shared + 1),
-                _POOL.submit(I.apply_voxels, self._value, self._child, meta_b, keys, is_hit, split,
-                             *args, self._value.shape[0], shared + 1)]
-        (end_a, changed_a), (end_b, changed_b) = (r.result() for r in runs)
-        K.join_pools(self._child, self._meta, meta_a, meta_b, int(meta_a[K.TOP]), top + room_a)
-        changed = changed_a or changed_b
-        if end_a < split:  # a range ran out of slots: the rest here
-            changed |= self._apply_range(keys, is_hit, lazy, end_a, split)
-        if end_b < len(keys):
-            changed |= self._apply_range(keys, is_hit, lazy, end_b, len(keys))
-        if changed and not lazy:
-            K.settle_path(self._value, self._child, self._meta, path)
-        return True
+        insertion.apply(self._pool, pack_keys(k), np.ascontiguousarray(occ), self._rule, lazy)
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
-        K.settle_tree(self._value, self._child, self._meta, -1, True, False)
+        pool.settle_tree(self._pool.value, self._pool.child, self._pool.meta, -1, True, False)
 
     def prune(self) -> None:
         """Collapse nodes whose eight children are leaves with equal values, as OctoMap's ``prune``:
         level by level from depth 15 up to depth 1 (never the root), stopping after the first
         level where nothing collapsed."""
         for depth in range(15, 0, -1):
-            if K.settle_tree(self._value, self._child, self._meta, depth, False, True) == 0:
+            if pool.settle_tree(self._pool.value, self._pool.child, self._pool.meta, depth, False, True) == 0:
                 break
 
     def expand(self) -> None:
@@ -441,13 +319,14 @@ class OcTree:
         8^(16 − depth) per pruned leaf)."""
         depths = self.leaves().depths
         new_nodes = int(sum(((8 ** (17 - depths) - 8) // 7).tolist()))
-        if self._value.shape[0] < self._meta[K.TOP] + new_nodes:
-            self._value, self._child = K.grow(self._value, self._child, int(self._meta[K.TOP]) + new_nodes)
-        K.expand_all(self._value, self._child, self._meta)
+        top = int(self._pool.meta[pool.TOP])
+        if self._pool.value.shape[0] < top + new_nodes:
+            self._pool.grow(top + new_nodes)
+        pool.expand_all(self._pool.value, self._pool.child, self._pool.meta)
 
     def to_max_likelihood(self) -> None:
         """Set every node to the clamping bound of its class (occupied: upper, free: lower)."""
-        K.to_max_likelihood(self._value, self._child, self._l_occ, self._l_min, self._l_max)
+        pool.to_max_likelihood(self._pool.value, self._pool.child, self._l_occ, self._l_min, self._l_max)
 
     # ------------------------------------------------------------------ queries
 
@@ -455,10 +334,10 @@ class OcTree:
         if not 0 <= depth <= 16:
             raise InvalidArgumentError(f"depth must be 0..16, got {depth!r}")
         P = _points("points", points)
-        keys = np.floor(P * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
-        inside = np.all((keys >= 0) & (keys <= K.MAX_KEY), axis=1) & np.all(np.isfinite(P), axis=1)
+        keys = coord_to_keys(P, self.resolution)
+        inside = keys_in_range(keys) & np.all(np.isfinite(P), axis=1)
         keys[~inside] = 0
-        nodes = K.search_keys(self._value, self._child, keys, depth)
+        nodes = query.search_keys(self._pool.value, self._pool.child, keys, depth)
         nodes[~inside] = -1
         return nodes
 
@@ -468,7 +347,7 @@ class OcTree:
         nodes = self._search(points, depth)
         out = np.full(nodes.shape, np.nan)
         known = nodes >= 0
-        out[known] = self._value[nodes[known]]
+        out[known] = self._pool.value[nodes[known]]
         return out
 
     def occupancy_at(self, points, depth: int = 16) -> np.ndarray:
@@ -489,7 +368,7 @@ class OcTree:
         n = max(len(O), len(D))
         if len(O) not in (1, n) or len(D) not in (1, n):
             raise ShapeError(f"origins {O.shape} and directions {D.shape} do not match")
-        hit, ends = K.cast_rays(self._value, self._child, O.astype(np.float32), D.astype(np.float32),
+        hit, ends = query.cast_rays(self._pool.value, self._pool.child, O.astype(np.float32), D.astype(np.float32),
                                 self.resolution, float(max_range), bool(ignore_unknown), self._l_occ)
         return hit, ends.astype(np.float64)
 
@@ -501,22 +380,22 @@ class OcTree:
     def _nodes(self, bbx_min, bbx_max, depth: int, leaves_only: bool) -> Leaves:
         if not 0 <= depth <= 16:
             raise InvalidArgumentError(f"depth must be 0..16, got {depth!r}")
-        kmin = np.zeros(3, np.int64) if bbx_min is None else np.clip(self._bbx_key(bbx_min), 0, K.MAX_KEY)
-        kmax = np.full(3, K.MAX_KEY, np.int64) if bbx_max is None else np.clip(self._bbx_key(bbx_max), 0, K.MAX_KEY)
-        args = (self._value, self._child, depth, kmin, kmax, leaves_only)
-        n = K.collect_nodes(*args, True, np.empty((0, 3), np.int64), np.empty(0, np.int64), np.empty(0, np.float32))
+        kmin = np.zeros(3, np.int64) if bbx_min is None else np.clip(self._bbx_key(bbx_min), 0, MAX_KEY)
+        kmax = np.full(3, MAX_KEY, np.int64) if bbx_max is None else np.clip(self._bbx_key(bbx_max), 0, MAX_KEY)
+        args = (self._pool.value, self._pool.child, depth, kmin, kmax, leaves_only)
+        n = query.collect_nodes(*args, True, np.empty((0, 3), np.int64), np.empty(0, np.int64), np.empty(0, np.float32))
         keys = np.empty((n, 3), np.int64)
         depths = np.empty(n, np.int64)
         values = np.empty(n, np.float32)
-        K.collect_nodes(*args, False, keys, depths, values)
-        sizes = self.resolution * (1 << (16 - depths)).astype(np.float64)
-        return Leaves(self._centers(keys, depths), sizes, values, depths)
+        query.collect_nodes(*args, False, keys, depths, values)
+        sizes = self.resolution * node_cells(depths).astype(np.float64)
+        return Leaves(node_centers(keys, depths, self.resolution), sizes, values, depths)
 
     def _bbx_key(self, p) -> np.ndarray:
         p = np.asarray(p, dtype=np.float64)
         if p.shape != (3,):
             raise ShapeError(f"bounding-box corners must have shape (3,), got {p.shape}")
-        return np.floor(p * (1.0 / self.resolution)).astype(np.int64) + K.CENTER
+        return coord_to_keys(p, self.resolution)
 
     def occupied_centers(self) -> np.ndarray:
         """Centres (M, 3) of the occupied leaves (at their own depth)."""
@@ -525,11 +404,11 @@ class OcTree:
 
     def num_nodes(self) -> int:
         """Number of nodes, inner and leaves (OctoMap's ``size()``)."""
-        return int(self._meta[K.SIZE])
+        return int(self._pool.meta[pool.SIZE])
 
     def num_leaves(self) -> int:
         """Number of leaf nodes (OctoMap's ``getNumLeafNodes()``)."""
-        return int(K.count_leaves(self._value, self._child, int(self._meta[K.TOP])))
+        return int(query.count_leaves(self._pool.value, self._pool.child, int(self._pool.meta[pool.TOP])))
 
     def memory_usage(self) -> int:
         """Bytes the nodes occupy: every inner node's block of eight slots at 8 bytes a slot (float32
@@ -550,41 +429,41 @@ class OcTree:
         lo, hi = self.metric_bounds()
         return float(np.prod(hi - lo))
 
-    # ------------------------------------------------------------------ files
+    # ------------------------------------------------------------------ nodes as arrays
 
-    def write_binary(self, path) -> None:
-        """Write OctoMap's ``.bt`` (maximum likelihood, pruned as OctoMap's ``writeBinary`` does),
-        atomically; this tree is not changed."""
-        from . import formats
-
-        formats.write_binary(self, path)
-
-    def write(self, path) -> None:
-        """Write OctoMap's ``.ot`` (every node with its log-odds), atomically."""
-        from . import formats
-
-        formats.write_ot(self, path)
+    def nodes(self) -> Nodes:
+        """The node pool as read-only arrays (views, no copy; valid until the tree next changes):
+        see :class:`Nodes` for the layout. File writers (:mod:`occmap.io.octomap`) read the tree
+        through this."""
+        p = self._pool
+        top = int(p.meta[pool.TOP])
+        value, child = p.value[:top], p.child[:top]
+        value.flags.writeable = False
+        child.flags.writeable = False
+        return Nodes(value, child, int(p.meta[pool.SIZE]))
 
     @classmethod
-    def read_binary(cls, path, **kwargs) -> OcTree:
-        """Read OctoMap's ``.bt``; ``kwargs`` (prob_hit, clamp, ...) as for the constructor."""
-        from . import formats
-
-        return formats.read_binary(path, **kwargs)
-
-    @classmethod
-    def read(cls, path, **kwargs) -> OcTree:
-        """Read OctoMap's ``.ot``."""
-        from . import formats
-
-        return formats.read_ot(path, **kwargs)
-
-    @classmethod
-    def load(cls, path, **kwargs) -> OcTree:
-        """Read ``.bt`` or ``.ot`` by extension (else by the file's first line)."""
-        from . import formats
-
-        return formats.load(path, **kwargs)
+    def from_nodes(cls, resolution: float, value, child, count: int, **params) -> OcTree:
+        """A tree of ``resolution`` whose node pool is ``value`` and ``child`` (laid out as
+        :class:`Nodes` describes, with no free blocks: the slots in use are ``0 .. len(value)``)
+        holding ``count`` nodes; ``params`` (``prob_hit``, ``clamp``, ...) as for the constructor.
+        The tree takes the arrays over (float32 and int32, writeable, contiguous: they are not
+        copied). Checked: lengths and types, not the structure (file readers check that as they
+        build it)."""
+        tree = cls(resolution, **params)
+        value, child = np.asarray(value), np.asarray(child)
+        if value.dtype != np.float32 or child.dtype != np.int32 or value.ndim != 1 or child.shape != value.shape:
+            raise ShapeError(f"value and child must be float32 and int32 arrays of one length, got {value.dtype} "
+                             f"{value.shape} and {child.dtype} {child.shape}")
+        if len(value) < 8 or len(value) % 8 or not value.flags.writeable or not child.flags.writeable:
+            raise InvalidArgumentError("value and child must be writeable and hold whole blocks of 8 slots (root "
+                                       f"block included), got {len(value)} slots")
+        if not 0 <= count <= len(value):
+            raise InvalidArgumentError(f"count must be 0 .. {len(value)} nodes, got {count}")
+        p = tree._pool
+        p.value, p.child = np.ascontiguousarray(value), np.ascontiguousarray(child)
+        p.meta = np.array([len(value), -1, count], np.int64)
+        return tree
 
     # ------------------------------------------------------------------ pictures and exports
 

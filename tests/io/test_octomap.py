@@ -12,19 +12,22 @@ import numpy as np
 import pytest
 
 from occmap.errors import FormatError
+from occmap.io import octomap as F
 from occmap.octree import OcTree
-from occmap.octree import formats as F
-
-octomap = pytest.importorskip("octomap")
 
 RES = 0.1
 
 
 # ------------------------------------------------------------------------------ helpers
 
+def _octomap():
+    """octomap-python, for a test that compares with OctoMap (skipped, saying so, without it)."""
+    return pytest.importorskip("octomap", reason="compares with OctoMap itself: octomap-python is not installed")
+
+
 def _arrays(tree):
-    top = int(tree._meta[0])
-    return tree._value[:top].copy(), tree._child[:top].copy(), tree._meta.copy()
+    n = tree.nodes()
+    return n.value.copy(), n.child.copy(), n.count
 
 
 def _same_arrays(a, b):
@@ -69,62 +72,64 @@ SCANS = [room_cloud([1.23, -0.61, 1.07], seed=7), room_cloud([-0.52, 0.87, 1.31]
 
 
 def octomap_tree():
-    t = octomap.OcTree(RES)
+    t = _octomap().OcTree(RES)
     for pts, origin in SCANS:
         t.insertPointCloud(pts, origin)
     return t
 
 
 @pytest.fixture(scope="module")
-def scan_trees():
-    """The same two scans (5,000 points each) inserted into occmap and into octomap-python."""
+def scan_tree():
+    """Two scans (5,000 points each) inserted into occmap (:func:`octomap_tree` does the same in
+    OctoMap)."""
     ours = OcTree(RES)
     for pts, origin in SCANS:
         ours.insert_point_cloud(pts, origin)
-    return ours, octomap_tree()
+    return ours
 
 
 @pytest.fixture(scope="module")
-def small_bt(scan_trees):
-    return F.encode_binary(scan_trees[0])
+def small_bt(scan_tree):
+    return F.encode_bt(scan_tree)
 
 
 @pytest.fixture(scope="module")
-def small_ot(scan_trees):
-    return F.encode_ot(scan_trees[0])
+def small_ot(scan_tree):
+    return F.encode_ot(scan_tree)
 
 
 # ------------------------------------------------------------------------------ real maps
 
 def test_geb079_counts_and_byte_identical_rewrite(data_dir, tmp_path):
     path = data_dir / "octomap" / "geb079.bt"
-    tree = F.read_binary(path)
+    tree = F.read_bt(path)
     assert tree.resolution == 0.08
     assert tree.num_nodes() == 532_566
     lv = tree.leaves()
-    occupied = int(np.count_nonzero(lv.log_odds >= tree._l_occ))
+    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupancy_log_odds)))
     assert (occupied, len(lv.log_odds) - occupied) == (143_729, 284_415)
-    assert set(np.unique(lv.log_odds)) == {tree._l_min, tree._l_max}
+    assert set(np.unique(lv.log_odds)) == set(np.float32(tree.clamping_log_odds))
     before = _arrays(tree)
-    F.write_binary(tree, tmp_path / "geb.bt")
+    F.write_bt(tree, tmp_path / "geb.bt")
     assert (tmp_path / "geb.bt").read_bytes() == path.read_bytes()
     assert _same_arrays(before, _arrays(tree))
     # the same tree through .ot and back
     F.write_ot(tree, tmp_path / "geb.ot")
     again = F.read_ot(tmp_path / "geb.ot")
     assert _same_arrays(_arrays(again), before)
-    assert F.load(tmp_path / "geb.ot").num_nodes() == 532_566
+    assert F.read_octree(tmp_path / "geb.ot").num_nodes() == 532_566
 
 
 def test_fr079_counts_and_speed(data_dir, tmp_path):
+    octomap = _octomap()
     path = data_dir / "octomap" / "fr_079.bt"
-    tree = F.read_binary(path)
+    tree = F.read_bt(path)
     assert tree.resolution == 0.05
     assert tree.num_nodes() == 1_829_134
     lv = tree.leaves()
-    occupied = int(np.count_nonzero(lv.log_odds >= tree._l_occ))
+    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupancy_log_odds)))
     assert (occupied, len(lv.log_odds) - occupied) == (372_904, 1_103_266)
-    assert F.encode_binary(tree) == path.read_bytes()
+    assert F.encode_bt(tree) == path.read_bytes()
 
     # timings, printed (pytest -s) and not asserted: best of 3, each side in this process
     def best(f):
@@ -137,8 +142,8 @@ def test_fr079_counts_and_speed(data_dir, tmp_path):
 
     om = octomap.OcTree(0.05)
     spath, out = str(path).encode(), str(tmp_path / "om.bt").encode()
-    t_read, t_om_read = best(lambda: F.read_binary(path)), best(lambda: om.readBinary(spath))
-    t_write, t_om_write = best(lambda: F.write_binary(tree, tmp_path / "o.bt")), best(lambda: om.writeBinary(out))
+    t_read, t_om_read = best(lambda: F.read_bt(path)), best(lambda: om.readBinary(spath))
+    t_write, t_om_write = best(lambda: F.write_bt(tree, tmp_path / "o.bt")), best(lambda: om.writeBinary(out))
     print(f"\nfr_079.bt read: occmap {t_read * 1e3:.1f} ms, octomap {t_om_read * 1e3:.1f} ms "
           f"({t_om_read / t_read:.1f}x); write: occmap {t_write * 1e3:.1f} ms, octomap "
           f"{t_om_write * 1e3:.1f} ms ({t_om_write / t_write:.1f}x)")
@@ -146,20 +151,21 @@ def test_fr079_counts_and_speed(data_dir, tmp_path):
 
 # ------------------------------------------------------------------------------ one scan, both libraries
 
-def test_scan_bytes_equal_octomaps(scan_trees, tmp_path):
-    ours, theirs = scan_trees
+def test_scan_bytes_equal_octomaps(scan_tree, tmp_path):
+    ours, theirs = scan_tree, octomap_tree()
     assert ours.num_nodes() == theirs.size()
     before = _arrays(ours)
     # .ot first: OctoMap's writeBinary converts its own tree to maximum likelihood
     assert F.encode_ot(ours) == theirs.write()
-    assert F.encode_binary(ours) == octomap_tree().writeBinary()
+    assert F.encode_bt(ours) == octomap_tree().writeBinary()
     assert _same_arrays(before, _arrays(ours)), "writing changed the tree"
     assert len(np.unique(ours.leaves().log_odds)) > 3  # far from maximum likelihood
 
 
-def test_octomap_reads_our_files(scan_trees, tmp_path):
-    ours = scan_trees[0]
-    F.write_binary(ours, tmp_path / "ours.bt")
+def test_octomap_reads_our_files(scan_tree, tmp_path):
+    octomap = _octomap()
+    ours = scan_tree
+    F.write_bt(ours, tmp_path / "ours.bt")
     F.write_ot(ours, tmp_path / "ours.ot")
     keys, values = occmap_leaves(ours)
 
@@ -170,7 +176,7 @@ def test_octomap_reads_our_files(scan_trees, tmp_path):
     np.testing.assert_array_equal(v, values)  # float32 values, exactly
 
     om_bt = octomap.OcTree(str(tmp_path / "ours.bt").encode())
-    ml = F.read_binary(tmp_path / "ours.bt")
+    ml = F.read_bt(tmp_path / "ours.bt")
     assert om_bt.size() == ml.num_nodes()
     k, v = octomap_leaves(om_bt)
     mk, mv = occmap_leaves(ml)
@@ -181,31 +187,31 @@ def test_octomap_reads_our_files(scan_trees, tmp_path):
     np.testing.assert_array_equal(ml.occupancy_at(ours.leaves().centers), occ)
 
 
-def test_we_read_octomaps_files(scan_trees, tmp_path):
-    ours = scan_trees[0]
+def test_we_read_octomaps_files(scan_tree, tmp_path):
+    ours = scan_tree
     om = octomap_tree()
     om.write(str(tmp_path / "om.ot").encode())
     om.writeBinary(str(tmp_path / "om.bt").encode())  # (this converts om to maximum likelihood)
 
-    full = F.load(tmp_path / "om.ot")
+    full = F.read_octree(tmp_path / "om.ot")
     assert full.num_nodes() == ours.num_nodes()
     k, v = occmap_leaves(full)
     mk, mv = occmap_leaves(ours)
     np.testing.assert_array_equal(k, mk)
     np.testing.assert_array_equal(v, mv)
 
-    ml = F.load(tmp_path / "om.bt")
+    ml = F.read_octree(tmp_path / "om.bt")
     assert ml.num_nodes() == om.size()
     k, v = occmap_leaves(ml)
     ok, ov = octomap_leaves(om)
     np.testing.assert_array_equal(k, ok)
     np.testing.assert_array_equal(v, ov)
-    assert F.encode_binary(ml) == (tmp_path / "om.bt").read_bytes()
+    assert F.encode_bt(ml) == (tmp_path / "om.bt").read_bytes()
 
 
 def test_tree_kwargs_set_the_leaf_values(small_bt, tmp_path):
     (tmp_path / "a.bt").write_bytes(small_bt)
-    tree = F.read_binary(tmp_path / "a.bt", clamp=(0.2, 0.9))
+    tree = F.read_bt(tmp_path / "a.bt", clamp=(0.2, 0.9))
     assert set(np.unique(tree.leaves().log_odds)) == {np.float32(np.log(0.25)), np.float32(np.log(9.0))}
 
 
@@ -214,6 +220,7 @@ def test_tree_kwargs_set_the_leaf_values(small_bt, tmp_path):
 def _updated_tree(cells):
     """An octomap-python tree whose depth-15 cells (2x2x2 voxels, by their lowest key) get, voxel
     by voxel, ``n`` hits (n > 0) or ``-n`` misses (n < 0); ``n`` one number or one per voxel."""
+    octomap = _octomap()
     t = octomap.OcTree(RES)
     for (kx, ky, kz), counts in cells:
         counts = [counts] * 8 if np.isscalar(counts) else counts
@@ -244,7 +251,7 @@ def test_prune_stops_where_octomap_stops(extra, removed, tmp_path):
     ours = F.read_ot(tmp_path / "q.ot")
     assert ours.num_nodes() == om.size()
     before = _arrays(ours)
-    got = F.encode_binary(ours)
+    got = F.encode_bt(ours)
     expected = om.writeBinary()
     assert got == expected
     assert int(got.split(b"\nsize ")[1].split(b"\n")[0]) == ours.num_nodes() - removed
@@ -254,8 +261,9 @@ def test_prune_stops_where_octomap_stops(extra, removed, tmp_path):
 # ------------------------------------------------------------------------------ small cases
 
 def test_empty_and_single_node_trees(tmp_path):
+    octomap = _octomap()
     empty = OcTree(0.25)
-    for name, write, read in (("e.bt", F.write_binary, F.read_binary), ("e.ot", F.write_ot, F.read_ot)):
+    for name, write, read in (("e.bt", F.write_bt, F.read_bt), ("e.ot", F.write_ot, F.read_ot)):
         write(empty, tmp_path / name)
         assert b"\nsize 0\nres 0.25\ndata\n" in (tmp_path / name).read_bytes()
         assert (tmp_path / name).read_bytes().endswith(b"data\n")
@@ -263,55 +271,56 @@ def test_empty_and_single_node_trees(tmp_path):
         assert back.num_nodes() == 0 and back.resolution == 0.25
     assert octomap.OcTree(str(tmp_path / "e.bt").encode()).size() == 0
 
-    one = F.decode_binary(F._header(F.BINARY_MAGIC, "OcTree", 1, 0.5) + b"\x00\x00")
+    one = F.decode_bt(F._header(F.BINARY_MAGIC, "OcTree", 1, 0.5) + b"\x00\x00")
     assert one.num_nodes() == 1 and one.num_leaves() == 1
-    assert one._value[0] == one._l_max  # OctoMap reads a lone root as occupied
-    assert F.encode_binary(one).endswith(b"size 1\nres 0.5\ndata\n\x00\x00")
+    assert one.nodes().value[0] == np.float32(one.clamping_log_odds[1])  # OctoMap reads a lone root as occupied
+    assert F.encode_bt(one).endswith(b"size 1\nres 0.5\ndata\n\x00\x00")
     assert F.decode_ot(F.encode_ot(one)).num_nodes() == 1
 
 
 def test_root_is_the_max_of_its_children(tmp_path):
     """A map with only free leaves: OctoMap's readBinary leaves the root at the upper clamp;
     occmap gives it the maximum of its children (documented difference), the leaves agree."""
+    octomap = _octomap()
     om = octomap.OcTree(RES)
     for x in (0.05, 0.15, -0.35):
         om.updateNode(np.array([x, 0.05, 0.05]), False)
     om.writeBinary(str(tmp_path / "free.bt").encode())
-    ours = F.read_binary(tmp_path / "free.bt")
+    ours = F.read_bt(tmp_path / "free.bt")
     back = octomap.OcTree(str(tmp_path / "free.bt").encode())
-    assert back.getRoot().getValue() == pytest.approx(float(ours._l_max))
-    assert ours._value[0] == ours._l_min
+    assert back.getRoot().getValue() == pytest.approx(ours.clamping_log_odds[1])
+    assert ours.nodes().value[0] == np.float32(ours.clamping_log_odds[0])
     k, v = octomap_leaves(back)
     mk, mv = occmap_leaves(ours)
     np.testing.assert_array_equal(k, mk)
     np.testing.assert_array_equal(v, mv)
-    assert F.encode_binary(ours) == (tmp_path / "free.bt").read_bytes()
+    assert F.encode_bt(ours) == (tmp_path / "free.bt").read_bytes()
 
 
 def test_header_variants_accepted():
     body = b"\x00\x00"
     text = (b"# Octomap OcTree binary file   with words after\n# comment\n\n  # another\r\n"
             b"res   0.2e0\nid 1\nsize\n1\ndata   trailing words\n" + body)
-    tree = F.decode_binary(text)
+    tree = F.decode_bt(text)
     assert tree.resolution == 0.2 and tree.num_nodes() == 1
     with pytest.warns(UserWarning, match="unknown keyword"):
-        F.decode_binary(b"# Octomap OcTree binary file\nfoo bar\nid OcTree\nsize 1\nres 0.1\ndata\n" + body)
+        F.decode_bt(b"# Octomap OcTree binary file\nfoo bar\nid OcTree\nsize 1\nres 0.1\ndata\n" + body)
     # legacy binary header: int32 3, float64 res, uint32 size
     legacy = np.array([3], "<i4").tobytes() + np.array([0.3], "<f8").tobytes() + np.array([1], "<u4").tobytes()
-    assert F.decode_binary(legacy + body).resolution == 0.3
+    assert F.decode_bt(legacy + body).resolution == 0.3
 
 
 def test_load_by_extension_or_first_line(small_bt, small_ot, tmp_path):
     (tmp_path / "x.bin").write_bytes(small_bt)
     (tmp_path / "y.data").write_bytes(small_ot)
     (tmp_path / "z.txt").write_bytes(b"hello\n")
-    assert F.load(tmp_path / "x.bin").num_nodes() == F.decode_binary(small_bt).num_nodes()
-    assert F.load(tmp_path / "y.data").num_nodes() == F.decode_ot(small_ot).num_nodes()
+    assert F.read_octree(tmp_path / "x.bin").num_nodes() == F.decode_bt(small_bt).num_nodes()
+    assert F.read_octree(tmp_path / "y.data").num_nodes() == F.decode_ot(small_ot).num_nodes()
     with pytest.raises(FormatError, match="not an OctoMap file"):
-        F.load(tmp_path / "z.txt")
+        F.read_octree(tmp_path / "z.txt")
     (tmp_path / "swapped.bt").write_bytes(small_ot)
     with pytest.raises(FormatError, match="first line"):
-        F.load(tmp_path / "swapped.bt")
+        F.read_octree(tmp_path / "swapped.bt")
 
 
 # ------------------------------------------------------------------------------ malformed files
@@ -323,7 +332,7 @@ def _data_at(buf):
 @pytest.mark.parametrize("fmt", ["bt", "ot"])
 def test_truncated_at_every_offset(fmt, small_bt, small_ot, tmp_path):
     buf = small_bt if fmt == "bt" else small_ot
-    decode = F.decode_binary if fmt == "bt" else F.decode_ot
+    decode = F.decode_bt if fmt == "bt" else F.decode_ot
     start = _data_at(buf)
     cuts = list(range(0, start + 1)) + list(range(start + 1, len(buf), max(1, (len(buf) - start) // 300)))
     t0 = time.perf_counter()
@@ -338,7 +347,7 @@ def test_truncated_at_every_offset(fmt, small_bt, small_ot, tmp_path):
     # through a file: the message names the path and the byte
     (tmp_path / "cut.bt").write_bytes(small_bt[: start + 7])
     with pytest.raises(FormatError, match=r"cut\.bt, byte \d+: the data ends inside a node"):
-        F.read_binary(tmp_path / "cut.bt")
+        F.read_bt(tmp_path / "cut.bt")
 
 
 def _replace(buf, old, new):
@@ -364,33 +373,33 @@ def test_bad_bt_header(change, match, small_bt):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # unknown keywords are skipped with a warning
         with pytest.raises(FormatError, match=match) as err:
-            F.decode_binary(_replace(small_bt, *change), "bad.bt")
+            F.decode_bt(_replace(small_bt, *change), "bad.bt")
     assert err.value.offset is not None
 
 
 def test_size_mismatch_names_the_size_field(small_bt):
     bad = _replace(small_bt, b"size ", b"size 1")
     with pytest.raises(FormatError, match="header's size says") as err:
-        F.decode_binary(bad)
+        F.decode_bt(bad)
     assert bad[err.value.offset - 5: err.value.offset] == b"size "
     # a huge count with a small body: checked against the bytes, nothing allocated from it
     with pytest.raises(FormatError, match="header's size says 4000000000"):
-        F.decode_binary(_replace(small_bt, b"size ", b"size 4000000000 \n#"))
+        F.decode_bt(_replace(small_bt, b"size ", b"size 4000000000 \n#"))
 
 
 def test_impossible_bt_bodies():
     head = F._header(F.BINARY_MAGIC, "OcTree", 17 * 1 + 1, 0.1)
     n = len(head)
     with pytest.raises(FormatError, match="below depth 16") as err:  # 17 nested inner nodes
-        F.decode_binary(head + b"\x03\x00" * 17)
+        F.decode_bt(head + b"\x03\x00" * 17)
     assert err.value.offset == n + 2 * 15
     with pytest.raises(FormatError, match="no children") as err:  # inner node with no children
-        F.decode_binary(head + b"\x03\x00\x00\x00")
+        F.decode_bt(head + b"\x03\x00\x00\x00")
     assert err.value.offset == n + 2
     good = F._header(F.BINARY_MAGIC, "OcTree", 9, 0.1) + b"\x55\x55"  # root + 8 free leaves
-    assert F.decode_binary(good).num_leaves() == 8
+    assert F.decode_bt(good).num_leaves() == 8
     with pytest.raises(FormatError, match="bytes follow the last node") as err:
-        F.decode_binary(good + b"\n")
+        F.decode_bt(good + b"\n")
     assert err.value.offset == len(good)
 
 
@@ -412,7 +421,7 @@ def test_impossible_ot_bodies(small_ot):
 @pytest.mark.parametrize("fmt", ["bt", "ot"])
 def test_random_corruption_never_crashes_or_hangs(fmt, small_bt, small_ot):
     buf = bytearray(small_bt if fmt == "bt" else small_ot)
-    decode = F.decode_binary if fmt == "bt" else F.decode_ot
+    decode = F.decode_bt if fmt == "bt" else F.decode_ot
     start = _data_at(bytes(buf))
     rng = np.random.default_rng(3)
     t0 = time.perf_counter()
@@ -431,8 +440,9 @@ def test_random_corruption_never_crashes_or_hangs(fmt, small_bt, small_ot):
 
 def test_read_tree_keeps_growing_like_octomaps(data_dir):
     """A tree read from a file takes further scans exactly as OctoMap's does (same .ot bytes)."""
+    octomap = _octomap()
     path = data_dir / "octomap" / "geb079.bt"
-    ours = F.read_binary(path)
+    ours = F.read_bt(path)
     om = octomap.OcTree(str(path).encode())
     for pts, origin in SCANS:
         ours.insert_point_cloud(pts, origin)

@@ -10,8 +10,8 @@ Both formats list the nodes depth first, children in order 0..7 (pre-order), sta
 - ``.ot`` (full values): per node 5 bytes, the float32 log-odds (little-endian) and a byte with
   bit i set when child i exists.
 
-The kernels take and return plain arrays (slot layout as in :mod:`._kernels`); the headers and the
-error messages are :mod:`.formats`' business. Decoders return an error code and the byte offset
+The kernels take and return plain arrays (the slot layout of :class:`occmap.octree.Nodes`); the
+headers and the error messages are :mod:`.octomap`'s business. Decoders return an error code and the byte offset
 where the data stopped making sense instead of raising; allocation is bounded by the number of
 bytes present, and every step consumes bytes or finishes a node, so no input can make them hang.
 """
@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import kernel
-from ._kernels import DEPTH
+from ..octree.keys import DEPTH
 
-# Error codes of the decoders (formats.py turns them into messages).
+# Error codes of the decoders (octomap.py turns them into messages).
 OK = 0
 TRUNCATED = 1  # the data ends inside a node
 TOO_DEEP = 2  # a node below depth 16

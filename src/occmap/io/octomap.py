@@ -31,7 +31,11 @@ occupied leaf reads back with an "occupied" root. Here the root, like every inne
 maximum of its children; the two agree whenever the map has an occupied leaf. (A root with no
 children at all carries no class in the file; it reads as occupied, as in OctoMap.)
 
-Kernels: :mod:`._codec`. Writes are atomic (:func:`occmap._files.write_atomic`).
+Names: :func:`read_octree` (either format, OctoMap's ``AbstractOcTree::read``), :func:`read_bt` /
+:func:`write_bt` (``readBinary`` / ``writeBinary``), :func:`read_ot` / :func:`write_ot` (``read`` /
+``write``), and the same on bytes (``decode_*`` / ``encode_*``). The trees are built and read
+through :meth:`OcTree.from_nodes` and :meth:`OcTree.nodes`; the kernels are in
+:mod:`._octomap_codec`. Writes are atomic (:func:`occmap._files.write_atomic`).
 """
 
 from __future__ import annotations
@@ -45,9 +49,8 @@ import numpy as np
 
 from .._files import write_atomic
 from ..errors import FormatError
-from . import _codec as C
-from . import _kernels as K
-from .tree import OcTree
+from ..octree import OcTree
+from . import _octomap_codec as C
 
 BINARY_MAGIC = b"# Octomap OcTree binary file"
 FULL_MAGIC = b"# Octomap OcTree file"
@@ -74,11 +77,12 @@ def _header(magic: bytes, tree_id: str, nodes: int, resolution: float) -> bytes:
     return (magic + _COMMENT + f"id {tree_id}\nsize {nodes}\nres {format(resolution, 'g')}\ndata\n".encode())
 
 
-def encode_binary(tree: OcTree) -> bytes:
+def encode_bt(tree: OcTree) -> bytes:
     """The bytes OctoMap's ``writeBinary`` writes for ``tree`` (which converts its tree to maximum
     likelihood and prunes it first); ``tree`` itself is left unchanged."""
-    top = int(tree._meta[K.TOP])
-    body, nodes = C.encode_bt(tree._value, tree._child, top, tree._l_occ, tree._l_min, tree._l_max)
+    nodes = tree.nodes()
+    lo, hi = (np.float32(v) for v in tree.clamping_log_odds)
+    body, nodes = C.encode_bt(nodes.value, nodes.child, len(nodes.value), np.float32(tree.occupancy_log_odds), lo, hi)
     if nodes < 0:
         raise RuntimeError("octree node pool is inconsistent: a node lies below depth 16")
     return _header(BINARY_MAGIC, "OcTree", int(nodes), tree.resolution) + body.tobytes()
@@ -86,19 +90,18 @@ def encode_binary(tree: OcTree) -> bytes:
 
 def encode_ot(tree: OcTree) -> bytes:
     """The bytes OctoMap's ``write`` (``.ot``, every node's log-odds) writes for ``tree``."""
-    top = int(tree._meta[K.TOP])
-    value = np.ascontiguousarray(tree._value)
-    body, nodes = C.encode_ot(value, value.view(np.uint32), tree._child, top)
+    nodes = tree.nodes()
+    body, nodes = C.encode_ot(nodes.value, nodes.value.view(np.uint32), nodes.child, len(nodes.value))
     if nodes < 0:
         raise RuntimeError("octree node pool is inconsistent: a node below depth 16 or more reachable "
                            "nodes than stored values")
     return _header(FULL_MAGIC, "OcTree", int(nodes), tree.resolution) + body.tobytes()
 
 
-def write_binary(tree: OcTree, path) -> Path:
+def write_bt(tree: OcTree, path) -> Path:
     """Write ``tree`` to ``path`` as OctoMap's ``.bt`` (maximum likelihood, pruned), atomically.
     Byte-identical to OctoMap's ``writeBinary`` for the same tree; ``tree`` is not modified."""
-    return write_atomic(path, encode_binary(tree))
+    return write_atomic(path, encode_bt(tree))
 
 
 def write_ot(tree: OcTree, path) -> Path:
@@ -216,31 +219,22 @@ def _empty_or_fail(path, h: _Header, buf: bytes) -> bool:
     return True
 
 
-def _tree_from(h: _Header, tree_kwargs: dict) -> OcTree:
-    return OcTree(h.res, **tree_kwargs)
-
-
-def _adopt(tree: OcTree, value, child, top: int, nodes: int) -> OcTree:
-    tree._value, tree._child = value, child
-    tree._meta = np.array([top, -1, nodes], np.int64)
-    return tree
-
-
-def decode_binary(buf: bytes, path="<bytes>", **tree_kwargs) -> OcTree:
-    """An :class:`OcTree` from the bytes of a ``.bt`` file (see :func:`read_binary`)."""
+def decode_bt(buf: bytes, path="<bytes>", **tree_kwargs) -> OcTree:
+    """An :class:`OcTree` from the bytes of a ``.bt`` file (see :func:`read_bt`)."""
     h = None if buf.startswith(BINARY_MAGIC) else _legacy_binary_header(path, buf)
     if h is None:
         h = _parse_header(path, buf, BINARY_MAGIC)
         if h.tree_id not in _BINARY_IDS:
             raise FormatError(path, f"id {h.tree_id!r} is not an occupancy octree (expected 'OcTree')",
                               offset=h.id_at)
-    tree = _tree_from(h, tree_kwargs)
+    tree = OcTree(h.res, **tree_kwargs)
     if _empty_or_fail(path, h, buf):
         return tree
     data = np.frombuffer(buf, np.uint8)
-    value, child, top, nodes, err, offset = C.decode_bt(data, h.data_at, tree._l_min, tree._l_max)
+    lo, hi = (np.float32(v) for v in tree.clamping_log_odds)
+    value, child, top, nodes, err, offset = C.decode_bt(data, h.data_at, lo, hi)
     _check(path, h, err, offset, nodes)
-    return _adopt(tree, value, child, top, nodes)
+    return OcTree.from_nodes(h.res, value[:top], child[:top], int(nodes), **tree_kwargs)
 
 
 def decode_ot(buf: bytes, path="<bytes>", **tree_kwargs) -> OcTree:
@@ -249,24 +243,23 @@ def decode_ot(buf: bytes, path="<bytes>", **tree_kwargs) -> OcTree:
     if h.tree_id != "OcTree":
         raise FormatError(path, f"id {h.tree_id!r}: only 'OcTree' .ot files can be read (other trees' "
                           f"node records differ)", offset=h.id_at)
-    tree = _tree_from(h, tree_kwargs)
     if _empty_or_fail(path, h, buf):
-        return tree
+        return OcTree(h.res, **tree_kwargs)
     n_rec = (len(buf) - h.data_at) // 5
     rec = np.frombuffer(buf, np.dtype([("v", "<f4"), ("m", "u1")]), count=n_rec, offset=h.data_at)
     values = rec["v"].astype(np.float32)
     masks = np.ascontiguousarray(rec["m"])
     value, child, top, nodes, err, offset = C.decode_ot(values, masks, h.data_at, len(buf))
     _check(path, h, err, offset, nodes)
-    return _adopt(tree, value, child, top, nodes)
+    return OcTree.from_nodes(h.res, value[:top], child[:top], int(nodes), **tree_kwargs)
 
 
-def read_binary(path, **tree_kwargs) -> OcTree:
+def read_bt(path, **tree_kwargs) -> OcTree:
     """Read an OctoMap ``.bt`` file (current or legacy header). Leaves get the clamping bound of
     their class (free: lower, occupied: upper), inner nodes the maximum of their children.
     ``tree_kwargs`` (``prob_hit``, ``clamp``, ...) go to :class:`OcTree`; the file stores only
     the resolution. Raises :class:`~occmap.errors.FormatError` for a malformed file."""
-    return decode_binary(_read(path), path, **tree_kwargs)
+    return decode_bt(_read(path), path, **tree_kwargs)
 
 
 def read_ot(path, **tree_kwargs) -> OcTree:
@@ -275,16 +268,16 @@ def read_ot(path, **tree_kwargs) -> OcTree:
     return decode_ot(_read(path), path, **tree_kwargs)
 
 
-def load(path, **tree_kwargs) -> OcTree:
+def read_octree(path, **tree_kwargs) -> OcTree:
     """Read ``.bt`` or ``.ot`` by the file's extension; any other extension by its first line."""
     suffix = Path(path).suffix.lower()
     if suffix == ".bt":
-        return read_binary(path, **tree_kwargs)
+        return read_bt(path, **tree_kwargs)
     if suffix == ".ot":
         return read_ot(path, **tree_kwargs)
     buf = _read(path)
     if buf.startswith(BINARY_MAGIC):
-        return decode_binary(buf, path, **tree_kwargs)
+        return decode_bt(buf, path, **tree_kwargs)
     if buf.startswith(FULL_MAGIC):
         return decode_ot(buf, path, **tree_kwargs)
     raise FormatError(path, "not an OctoMap file: expected extension .bt or .ot, or a first line "

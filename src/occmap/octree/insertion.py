@@ -1,0 +1,166 @@
+"""Inserting scans: the orchestration of the kernels of :mod:`.marking`, :mod:`.blocks` and
+:mod:`.update` over threads (OctoMap's ``insertPointCloud`` / ``insertRay`` / ``updateNode``,
+without a tree class: functions of a :class:`.pool.Pool` and plain arrays).
+
+A scan goes through three stages: its rays are marked into blocks (:func:`scan_voxels`, which
+leaves the tree alone, so the next scan can be traced while the tree takes this one), the blocks
+are listed as voxels in Morton order, and the voxels update the pool (:func:`apply`). Every
+Numba kernel releases the GIL, so two Python threads run kernels side by side.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from . import blocks as B
+from . import marking as M
+from . import pool as P
+from .keys import shared_depth
+from .update import apply_voxels, subtree_split
+
+#: Scans with at least this many rays are marked by two threads, in this many runs of rays.
+_PARALLEL_RAYS = 20_000
+_MARK_RUNS = 8
+#: Scans with at least this many marked blocks list their voxels on two threads.
+_PARALLEL_BLOCKS = 256
+#: Scans with at least this many voxels update the tree on two threads.
+_PARALLEL_VOXELS = 20_000
+#: Slots a thread's range holds: this many a voxel, and a margin.
+_ROOM_PER_VOXEL = 2
+_ROOM_MARGIN = 8 * 16 * 8
+#: Scans with at least this many rays mark the voxels near the sensor in a dense cube (see
+#: occmap.octree.marking.CUBE).
+_CUBE_RAYS = 4096
+_THREADS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="occmap-octree")
+#: Traces the next scan of OcTree.insert_point_clouds while the tree takes the current one.
+PIPELINE = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occmap-octree-next")
+
+
+def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int):
+    """Block masks of the runs ``(start, stop)`` of rays this thread takes from ``runs`` (shared
+    by the threads, each run taken once) until none is left, grown until they fit, a block
+    possibly listed twice; with a cube (``corner`` ≥ 0) the voxels around the sensor are marked
+    in a dense one of this thread's."""
+    storage = B.new_blocks(capacity)
+    cube = M.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.uint8))
+    while True:
+        try:
+            start, stop = runs.popleft()
+        except IndexError:
+            break
+        while True:
+            start = M.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
+            if start == stop:
+                break
+            storage = B.grow_blocks(*storage)
+    table, slots, codes, hits, frees, count = storage
+    n = int(count[0])
+    blocks = codes[:n], hits[:n], frees[:n]
+    if corner >= 0:  # and the cube's (merge_blocks ors a block marked in both)
+        blocks = tuple(np.concatenate(pair) for pair in zip(blocks, M.cube_blocks(*cube, corner)))
+    return blocks
+
+
+def mark(origin, ends, hit, res, rays: bool, threads: bool):
+    """The scan's voxels as Morton-sorted blocks of hit and free bits (only hits unless ``rays``);
+    with ``threads``, large scans are marked by two threads (the kernels release the GIL), which
+    take runs of rays in turn: the work of a run is hard to foresee (a step outside the cube
+    costs several inside it), so a thread that is done early takes more."""
+    n = len(ends)
+    corner = M.cube_corner(origin, ends, res) if rays and n >= _CUBE_RAYS else -1
+    if not threads or n < _PARALLEL_RAYS:
+        parts = [_mark_runs(origin, ends, hit, res, rays, corner, deque([(0, n)]), max(64, n // 8))]
+    else:
+        bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
+        runs = deque(zip(bounds[:-1], bounds[1:]))
+        futures = [_THREADS.submit(_mark_runs, origin, ends, hit, res, rays, corner, runs, max(64, n // 16))
+                   for _ in range(2)]
+        parts = [f.result() for f in futures]
+    return B.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
+
+
+def voxels(blocks, kbox, threads: bool):
+    """:func:`occmap.octree.blocks.block_voxels` of Morton-sorted blocks; with ``threads``, many
+    blocks are listed by two threads, each a half (Morton order kept)."""
+    n = len(blocks[0])
+    if not threads or n < _PARALLEL_BLOCKS:
+        return B.block_voxels(*blocks, kbox)
+    halves = [_THREADS.submit(B.block_voxels, *(b[a:z] for b in blocks), kbox) for a, z in ((0, n // 2), (n // 2, n))]
+    (k0, h0), (k1, h1) = (f.result() for f in halves)
+    return np.concatenate([k0, k1]), np.concatenate([h0, h1])
+
+
+def scan_voxels(origin32, ends, hit, res: float, rays: bool, kbox, threads: bool):
+    """A scan's voxels (rays from float32 ``origin32`` to ``ends`` from
+    :func:`occmap.octree.marking.prepare_rays`; only the end voxels unless ``rays``): packed keys
+    in Morton order, each once, with hit flags, only those inside the key box ``kbox`` ((0, 3):
+    none)."""
+    return voxels(mark(origin32, ends, hit, res, rays, threads), kbox, threads)
+
+
+def apply(pool: P.Pool, keys: np.ndarray, is_hit: np.ndarray, rule, lazy: bool, threads: bool = False) -> None:
+    """Update the voxels ``keys`` (packed) of ``pool`` in order, each with a hit or a miss under
+    ``rule`` = (l_hit, l_miss, l_min, l_max) (float32 log-odds); with ``threads`` (the keys of
+    one scan: each once, in Morton order) many voxels on two threads."""
+    if threads and len(keys) >= _PARALLEL_VOXELS and _apply_halves(pool, keys, is_hit, rule, lazy):
+        return
+    _apply_range(pool, keys, is_hit, rule, lazy, 0, len(keys))
+
+
+def _apply_range(pool: P.Pool, keys, is_hit, rule, lazy: bool, start: int, stop: int) -> bool:
+    """Voxels ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
+    keys, is_hit = keys[:stop], is_hit[:stop]
+    top = int(pool.meta[P.TOP])
+    changed = False
+    while True:
+        start, ch = apply_voxels(pool.value, pool.child, pool.meta, keys, is_hit, start, *rule, not lazy,
+                                 pool.value.shape[0], 0)
+        changed |= ch
+        if start == len(keys):
+            return changed
+        # out of slots: room for the rest at the rate of slots per voxel so far, and a margin
+        used = int(pool.meta[P.TOP])
+        rate = (used - top) / max(start, 1)
+        pool.grow(used + 1.25 * rate * (len(keys) - start))
+
+
+def _apply_halves(pool: P.Pool, keys, is_hit, rule, lazy: bool) -> bool:
+    """The voxels on two threads, when the path to the node all of them share exists down to
+    its children: each thread updates whole subtrees below that node, allocating slots from
+    its own range, and the shared path is settled afterwards. False (nothing done) where the
+    path does not exist yet even after the first voxel (a pruned leaf on it absorbs it)."""
+    shared = shared_depth(keys[0], keys[-1])  # depth of that node
+    path = P.path_to(pool.value, pool.child, keys[0], shared)
+    first = 0
+    if not len(path):  # make it: the first voxel's update creates (or expands) the nodes on its way
+        _apply_range(pool, keys, is_hit, rule, lazy, 0, 1)
+        path, first = P.path_to(pool.value, pool.child, keys[0], shared), 1
+        if not len(path):
+            return False
+    split = subtree_split(keys, shared, first)
+    # slot ranges: the first thread from the top of the pool (and the free list), the second
+    # above its range; a thread that runs out leaves its rest to this one
+    top = int(pool.meta[P.TOP])
+    room_a = 8 * ((_ROOM_PER_VOXEL * (split - first) + _ROOM_MARGIN) // 8 + 1)
+    room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
+    if pool.value.shape[0] < top + room_a + room_b:
+        pool.grow(top + room_a + room_b)
+    meta_a = np.array([top, pool.meta[P.FREE], 0], np.int64)
+    meta_b = np.array([top + room_a, -1, 0], np.int64)
+    runs = [_THREADS.submit(apply_voxels, pool.value, pool.child, meta_a, keys[:split], is_hit[:split], first,
+                            *rule, not lazy, top + room_a, shared + 1),
+            _THREADS.submit(apply_voxels, pool.value, pool.child, meta_b, keys, is_hit, split,
+                            *rule, not lazy, pool.value.shape[0], shared + 1)]
+    (end_a, changed_a), (end_b, changed_b) = (r.result() for r in runs)
+    P.join_pools(pool.child, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
+    changed = changed_a or changed_b
+    if end_a < split:  # a range ran out of slots: the rest here
+        changed |= _apply_range(pool, keys, is_hit, rule, lazy, end_a, split)
+    if end_b < len(keys):
+        changed |= _apply_range(pool, keys, is_hit, rule, lazy, end_b, len(keys))
+    if changed and not lazy:
+        P.settle_path(pool.value, pool.child, pool.meta, path)
+    return True

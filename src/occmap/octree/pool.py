@@ -1,0 +1,209 @@
+"""The octree's node pool (OctoMap's ``OcTreeBaseImpl`` storage, in arrays): slots, growth, the
+free list, and settling inner nodes (maximum of the children, pruning).
+
+Storage. Nodes live in *slots*; the children of an inner node occupy one *block* of 8 consecutive
+slots (child ``i`` at ``block + i``, ``i = x-bit + 2·y-bit + 4·z-bit`` as in OctoMap). Per slot:
+
+- ``value`` (float32): the log-odds; NaN marks a slot whose node does not exist (unknown space);
+- ``child`` (int32): first slot of the node's child block, −1 for a leaf; a freed block links the
+  free list through the ``child`` of its first slot.
+
+Slot 0 is the root; block 0 holds only it, real blocks start at slot 8. ``meta`` (int64) holds the
+allocator and counters: ``meta[TOP]`` the next never-used slot, ``meta[FREE]`` the free-list head
+(−1: empty), ``meta[SIZE]`` the number of nodes (OctoMap's ``size()``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import inline_kernel, kernel
+from .keys import DEPTH, child_index, unpack
+
+TOP, FREE, SIZE = 0, 1, 2
+
+
+@kernel
+def grow(value, child, capacity):
+    """The slot arrays with room for ``capacity`` slots, at least twice as many as now, contents
+    kept, new slots unused."""
+    n = value.shape[0]
+    m = max(2 * n, capacity)
+    v = np.empty(m, np.float32)
+    c = np.empty(m, np.int32)
+    v[:n] = value
+    c[:n] = child
+    v[n:] = np.nan
+    c[n:] = -1
+    return v, c
+
+
+@inline_kernel
+def settle(value, child, meta, node, set_max, prune):
+    """Make inner ``node`` agree with its children: collapse it into a leaf if its eight
+    children are leaves with one value (``prune``), else set it to their maximum (``set_max``).
+    Returns True when it was pruned."""
+    c = child[node]
+    first = value[c]
+    m = -np.inf
+    collapsible = prune
+    for j in range(c, c + 8):
+        v = value[j]
+        if v > m:  # false for NaN: missing children do not count
+            m = v
+        collapsible = collapsible and child[j] < 0 and v == first  # NaN (no child) never equals
+    if collapsible:
+        value[node] = first
+        child[node] = -1
+        for j in range(c, c + 8):
+            value[j] = np.nan
+            child[j] = -1
+        child[c] = meta[FREE]  # the block joins the free list
+        meta[FREE] = c
+        meta[SIZE] -= 8
+        return True
+    if set_max:
+        value[node] = m
+    return False
+
+
+@kernel
+def path_to(value, child, key, depth):
+    """The nodes from the root down to ``depth`` on the way to the voxel with packed key ``key``
+    when each of them exists and has its block of children, else an empty array."""
+    kx, ky, kz = unpack(key)
+    path = np.empty(depth + 1, np.int64)
+    node = 0
+    for d in range(depth + 1):
+        if np.isnan(value[node]) or child[node] < 0:
+            return path[:0]
+        path[d] = node
+        node = child[node] + child_index(kx, ky, kz, d)
+    return path
+
+
+@kernel
+def join_pools(child, meta, meta_a, meta_b, gap_lo, gap_hi):
+    """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``, with the pool's free
+    list) and [gap_hi, ·) (``meta_b``): one pool again, the first range's unused blocks
+    [gap_lo, gap_hi) and the blocks the second freed on the free list, node counts added."""
+    free = meta_a[FREE]
+    for c in range(gap_lo, gap_hi, 8):
+        child[c] = free
+        free = c
+    c = meta_b[FREE]
+    while c >= 0:
+        nxt = child[c]
+        child[c] = free
+        free = c
+        c = nxt
+    meta[TOP] = meta_b[TOP]
+    meta[FREE] = free
+    meta[SIZE] += meta_a[SIZE] + meta_b[SIZE]
+
+
+@kernel
+def settle_path(value, child, meta, path):
+    """Settle (see :func:`settle`: maximum of the children, or pruned) the nodes of ``path``,
+    deepest first."""
+    for d in range(path.shape[0] - 1, -1, -1):
+        settle(value, child, meta, path[d], True, True)
+
+
+@kernel
+def settle_tree(value, child, meta, depth, set_max, prune):
+    """Post-order walk settling (see :func:`settle`) every inner node (``depth`` < 0: OctoMap's
+    ``updateInnerOccupancy`` with ``set_max``) or only those at ``depth`` (one level of OctoMap's
+    ``prune``). Returns how many nodes were pruned."""
+    if np.isnan(value[0]) or child[0] < 0:
+        return 0
+    nodes = np.empty(DEPTH + 1, np.int64)
+    next_child = np.zeros(DEPTH + 1, np.int64)
+    nodes[0] = 0
+    sp = 0
+    pruned = 0
+    while sp >= 0:
+        node = nodes[sp]
+        if sp != depth:
+            c = child[node]
+            i = next_child[sp]
+            while i < 8 and child[c + i] < 0:
+                i += 1
+            if i < 8:
+                next_child[sp] = i + 1
+                sp += 1
+                nodes[sp] = c + i
+                next_child[sp] = 0
+                continue
+        if (depth < 0 or sp == depth) and settle(value, child, meta, node, set_max, prune):
+            pruned += 1
+        sp -= 1
+    return pruned
+
+
+@inline_kernel
+def alloc_block(value, child, meta, fill):
+    """First slot of a free block of 8 (from the free list, else the unused top), each slot set to
+    ``fill`` with no children. The caller has checked there is room."""
+    c = meta[FREE]
+    if c >= 0:
+        meta[FREE] = child[c]
+    else:
+        c = meta[TOP]
+        meta[TOP] = c + 8
+    for j in range(c, c + 8):
+        value[j] = fill
+        child[j] = -1
+    return c
+
+
+@kernel
+def expand_all(value, child, meta):
+    """Expand every pruned leaf down to depth 16 (OctoMap's ``expand``); the arrays must have room
+    for the new blocks (see ``OcTree.expand``)."""
+    if np.isnan(value[0]):
+        return
+    nodes = np.empty(DEPTH + 1, np.int64)
+    next_child = np.zeros(DEPTH + 1, np.int64)
+    nodes[0] = 0
+    sp = 0
+    while sp >= 0:
+        node = nodes[sp]
+        if sp < DEPTH and child[node] < 0:
+            child[node] = alloc_block(value, child, meta, value[node])
+            meta[SIZE] += 8
+        i = next_child[sp]
+        if sp == DEPTH or i == 8:
+            sp -= 1
+            continue
+        next_child[sp] = i + 1
+        k = child[node] + i
+        if not np.isnan(value[k]):
+            sp += 1
+            nodes[sp] = k
+            next_child[sp] = 0
+
+
+@kernel
+def to_max_likelihood(value, child, occ, lo, hi):
+    """Every node's value to the clamping bound of its class (OctoMap's ``toMaxLikelihood``)."""
+    for i in range(value.shape[0]):
+        v = value[i]
+        if not np.isnan(v):
+            value[i] = hi if v >= occ else lo
+
+
+class Pool:
+    """The slot arrays of one tree: ``value``, ``child`` and ``meta`` as described above (kernels
+    take them as plain arrays), and their growth. A new pool is empty: no root."""
+
+    INITIAL_SLOTS = 1 << 12
+
+    def __init__(self):
+        self.value = np.full(self.INITIAL_SLOTS, np.nan, dtype=np.float32)
+        self.child = np.full(self.INITIAL_SLOTS, -1, dtype=np.int32)
+        self.meta = np.array([8, -1, 0], dtype=np.int64)
+
+    def grow(self, capacity: int) -> None:
+        """Room for at least ``capacity`` slots (at least twice the present room)."""
+        self.value, self.child = grow(self.value, self.child, int(capacity))

@@ -1,0 +1,126 @@
+"""The probabilistic update (OctoMap's ``OccupancyOcTreeBase::updateNode``): the log-odds rule,
+and applying a list of voxel updates to the node pool of :mod:`.pool`.
+
+The rule: a hit adds ``l_hit``, a miss ``l_miss`` (float32, as OctoMap stores log-odds), and the
+result is clamped to ``[lo, hi]``; a value already at the clamp the update pushes toward is left
+alone — and so is a pruned leaf there, without expanding it (OctoMap's early abort).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import kernel
+from .keys import DEPTH, child_index, shared_depth, unpack
+from .pool import FREE, SIZE, TOP, alloc_block, settle
+
+#: Slots one voxel update may allocate at most: a new block at every level.
+_ROOM = 8 * DEPTH
+
+
+@kernel
+def saturated(v, hit, lo, hi):
+    """Whether an update (a hit when ``hit``, else a miss) leaves log-odds ``v`` as it is: it is
+    already at the clamp the update pushes toward."""
+    return v >= hi if hit else v <= lo
+
+
+@kernel
+def updated(v, hit, l_hit, l_miss, lo, hi):
+    """Log-odds ``v`` after a hit (``hit``) or a miss, clamped to [lo, hi]."""
+    v = v + (l_hit if hit else l_miss)
+    return lo if v < lo else (hi if v > hi else v)
+
+
+@kernel
+def subtree_split(keys, depth, first):
+    """Index in ``keys[first:]`` (packed, Morton order, all below one node at ``depth``) where one
+    child subtree of that node ends and the next begins, nearest the middle."""
+    n = keys.shape[0]
+    best = first
+    for i in range(first + 1, n):
+        if shared_depth(keys[i - 1], keys[i]) == depth and abs(2 * i - n - first) < abs(2 * best - n - first):
+            best = i
+    return best
+
+
+@kernel
+def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, top):
+    """Update voxels ``start..`` (packed keys) in order, each as OctoMap's ``updateNode`` with a hit
+    or a miss. Returns (the number of voxels, or the one at which the slots below ``limit`` ran
+    out — nothing of it applied yet: the caller makes room and resumes there; whether any value
+    changed). With ``settle_nodes`` false (OctoMap's lazy evaluation) inner nodes are neither
+    updated nor pruned. Nodes above depth ``top`` are only passed through, never settled: two
+    threads can update the subtrees below one node side by side (see :func:`.insertion.apply`).
+
+    The walk to a voxel restarts from the deepest node shared with the previous voxel's path, so
+    voxels in Morton order cost a level or two instead of sixteen; an inner node is settled once
+    the walk leaves it, if anything below it changed. The walk is written inline here:
+    a Numba call passing arrays costs more than the step itself."""
+    n = keys.shape[0]
+    cap = limit
+    changed = False
+    path = np.zeros(DEPTH + 1, np.int64)  # path[d]: node at depth d on the last walk
+    known = -1  # deepest valid entry of path
+    dirty = -1  # path[0..dirty] saw a change since the walk entered them
+    previous = 0
+    for i in range(start, n):
+        if meta[FREE] < 0 and meta[TOP] + _ROOM > cap:
+            if settle_nodes:
+                for d in range(min(dirty, known - 1), top - 1, -1):
+                    settle(value, child, meta, path[d], True, True)
+            return i, changed
+        key = keys[i]
+        kx, ky, kz = unpack(key)
+        hit = is_hit[i]
+        # ---- leave the previous voxel's path up to the node both share
+        d = 0
+        if known >= 0:
+            shared = shared_depth(key, previous)
+            if settle_nodes:
+                for s in range(min(dirty, known - 1), max(shared, top - 1), -1):
+                    settle(value, child, meta, path[s], True, True)
+                dirty = min(dirty, shared)
+            d = min(shared, known)
+        previous = key
+        # ---- walk down, creating or expanding nodes, unless the update cannot change anything
+        node = path[d]
+        created = False
+        if d == 0 and np.isnan(value[0]):
+            value[0] = 0.0
+            child[0] = -1
+            meta[SIZE] += 1
+            created = True
+        absorbed = False
+        while d < DEPTH:
+            c = child[node]
+            if c < 0:
+                if not created:
+                    v = value[node]
+                    absorbed = saturated(v, hit, lo, hi)  # OctoMap's early abort
+                    if absorbed:
+                        break
+                # a new node gets an empty block; a pruned leaf is expanded into eight copies
+                c = alloc_block(value, child, meta, np.float32(np.nan) if created else value[node])
+                if not created:
+                    meta[SIZE] += 8
+                child[node] = c
+            node = c + child_index(kx, ky, kz, d)
+            created = np.isnan(value[node])
+            if created:
+                value[node] = 0.0
+                meta[SIZE] += 1
+            d += 1
+            path[d] = node
+        known = d
+        if absorbed:
+            continue
+        if saturated(value[node], hit, lo, hi):
+            continue
+        value[node] = updated(value[node], hit, l_hit, l_miss, lo, hi)
+        dirty = DEPTH
+        changed = True
+    if settle_nodes and known >= 0:
+        for d in range(min(dirty, known - 1), top - 1, -1):
+            settle(value, child, meta, path[d], True, True)
+    return n, changed
