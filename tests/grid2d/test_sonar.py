@@ -148,7 +148,7 @@ def test_shared_sonar_ring_reproduces_the_exercise_reference(data_dir):
     differing cells have exactly as much free as occupied evidence (l = 0 in exact arithmetic),
     where the exercise's colour is float64 rounding noise. occmap's own cone model gives the
     corridor but not the picture (about 82 % alike, free IoU 0.58)."""
-    from occmap.grid2d import sonar_demo as sd
+    import sonar_reference as sd
     from occmap.io.sonar import read_sonar_ring
 
     log = read_sonar_ring(data_dir / "sonar")

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from occmap.commands.localize import add_parser
 from occmap.io.carmen import iter_carmen, read_carmen
 from occmap.localize.replay import (
-    add_parser, anchor_odometry, convergence_distance, make_localizer, pair_scans, replay, save_error_png, save_track_png,
+    anchor_odometry, convergence_distance, make_localizer, pair_scans, replay, save_error_png, save_track_png,
     track_errors, travelled, write_track_csv,
 )
 from occmap.mapping2d import map_scans

@@ -4,7 +4,7 @@
 ``timestamp x y theta`` with x, y in millimetres and theta in tenths of a degree; one line each
 per ring reading, timestamps matching. Converted here to metres and radians; headings are kept
 as given (0…2π for this data set), not wrapped, since the exercise's unwrapped angle comparison
-(``SonarModel(wrap_angles=False)``) depends on them. ``occmap.grid2d.sonar_demo`` maps the set as
+(``SonarModel(wrap_angles=False)``) depends on them. The tests' ``tests/grid2d/sonar_reference.py`` maps the set as
 the exercise does and compares the result with its ``Map_reference.png``.
 """
 

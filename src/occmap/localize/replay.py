@@ -1,4 +1,5 @@
-"""Replaying a recorded laser log against a map: the job behind ``occmap localize``.
+"""Replaying a recorded laser log against a map: the job behind ``occmap localize``
+(:mod:`occmap.commands.localize`).
 
 * :func:`pair_scans` matches the scans of a raw log with those of a SLAM-corrected log of the
   same run (logger timestamps within a few milliseconds *and* identical ranges), so the corrected
@@ -12,7 +13,6 @@
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -28,7 +28,7 @@ from ..png import write_png
 from .mcl import LocalizationWarning, MonteCarloLocalizer
 
 __all__ = [
-    "ReplayResult", "add_parser", "convergence_distance", "pair_scans", "replay", "run_cli", "save_error_png",
+    "DEFAULTS", "PLAIN", "ReplayResult", "convergence_distance", "make_localizer", "pair_scans", "replay", "save_error_png",
     "save_track_png", "track_errors", "write_track_csv",
 ]
 
@@ -269,44 +269,6 @@ def save_error_png(path, distance, position_error, heading_error, title: str = "
     return write_png(path, img)
 
 
-# ---------------------------------------------------------------------------------- the command
-
-def _pose_arg(text: str) -> tuple[float, float, float]:
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
-        raise argparse.ArgumentTypeError(f"expected x,y,theta (metres, metres, radians), got {text!r}")
-    return vals
-
-
-def add_parser(subparsers) -> argparse.ArgumentParser:
-    """Add the ``localize`` command to an ``argparse`` sub-parser set; returns its parser."""
-    p = subparsers.add_parser(
-        "localize", help="localize a laser log's scans in a map (Monte Carlo localization, as ROS AMCL)",
-        description="Replay a CARMEN log's raw odometry and scans through a particle filter in a map_server map, "
-                    "write the estimated track as CSV and optionally draw it over the map beside the odometry.")
-    p.add_argument("map", metavar="MAP.yaml", help="map_server YAML (with its image beside it)")
-    p.add_argument("log", metavar="LOG", help="CARMEN log (plain, .gz or .bz2) with odometry in its scan lines")
-    start = p.add_mutually_exclusive_group()
-    start.add_argument("--init", type=_pose_arg, metavar="X,Y,THETA",
-                       help="initial pose in the map (metres, radians); tracking from there")
-    start.add_argument("--global", dest="global_localization", action="store_true",
-                       help="global localization: start from particles over all free space (the default "
-                            "when --init is not given)")
-    p.add_argument("-o", "--output", required=True, help="CSV track to write")
-    p.add_argument("--png", help="also draw the track over the map")
-    p.add_argument("--particles", type=int, default=2000, help="particles (default: %(default)s)")
-    p.add_argument("--beams", type=int, default=60, help="beams per update (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--plain", action="store_true", help="plain AMCL: no roughening, no scan-match refinement")
-    p.add_argument("--reference", metavar="LOG",
-                   help="a corrected log of the same run: report the error against its poses")
-    p.add_argument("--every", type=int, default=1, help="use every N-th scan (default: %(default)s)")
-    return p
-
-
 def make_localizer(grid, *, particles: int = 2000, beams: int = 60, seed=0, plain: bool = False,
                    **kwargs) -> MonteCarloLocalizer:
     """The localizer with the settings measured on the Intel log (see ``BENCHMARKS.md``); global
@@ -322,42 +284,3 @@ PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05
 #: Settings that meet the accuracy targets on the Intel log (measured in benchmarks/bench_localize.py):
 #: a filter run every 5 cm / 0.1 rad, the estimate refined by a scan match that also moves the cloud.
 DEFAULTS = dict(PLAIN, update_min_d=0.05, update_min_a=0.1, min_ess=0.1, refine=True, refine_feedback=True)
-
-
-def run_cli(args) -> int:
-    """``occmap localize``: replay the log, write the CSV (and PNG), print a summary."""
-    from ..grid2d import OccupancyGrid2D
-    from ..io.carmen import read_carmen
-
-    t0 = time.perf_counter()
-    grid = OccupancyGrid2D.load(args.map)
-    log = read_carmen(args.log, every=args.every)
-    if not len(log):
-        raise InvalidArgumentError(f"{args.log}: no laser scans found")
-    print(f"read {len(log):,} scans from {args.log} and a {grid.shape[1]} × {grid.shape[0]} map in "
-          f"{time.perf_counter() - t0:.2f} s")
-    glob = args.init is None
-    loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain)
-    result = replay(loc, log.scans, init=args.init, cov=np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]),
-                    global_localization=glob, progress=sys.stderr.isatty())
-    write_track_csv(args.output, result)
-    ms = 1000.0 * result.seconds[result.updated]
-    print(f"{len(result):,} scans, {int(result.updated.sum()):,} filter updates "
-          f"({np.median(ms) if ms.size else 0:.2f} ms median), {loc.stats.resamples:,} resamplings, "
-          f"{loc.stats.injected:,} particles injected")
-    for w in sorted(set(result.warnings))[:5]:
-        print(f"warning: {w}")
-    if args.reference:
-        ref = read_carmen(args.reference)
-        pairs = pair_scans(log.scans, ref.scans)
-        ok = pairs >= 0
-        pe, he = track_errors(result.poses[pairs[ok]], np.array([s.pose for s in ref.scans])[ok])
-        print(f"against {int(ok.sum()):,} reference poses: position error mean {pe.mean():.3f} m, "
-              f"max {pe.max():.3f} m; heading error mean {math.degrees(he.mean()):.2f}°, "
-              f"max {math.degrees(he.max()):.2f}°")
-    print(f"wrote {args.output}")
-    if args.png:
-        ref_poses = None
-        print(f"wrote {save_track_png(args.png, loc, result, ref_poses)}")
-    print(f"total {time.perf_counter() - t0:.2f} s")
-    return 0

@@ -3,7 +3,9 @@
 1. Maps: a simulated office (noisy lidar along a path through every room) mapped at 0.05 m and
    written as ROS map_server files and a picture; with the shared data present, the Intel
    Research Lab (D. Hähnel's corrected log) too.
-2. A tour of the geometry core (printed) and of the motion models (drawn): a differential-drive
+2. Octrees: a simulated Velodyne HDL-32E drive through a town block, written as OctoMap ``.bt``
+   and drawn from above and as a slice; with the shared data, OctoMap's sample scan (scan.dat).
+3. A tour of the geometry core (printed) and of the motion models (drawn): a differential-drive
    robot and a car follow their controls exactly, and the odometry motion model spreads 400
    particles into the crescent-shaped clouds of Thrun, Burgard & Fox, *Probabilistic Robotics*,
    Fig. 5.3.
@@ -16,12 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
-from . import geometry as g
-from .canvas import Canvas
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("demo", help="run the built-in demo (no data needed) and write its pictures")
+    p.add_argument("--out", default="demo_output", help="folder for the demo's files (default: %(default)s)")
+    return p
 
 
 def geometry_tour() -> list[str]:
     """A few conversions and a frame-tree lookup, as lines of text."""
+    from .. import geometry as g
+
     lines = []
     R = g.euler_zyx_to_matrix(np.radians(30.0), np.radians(20.0), np.radians(10.0))
     q = g.matrix_to_quat(R)
@@ -48,6 +55,9 @@ def geometry_tour() -> list[str]:
 
 def motion_picture(path: Path, seed: int = 7) -> dict:
     """Draw the motion-model demo to ``path``; returns a few figures for the summary."""
+    from .. import geometry as g
+    from ..canvas import Canvas
+
     dt = 0.1
     # differential drive: straight, left arc, straight, right arc (wheel speeds in m/s)
     wheels = [(0.5, 0.5)] * 30 + [(0.3, 0.6)] * 35 + [(0.5, 0.5)] * 20 + [(0.6, 0.3)] * 35
@@ -90,8 +100,9 @@ def motion_picture(path: Path, seed: int = 7) -> dict:
 
 def map_simulated_office(out: Path, seed: int = 1) -> list[str]:
     """Map the simulated office; returns lines describing the result."""
-    from .grid2d import OccupancyGrid2D
-    from .sim import World2D, simulate_scans
+    from .._clock import WorkClock
+    from ..grid2d import OccupancyGrid2D
+    from ..sim import World2D, simulate_scans
 
     world = World2D.default()
     poses = world.default_trajectory(n=600)
@@ -100,9 +111,10 @@ def map_simulated_office(out: Path, seed: int = 1) -> list[str]:
     R = np.array([s.ranges for s in scans])
     xmin, ymin, xmax, ymax = world.bounds
     grid = OccupancyGrid2D(0.05, size=(xmax - xmin, ymax - ymin), origin=(xmin, ymin))
-    t0 = time.perf_counter()
-    counts = grid.integrate_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
-    seconds = time.perf_counter() - t0
+    clock = WorkClock()
+    with clock.running():
+        counts = grid.integrate_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
+    seconds = clock.seconds
     grid.save(out / "sim_office.yaml")
     grid.save_png(out / "sim_office.png")
     world.render_png(out / "sim_office_truth.png", poses=poses)
@@ -114,8 +126,8 @@ def map_simulated_office(out: Path, seed: int = 1) -> list[str]:
 
 def map_intel(out: Path, data: Path) -> list[str]:
     """Map the Intel Research Lab corrected log from the shared data."""
-    from .io.carmen import read_carmen
-    from .mapping2d import map_scans
+    from ..io.carmen import read_carmen
+    from ..mapping2d import map_scans
 
     log = read_carmen(data / "carmen" / "intel-corrected.log.gz")
     summary = map_scans(log.stack(), 0.05, max_range=30.0)
@@ -129,16 +141,18 @@ def map_intel(out: Path, data: Path) -> list[str]:
 def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[str]:
     """Drive a simulated Velodyne HDL-32E through the synthetic town block, build the octree,
     save it as OctoMap .bt and draw it from above and as a slice at 1 m."""
-    from .io.octomap import write_bt
-    from .octree import OcTree
-    from .sim.world3d import VELODYNE_HDL32, simulate_drive
+    from .._clock import WorkClock
+    from ..io.octomap import write_bt
+    from ..octree import OcTree
+    from ..sim.world3d import VELODYNE_HDL32, simulate_drive
 
     clouds = simulate_drive(n_scans, VELODYNE_HDL32.with_azimuth_step(np.radians(0.32)), rng=3)
     tree = OcTree(resolution)
-    t0 = time.perf_counter()
-    for cloud in clouds:
-        tree.insert_point_cloud(cloud.world_points(), cloud.origin, max_range=40.0)
-    seconds = time.perf_counter() - t0
+    clock = WorkClock()
+    with clock.running():
+        for cloud in clouds:
+            tree.insert_point_cloud(cloud.world_points(), cloud.origin, max_range=40.0)
+    seconds = clock.seconds
     points = sum(len(c) for c in clouds)
     write_bt(tree, out / "town.bt")
     tree.save_height_png(out / "town_height.png")
@@ -155,15 +169,17 @@ def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[s
 
 def map_scan_dat(out: Path, data: Path, resolution: float = 0.1) -> list[str]:
     """OctoMap's sample 3D scan (scan.dat) mapped and drawn."""
-    from .io.pointclouds import read_xyz
-    from .io.octomap import write_bt
-    from .octree import OcTree
+    from .._clock import WorkClock
+    from ..io.octomap import write_bt
+    from ..io.pointclouds import read_xyz
+    from ..octree import OcTree
 
     cloud = read_xyz(data / "octomap" / "scan.dat.bz2")
     tree = OcTree(resolution)
-    t0 = time.perf_counter()
-    tree.insert_point_cloud(cloud.world_points(), cloud.origin)
-    seconds = time.perf_counter() - t0
+    clock = WorkClock()
+    with clock.running():
+        tree.insert_point_cloud(cloud.world_points(), cloud.origin)
+    seconds = clock.seconds
     write_bt(tree, out / "scan_dat.bt")
     tree.save_height_png(out / "scan_dat_height.png")
     return [
@@ -173,12 +189,12 @@ def map_scan_dat(out: Path, data: Path, resolution: float = 0.1) -> list[str]:
     ]
 
 
-def run(out_dir: str | Path = "demo_output") -> int:
-    """Run the demo, writing its files under ``out_dir``; prints what it did."""
-    from ._data import find_shared_data
+def run(args) -> int:
+    """Run the demo, writing its files under ``args.out``; prints what it did."""
+    from .._data import find_shared_data
 
     t0 = time.perf_counter()
-    out = Path(out_dir)
+    out = Path(args.out)
     print("occmap demo: 2D occupancy maps")
     for line in map_simulated_office(out):
         print("  " + line)

@@ -18,7 +18,7 @@ Robotics Software Engineer nanodegree; the same code is in public notebooks and 
   black when ``l > 0``, red otherwise, axes 0–300 × 0–150.
 
 :meth:`SonarModel.udacity_exercise` carries that model; :func:`map_like_exercise` builds the
-grid. Drawing uses Pillow only.
+grid. Drawing uses Pillow only. A test harness (``test_sonar.py``), not part of the library.
 """
 
 from __future__ import annotations
@@ -29,9 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_atomic
-from .grid import OccupancyGrid2D
-from .sensor_models import SonarModel
+from occmap._files import write_atomic
+from occmap.grid2d import OccupancyGrid2D, SonarModel
 
 #: The exercise's Z_max in metres (readings at or beyond it are not integrated).
 EXERCISE_MAX_RANGE = 5.0

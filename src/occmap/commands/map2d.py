@@ -1,0 +1,58 @@
+"""``occmap map2d LOG -o MAP.yaml``: a 2D occupancy grid from a CARMEN laser log, written as a ROS
+map_server pair (the ``.pgm`` beside the YAML) and optionally a picture."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from . import _options
+from ._outputs import check_outputs, check_suffix
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("map2d", help="build a 2D occupancy grid from a CARMEN laser log (plain, .gz or .bz2)")
+    p.add_argument("log", help="CARMEN log with FLASER / RLASER / ROBOTLASER1 lines")
+    p.add_argument("-o", "--output", required=True,
+                   help="map_server YAML to write (.yaml or .yml; the .pgm goes beside it)")
+    p.add_argument("--resolution", type=_options.positive, default=0.05,
+                   help="cell size in metres (default: %(default)s)")
+    p.add_argument("--png", help="also write a probability picture")
+    p.add_argument("--max-range", type=_options.positive, help="ignore the parts of beams beyond this many metres")
+    p.add_argument("--every", type=_options.count, default=1, help="use every N-th scan (default: %(default)s)")
+    p.add_argument("--lenient", action="store_true", help="skip and count malformed lines instead of stopping")
+    p.add_argument("--p-hit", type=_options.probability, default=0.7,
+                   help="P(occupied) for a beam's end cell (default: %(default)s, OctoMap's)")
+    p.add_argument("--p-miss", type=_options.probability, default=0.4,
+                   help="P(occupied) for cells a beam passes (default: %(default)s, OctoMap's; 0.45 keeps walls "
+                   "that many grazing beams cross more continuous)")
+    return p
+
+
+def run(args) -> int:
+    from ..errors import InvalidArgumentError
+    from ..grid2d import LidarModel
+    from ..io.carmen import read_carmen
+    from ..mapping2d import map_scans
+
+    check_suffix("-o", args.output, (".yaml", ".yml"))
+    image = Path(args.output).with_suffix(".pgm")
+    check_outputs({"-o": args.output, "the map's image": image, "--png": args.png}, {"LOG": args.log})
+    model = LidarModel(args.p_hit, args.p_miss)  # checks the pair before the log is read
+
+    t0 = time.perf_counter()
+    log = read_carmen(args.log, lenient=args.lenient, every=args.every)
+    print(f"read {len(log):,} scans from {args.log} in {time.perf_counter() - t0:.2f} s"
+          + (f" ({log.skipped_malformed:,} malformed lines skipped)" if log.skipped_malformed else ""))
+    if not len(log):
+        raise InvalidArgumentError(f"{args.log}: no laser scans found")
+    summary = map_scans(log.stack(), args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model)
+    image = summary.grid.save(args.output)
+    for line in summary.lines():
+        print(line)
+    print(f"wrote {args.output} and {image}")
+    if args.png:
+        print(f"wrote {summary.grid.save_png(args.png)}")
+    print(f"total {time.perf_counter() - t0:.2f} s")
+    return 0

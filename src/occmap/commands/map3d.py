@@ -1,0 +1,75 @@
+"""``occmap map3d CLOUD... -o MAP.bt``: a 3D occupancy octree (OctoMap's semantics) from point
+clouds with their sensor poses, written as ``.bt``, ``.ot`` or ``.ply``."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from . import _options
+from ._octree_files import check_octree_output, save_octree
+from ._outputs import check_outputs
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("map3d", help="build a 3D occupancy octree (OctoMap .bt/.ot) from point clouds with sensor poses")
+    p.add_argument("inputs", nargs="+", help="point clouds (.pcd .ply .xyz/.txt/.dat[.gz|.bz2|.xz] .bin .3d) or "
+                   "OctoMap ScanGraphs (.graph); each cloud carries its sensor pose (PCD viewpoint, 3DTK .frames)")
+    p.add_argument("-o", "--output", required=True, help="octree to write (.bt maximum likelihood, .ot full values, "
+                   ".ply occupied voxels)")
+    p.add_argument("--resolution", type=_options.positive, default=0.1, help="voxel size in metres (default: %(default)s)")
+    p.add_argument("--max-range", type=_options.positive, help="clear free space only up to this range, no hits "
+                   "beyond (default: no limit)")
+    p.add_argument("--discretize", action="store_true", help="merge points falling in one voxel before ray casting")
+    p.add_argument("--png", help="also write a top-down height picture")
+    return p
+
+
+def _clouds(paths):
+    """Point clouds from files, in order: ScanGraphs give one cloud per node."""
+    from ..io.pointclouds import read_cloud
+    from ..io.scangraph import read_scangraph
+
+    for path in paths:
+        if str(path).endswith(".graph"):
+            yield from read_scangraph(path).nodes
+        else:
+            yield read_cloud(path)
+
+
+def run(args) -> int:
+    from .._clock import WorkClock
+    from ..errors import InvalidArgumentError
+    from ..octree import OcTree
+
+    check_octree_output(args.output)
+    check_outputs({"-o": args.output, "--png": args.png}, {f"input {p}": p for p in args.inputs})
+    max_range = -1.0 if args.max_range is None else args.max_range
+    t0 = time.perf_counter()
+    tree = OcTree(args.resolution)
+    show = sys.stderr.isatty()
+    points = dropped = scans = 0
+    clock = WorkClock()
+    for cloud in _clouds(args.inputs):
+        with clock.running():
+            s = tree.insert_point_cloud(cloud.world_points(), cloud.origin, max_range, args.discretize)
+        scans += 1
+        points += s["points"]
+        dropped += s["dropped"] + cloud.dropped
+        if show:
+            print(f"\rscan {scans}: {points:,} points, {tree.num_nodes():,} nodes", end="", file=sys.stderr, flush=True)
+    if show:
+        print(file=sys.stderr)
+    if not scans:
+        raise InvalidArgumentError("no point clouds given")
+    save_octree(tree, args.output)
+    rate = points / clock.seconds if clock.seconds > 0 else float("inf")
+    print(f"{scans} scans, {points:,} points ({dropped:,} dropped: no return or not finite) at {args.resolution:g} m")
+    print(f"inserted in {clock.seconds:.3f} s ({rate:,.0f} points/s); {tree.num_nodes():,} nodes, "
+          f"{tree.num_leaves():,} leaves, {tree.memory_usage() / 2**20:.1f} MiB")
+    print(f"wrote {args.output}")
+    if args.png:
+        tree.save_height_png(args.png)
+        print(f"wrote {args.png}")
+    print(f"total {time.perf_counter() - t0:.2f} s")
+    return 0

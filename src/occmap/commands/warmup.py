@@ -1,0 +1,275 @@
+"""``occmap warmup``: compile every kernel occmap uses, with every argument type it passes, into
+Numba's on-disk cache, so that no later command or program waits for the compiler.
+
+``make`` runs it after installing and whenever it clears the kernel cache. It drives each part of
+the library through its public interface on small synthetic inputs that take every code path
+with its own kernels (the octree's large-scan paths need scans of more than 20,000 rays); a
+warm cache makes it a matter of seconds. Each job is independent, so the folder of scratch files
+is the only state they share.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def add_parser(subparsers):
+    return subparsers.add_parser("warmup", help="compile every kernel into the on-disk cache (make runs it after "
+                                 "installing), so no later command waits for the compiler")
+
+
+def geometry(folder: Path) -> None:
+    """Every public function of :mod:`occmap.geometry`, on one element and on a batch."""
+    from .. import geometry as g
+
+    rng = np.random.default_rng(0)
+    for n in ((), (3,)):
+        w = rng.normal(size=(*n, 3))
+        R = g.exp_so3(w)
+        q = g.matrix_to_quat(R)
+        g.quat_to_matrix(q)
+        g.log_so3(R)
+        g.hat(w)
+        g.vee(g.hat(w))
+        g.is_rotation(R)
+        g.nearest_rotation(R + 1e-3)
+        axis, angle = g.matrix_to_axis_angle(R)
+        g.axis_angle_to_matrix(axis, angle)
+        g.axis_angle_to_quat(axis, angle)
+        g.quat_to_axis_angle(q)
+        g.quat_multiply(q, q)
+        g.quat_conjugate(q)
+        g.quat_inverse(q)
+        g.quat_normalize(2.0 * q)
+        g.quat_rotate(q, w)
+        g.quat_slerp(q, g.quat_normalize(q + 0.1), 0.3)
+        g.quat_to_xyzw(q)
+        g.quat_from_xyzw(g.quat_to_xyzw(q))
+        g.matrix_to_euler_zyx(R)
+        g.euler_zyx_to_matrix(*rng.normal(size=(3, *n)))
+        g.rot_x(w[..., 0]), g.rot_y(w[..., 1]), g.rot_z(w[..., 2])
+        T = g.make_transform(R, w)
+        g.invert_transform(T)
+        g.compose_transforms(T, T)
+        g.transform_points(T, w)
+        g.log_se3(T)
+        g.exp_se3(rng.normal(size=(*n, 6)))
+        theta = rng.normal(size=n)
+        g.rot2(theta)
+        g.so2_angle(g.rot2(theta))
+        g.wrap_angle(theta)
+        pose = rng.normal(size=(*n, 3))
+        g.se2_from_matrix(g.se2_matrix(pose[..., 0], pose[..., 1], pose[..., 2]))
+        g.unicycle_step(pose, 1.0, 0.1, 0.1)
+        g.diff_drive_step(pose, 0.5, 0.6, 0.4, 0.1)
+        g.bicycle_step(pose, 1.0, 0.1, 0.8, 0.1)
+        g.apply_odometry(pose, g.odometry_delta(pose, pose + 0.1), (0.1, 0.1, 0.1, 0.1), rng)
+    g.euler_zyx_to_matrix(0.3, 0.2, 0.1)  # plain floats
+    g.se2_matrix(1.0, 2.0, 0.3)
+    g.rot2(0.3), g.wrap_angle(4.0), g.rot_x(0.1), g.rot_y(0.1), g.rot_z(0.1)
+    g.random_rotations(4, rng=1)
+    r = g.SO3.from_rotvec(rng.normal(size=(2, 3)))
+    (r @ r.inv()).apply(np.zeros((2, 3)))
+    r.as_quat(), r.as_rotvec(), r.as_euler_zyx(), r.magnitude()
+    g.SO3.from_quat(r.as_quat())
+    s = g.SE3.from_euler_zyx(0.3, 0.2, 0.1, translation=[1.0, 2.0, 3.0])
+    (s @ s.inv()).apply(np.zeros((2, 3)))
+    g.SE3.exp(s.log()).interpolate(s, 0.3)
+    g.SE3.from_quat([1.0, 0.0, 0.0, 0.0], translation=[0.0, 0.0, 1.0])
+    (g.SO2.from_angle(0.3) @ g.SO2.from_angle(0.2)).interpolate(g.SO2.from_angle(0.1), 0.5)
+    e = g.SE2.from_xytheta(1.0, 2.0, 0.3)
+    (e @ e.inv()).apply(np.zeros((2, 2)))
+    e.interpolate(e, 0.5)
+    tree = g.FrameTree()
+    tree.set_transform("map", "odom", np.eye(4), static=True)
+    tree.set_transform("odom", "base", s, stamp=0.0)
+    tree.set_transform("odom", "base", s @ s, stamp=1.0)
+    tree.lookup("map", "base", stamp=0.25)
+    tree.transform_points("map", "base", [1.0, 0.0, 0.0], stamp=0.5)
+    model = g.OdometryMotionModel(0.05, 0.02, 0.05, 0.01)
+    particles = np.zeros((10, 3))
+    model.sample(particles, particles[0], particles[0] + 0.1, rng)
+
+
+def _office_log(folder: Path) -> Path:
+    """A CARMEN log of 40 simulated scans in the office (written once per folder): the commands
+    read scans from logs, whose arrays (shared angles, read-only) type the kernels their own way."""
+    from ..sim import World2D, simulate_scans
+
+    path = folder / "office.log"
+    if not path.exists():
+        world = World2D.default()
+        scans = simulate_scans(world, world.default_trajectory(n=40), n_beams=180, max_range=10.0, rng=3)
+        path.write_text("".join(
+            f"FLASER {len(s.ranges)} " + " ".join(f"{r:.3f}" for r in np.minimum(s.ranges, 10.0))
+            + f" {s.pose[0]} {s.pose[1]} {s.pose[2]} {s.pose[0]} {s.pose[1]} {s.pose[2]} {k}.0 warmup {k}.0\n"
+            for k, s in enumerate(scans)))
+    return path
+
+
+def grids(folder: Path) -> None:
+    """The 2D grid (lidar and sonar; fixed, loaded and growing), map_server files, the simulated
+    office, a CARMEN log."""
+    from ..grid2d import LidarModel, OccupancyGrid2D, SonarModel
+    from ..io.carmen import read_carmen
+    from ..mapping2d import map_scans
+    from ..sim import World2D, simulate_scans, simulate_sonar
+    from .demo import map_simulated_office
+
+    map_simulated_office(folder)  # a fixed grid, its files and pictures
+    world = World2D.default()
+    poses = world.default_trajectory(n=20)
+    scans = simulate_scans(world, poses, n_beams=90, max_range=10.0, rng=1)
+    P = np.array([s.pose for s in scans])
+    R = np.array([s.ranges for s in scans])
+    growing = OccupancyGrid2D(0.1)
+    growing.integrate_scan(P[0], R[0], scans[0].angles, max_range=10.0, model=LidarModel(0.7, 0.45))
+    growing.integrate_scans(P, R, np.repeat(scans[0].angles[None], len(P), axis=0), max_range=8.0)
+    growing.value_at(P[:, :2])
+    sonar = simulate_sonar(world, P[0], np.radians(np.arange(0.0, 360.0, 45.0)), rng=2)
+    fixed = OccupancyGrid2D.load(folder / "sim_office.yaml")
+    fixed.integrate_sonar(P[:1], sonar.ranges[None], sonar.angles, 5.0)
+    fixed.integrate_sonar(P[:1], sonar.ranges[None], sonar.angles, 5.0, model=SonarModel.udacity_exercise())
+    world.free_space(0.1)
+    world.clearance(P[:, :2])
+    for n in (10, 100_000):  # one thread and many
+        world.cast(P[0, :2], np.linspace(-np.pi, np.pi, n))
+    map_scans(read_carmen(_office_log(folder)).stack(), 0.1, 10.0)
+
+
+def local_map(folder: Path) -> None:
+    """The rolling costmap: moving, scans, clouds, costs, path checks."""
+    from ..io.carmen import iter_carmen
+    from ..local import LocalMap, inflate
+    from ..local.replay import frame_image
+
+    replayed = LocalMap(size=(8.0, 8.0), resolution=0.1, half_life=30.0)
+    for scan in iter_carmen(_office_log(folder)):
+        replayed.move_to(float(scan.pose[0]), float(scan.pose[1]))
+        replayed.integrate_scan(scan.pose, scan.ranges, scan.angles, scan.stamp, max_range=scan.max_range)
+    replayed.costmap()
+    for half_life in (None, 2.0):
+        local = LocalMap(size=(8.0, 8.0), resolution=0.1, half_life=half_life)
+        angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+        for k, t in enumerate(np.arange(0.0, 0.5, 0.1)):
+            local.move_to(0.3 * k, 0.1 * k)
+            local.integrate_scan((0.3 * k, 0.1 * k, 0.1), np.full(360, 2.5), angles, stamp=t, max_range=4.0)
+        pts = np.random.default_rng(0).uniform(-3, 3, size=(200, 3))
+        local.integrate_points(pts, np.array([0.0, 0.0, 1.0]), 0.6, z_min=0.1, z_max=2.0)
+        cost, _ = local.costmap()
+        frame_image(cost, (10, 10), 2)
+        local.cost_at(pts[:, :2])
+        local.cost_at(pts[:5, :2], frame="body", robot_pose=(0.0, 0.0, 0.3))
+        path = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.1], [2.0, 0.5, 0.2]])
+        local.check_path(path, footprint=[[0.3, 0.2], [-0.3, 0.2], [-0.3, -0.2], [0.3, -0.2]])
+        local.check_path(path, footprint=0.3, unknown_is_collision=True)
+        local.time_to_clear()
+        local.to_occupancy_grid()
+        local.advance_time(1.0)
+    lethal = np.zeros((20, 20), bool)
+    lethal[10, 10] = True
+    inflate(lethal, ~lethal, resolution=0.1)
+
+
+def localization(folder: Path) -> None:
+    """Monte Carlo localization, tracking and global, plain and refined, in the simulated office
+    (the map and the scans from its log, as ``occmap localize`` reads them)."""
+    from ..grid2d import OccupancyGrid2D
+    from ..io.carmen import read_carmen
+    from ..localize.replay import make_localizer, replay, save_track_png, write_track_csv
+    from ..mapping2d import map_scans
+
+    log = read_carmen(_office_log(folder))
+    map_scans(log.stack(), 0.1, 10.0).grid.save(folder / "localize.yaml")
+    grid = OccupancyGrid2D.load(folder / "localize.yaml")
+    scans = log.scans[:10]
+    for plain in (False, True):
+        # the default 20,000 particles of a global start score on many threads, 200 on one
+        loc = make_localizer(grid, particles=200, beams=30, seed=0, plain=plain, kld=plain)
+        result = replay(loc, scans, init=tuple(scans[0].pose), cov=np.diag([0.01, 0.01, 0.01]))
+        replay(loc, scans, global_localization=True)
+    write_track_csv(folder / "track.csv", result)
+    save_track_png(folder / "track.png", loc, result)
+
+
+def octree(folder: Path) -> None:
+    """Octree insertion (small and large scans, discretized, lazy), queries, ray casts, files."""
+    from ..io.octomap import read_octree, write_bt, write_ot
+    from ..io.pointclouds import read_cloud, write_pcd
+    from ..octree import OcTree
+    from ..sim.world3d import VELODYNE_HDL32, World3D, simulate_drive
+
+    clouds = simulate_drive(2, VELODYNE_HDL32.with_azimuth_step(np.radians(0.32)), rng=3)  # 36,000 rays each
+    tree = OcTree(0.2)
+    for c in clouds:
+        tree.insert_point_cloud(c.world_points(), c.origin, max_range=40.0)
+    small = clouds[0].world_points()[::40]
+    tree.insert_point_cloud(small, clouds[0].origin)
+    tree.insert_point_cloud(small, clouds[0].origin, 10.0, discretize=True)
+    tree.insert_point_clouds([small, small], [clouds[0].origin, clouds[1].origin], max_range=20.0)
+    tree.insert_rays(np.repeat(clouds[0].origin[None], 3, axis=0), small[:3])
+    tree.insert_ray(clouds[0].origin, small[0], lazy=True)
+    tree.update_nodes(small[:10], np.arange(10) % 2 == 0, lazy=True)
+    tree.update_inner_occupancy()
+    tree.bbx = (np.array([-5.0, -5.0, -1.0]), np.array([5.0, 5.0, 3.0]))
+    tree.insert_point_cloud(small, clouds[0].origin)
+    tree.bbx = None
+    tree.prune()
+    tree.occupancy_at(small)
+    tree.log_odds_at(small, depth=14)
+    tree.coord_to_key(small)
+    tree.key_to_coord(tree.coord_to_key(small), depth=15)
+    tree.cast_ray(clouds[0].origin, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], max_range=30.0)
+    tree.cast_ray(np.repeat(clouds[0].origin[None], 2, axis=0), [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+                  ignore_unknown=True)
+    tree.leaves(bbx_min=[-5, -5, -1], bbx_max=[5, 5, 3], depth=14)
+    tree.occupied_centers()
+    tree.num_leaves()
+    tree.metric_bounds()
+    write_bt(tree, folder / "t.bt")
+    write_ot(tree, folder / "t.ot")
+    read_octree(folder / "t.bt")
+    read_octree(folder / "t.ot")
+    tree.save_height_png(folder / "h.png")
+    tree.save_slice_png(folder / "s.png", 1.0)
+    tree.export_ply(folder / "t.ply")
+    tree.expand()
+    tree.to_max_likelihood()
+    write_pcd(folder / "c.pcd", clouds[0].points[:100], viewpoint=clouds[0].pose)
+    read_cloud(folder / "c.pcd")
+    world = World3D.default()
+    for n in (10, 100_000):  # one thread and many
+        world.cast(np.zeros((n, 3)) + [5.0, 5.0, 1.8], np.repeat([[1.0, 0.2, 0.0]], n, axis=0))
+    world.occupied(small)
+    world.truth_voxels(0.5)
+
+
+JOBS = (geometry, grids, local_map, localization, octree)
+
+
+def run(args) -> int:
+    from numba.core.event import install_listener, Listener
+
+    class Compiles(Listener):
+        count = 0
+
+        def on_start(self, event):
+            self.count += 1
+
+        def on_end(self, event):
+            pass
+
+    t0 = time.perf_counter()
+    compiles = Compiles()
+    with install_listener("numba:compile", compiles), tempfile.TemporaryDirectory(prefix="occmap-warmup-") as tmp:
+        for job in JOBS:
+            t1 = time.perf_counter()
+            n = compiles.count
+            job(Path(tmp))
+            print(f"{job.__name__}: {compiles.count - n} kernels compiled in {time.perf_counter() - t1:.1f} s")
+    print(f"warm: {compiles.count} kernels compiled in {time.perf_counter() - t0:.1f} s")
+    return 0

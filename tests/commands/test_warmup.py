@@ -1,0 +1,73 @@
+"""After `occmap warmup`, a new process running the commands compiles no kernel: every kernel
+with every argument type the commands pass is in the on-disk cache."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+# Counts Numba's "numba:compile" events (a kernel compiled, not loaded from the cache) while
+# the commands given as JSON run, then compiles one new function to show that the count works.
+HARNESS = """
+import json, sys
+from numba import njit
+from numba.core.event import Listener, install_listener
+
+class Compiles(Listener):
+    names = []
+    def on_start(self, event):
+        fn = event.data["dispatcher"].py_func
+        self.names.append(f"{fn.__module__}.{fn.__qualname__}{event.data['args']}")
+    def on_end(self, event):
+        pass
+
+from occmap.cli import main
+compiles = Compiles()
+with install_listener("numba:compile", compiles):
+    for argv in json.loads(sys.argv[1]):
+        assert main(argv) == 0, argv
+    njit(lambda x: x + 1)(1)
+print(json.dumps(compiles.names))
+"""
+
+
+def _log(path, world, poses, scans):
+    lines = []
+    for k, (p, s) in enumerate(zip(poses, scans)):
+        r = " ".join(f"{v:.3f}" for v in np.minimum(s.ranges, 10.0))
+        lines.append(f"FLASER {len(s.ranges)} {r} {p[0]} {p[1]} {p[2]} {p[0]} {p[1]} {p[2]} {k}.0 test {k}.0\n")
+    path.write_text("".join(lines))
+
+
+def test_commands_after_warmup_compile_nothing(tmp_path):
+    from occmap.io.pointclouds import write_pcd
+    from occmap.sim import World2D, simulate_scans
+    from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive
+
+    subprocess.run([sys.executable, "-m", "occmap", "warmup"], check=True, capture_output=True)
+
+    world = World2D.default()
+    poses = world.default_trajectory(n=30)
+    _log(tmp_path / "office.log", world, poses, simulate_scans(world, poses, n_beams=180, rng=0))
+    cloud = simulate_drive(2, VELODYNE_HDL32.with_azimuth_step(np.radians(0.32)), rng=1)[0]  # 36,000 rays
+    write_pcd(tmp_path / "scan.pcd", cloud.points, viewpoint=cloud.pose)
+    x, y, t = poses[0]
+    t_ = str(tmp_path)
+    commands = [
+        ["map2d", f"{t_}/office.log", "-o", f"{t_}/office.yaml", "--png", f"{t_}/office.png", "--resolution", "0.1"],
+        ["local", f"{t_}/office.log", "-o", f"{t_}/local.gif", "--max-frames", "3"],
+        ["localize", f"{t_}/office.yaml", f"{t_}/office.log", "-o", f"{t_}/track.csv", "--init", f"{x},{y},{t}",
+         "--particles", "300", "--png", f"{t_}/track.png"],
+        ["map3d", f"{t_}/scan.pcd", "-o", f"{t_}/scan.bt", "--resolution", "0.2", "--png", f"{t_}/top.png"],
+        ["map3d", f"{t_}/scan.pcd", "-o", f"{t_}/scan.ot", "--discretize", "--max-range", "20"],
+        ["info", f"{t_}/scan.bt"],
+        ["convert", f"{t_}/scan.ot", f"{t_}/scan.ply"],
+        ["render", f"{t_}/scan.bt", "-o", f"{t_}/slice.png", "--slice", "1.0"],
+    ]
+    run = subprocess.run([sys.executable, "-c", HARNESS, json.dumps(commands)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    compiled = json.loads(run.stdout.splitlines()[-1])
+    assert len(compiled) == 1 and "<lambda>" in compiled[0], compiled  # only the harness's own function
