@@ -6,9 +6,10 @@ A scan goes through three stages: its rays are marked into blocks (:func:`scan_v
 leaves the tree alone, so the next scan can be traced while the tree takes this one), the blocks
 are listed as voxels in Morton order, and the voxels update the pool (:func:`apply`). Every
 Numba kernel releases the GIL, so Python threads run kernels side by side: the calling thread and
-as many workers as Numba has threads (:func:`occmap._threads.share`, which never waits for a
-worker that has not started). Whether a scan takes several threads at all, :data:`THREADS`
-decides from the measured cost of both ways.
+workers, as many threads in all as Numba has (:func:`occmap._threads.share`). The work is cut into runs
+that the threads take in turn and a worker that has not started when the calling thread is done
+is cancelled, so on a busy computer a scan takes about what one thread takes. (A per-call choice
+by measured cost, as the 2D kernels make, would compare scans of very different cost per point.)
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from collections import deque
 import numpy as np
 
 from .. import _threads
-from .._threads import ThreadChoice, run_jobs, share
+from .._threads import run_jobs, share
 from . import blocks as B
 from . import marking as M
 from . import pool as P
@@ -40,10 +41,6 @@ _ROOM_MARGIN = 8 * 16 * 8
 #: Scans with at least this many rays mark the voxels near the sensor in a dense cube (see
 #: occmap.octree.marking.CUBE).
 _CUBE_RAYS = 4096
-#: One thread or several for a scan, by their measured cost per point (scans of fewer points than
-#: this take one).
-THREADS = ThreadChoice(min_work=_CUBE_RAYS)
-
 
 def pipeline():
     """The thread that traces the next scan of OcTree.insert_point_clouds while the tree takes

@@ -205,9 +205,8 @@ class OcTree:
         ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
         :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
         """
-        with insertion.THREADS.choose(len(points)) as threads:
-            keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads)
-            insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads)
+        keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
+        insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=True)
         return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
