@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SOURCES := $(shell find src -name '*.py')
 KERNELS := $(VENV)/.kernels
-CLEAR_KERNEL_CACHE := find src \( -name '*.nbi' -o -name '*.nbc' \) -delete
+CLEAR_KERNEL_CACHE := find src -type d -path '*/__pycache__/occmap-*' -prune -exec rm -rf {} +
 
 .PHONY: demo test bench clean clean-cache
 
@@ -15,11 +15,10 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-# Compiled kernels are keyed to a digest of all the sources (occmap._jit), so a change anywhere
-# makes every cached kernel obsolete: the old files go, and every kernel is compiled once
+# Compiled kernels are kept per digest of all the sources (occmap._jit), so a change anywhere
+# starts an empty cache (the old version's goes by itself): every kernel is then compiled once
 # (`occmap warmup`), so that no command, demo or test waits for the compiler.
 $(KERNELS): $(SOURCES) $(STAMP)
-	$(CLEAR_KERNEL_CACHE)
 	$(BIN)/occmap warmup
 	touch $@
 
@@ -42,8 +41,7 @@ bench: $(STAMP) $(KERNELS)
 clean: clean-cache
 	rm -rf $(VENV) demo_output
 
-# Numba's compiled-kernel cache lives beside the sources (the targets above clear it when they
-# change)
+# Numba's compiled-kernel cache lives beside the sources, one folder per version of them
 clean-cache:
 	$(CLEAR_KERNEL_CACHE)
 	rm -f $(KERNELS)

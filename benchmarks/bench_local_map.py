@@ -7,7 +7,9 @@ and overhangs clear), the half-life decay (lazy: one global factor) and ``costma
 + exact inflation, Nav2 defaults) — for 40 m × 40 m and 100 m × 100 m windows at 0.1 m, then each
 step alone. The inflation step is compared with scipy on the same grid in the same run: scipy's
 ``distance_transform_edt`` of the lethal mask followed by the same cost formula in NumPy (what a
-Python user would write). Last, ``check_path`` with 1,000 poses and a 4-corner footprint.
+Python user would write). Then ``check_path`` with 1,000 poses and a 4-corner footprint. Last,
+the full 40 m cycle and one 1,080-beam planar scan per call, with the default threads and on one
+thread, idle and beside a process that keeps one core busy.
 
     python benchmarks/bench_local_map.py [--no-write]
 """
@@ -21,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import median_times, write_section  # noqa: E402
+from _report import median_times, per_call_table, write_section  # noqa: E402
 
 from occmap._data import find_shared_data  # noqa: E402
 from occmap.raster.edt import distance_transform  # noqa: E402
@@ -139,6 +141,20 @@ def main(argv=None) -> int:
               f"(target ≤ 1 ms); one pose {t_one * 1e6:.1f} µs.",
               "", "Medians of alternating rounds on a shared machine (other jobs running); every cycle moves the "
               "window 5 cells (a 0.5 m strip leaves, one enters)."]
+    cyc = Cycle(40.0, pts, origin)
+    planar = LocalMap((40.0, 40.0), 0.1, half_life=2.0, footprint=FOOTPRINT)
+    beams = np.linspace(-np.pi, np.pi, 1080, endpoint=False)
+    ranges = np.random.default_rng(3).uniform(1.0, 15.0, 1080)
+    stamp = [0.0]
+
+    def planar_scan():
+        stamp[0] += 0.025
+        planar.integrate_scan((0.0, 0.0, 0.0), ranges, beams, stamp[0])
+
+    per_call = per_call_table([("full cycle, 40 m window, HDL-32 cloud", cyc.step),
+                               ("`integrate_scan`, 1,080 beams (1-15 m)", planar_scan)], number=10, repeat=args.repeat)
+    print(per_call)
+    lines += ["", "One scan per call:", "", per_call]
     body = "## Local map (`benchmarks/bench_local_map.py`)\n\n" + "\n".join(lines)
     print(body)
     if not args.no_write:

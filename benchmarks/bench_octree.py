@@ -5,6 +5,9 @@ origins (alternating rounds, medians); the table gives points per second, the sp
 the two trees agree (node count, and the share of finest-level voxels known to either that both
 classify alike), and memory (occmap's node arrays against OctoMap's ``memoryUsage()``). Then
 batched ray casting against a loop of OctoMap's ``castRay``, and ``.bt`` reading and writing.
+Last, one scan per call as a robot streams (``insert_point_cloud`` of one simulated HDL-32E scan
+into a growing map), with the default threads and on one thread, idle and beside a process that
+keeps one core busy.
 
 Datasets (from ../shared/data, skipped without it): the OctoMap sample scan (scan.dat), the three
 Osnabrück scans with their registered poses, the Velodyne HDL-32E pair; and always a simulated
@@ -26,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import median_times, write_section  # noqa: E402
+from _report import median_times, per_call_table, write_section  # noqa: E402
 
 import octomap  # noqa: E402
 
@@ -193,6 +196,19 @@ def main() -> int:
         lines += ["", f"`.bt` files, fr_079.bt ({nodes:,} nodes): read occmap {r * 1e3:.0f} ms, OctoMap "
                   f"{rr_ * 1e3:.0f} ms (**{rr_ / r:.1f}×**); write occmap {w * 1e3:.0f} ms, OctoMap {wr * 1e3:.0f} ms "
                   f"(**{wr / w:.1f}×**). Target ≥ 2×."]
+        print(lines[-1])
+    stream = simulate_drive(8, VELODYNE_HDL32.with_azimuth_step(np.radians(0.4)), rng=2)
+    for res in (0.2, 0.1):
+        tree, k = OcTree(res), [0]
+
+        def one_scan(tree=tree, k=k):
+            c = stream[k[0] % len(stream)]
+            k[0] += 1
+            tree.insert_point_cloud(c.world_points(), c.origin)
+
+        lines += ["", f"One scan per call at {res:g} m (simulated HDL-32E, {len(stream[0]):,} points a scan):", "",
+                  per_call_table([(f"`insert_point_cloud` at {res:g} m", one_scan)], number=4,
+                                 repeat=3 if args.quick else 7)]
         print(lines[-1])
     if not args.no_write and not args.quick:
         write_section("bench_octree", "\n".join(lines))

@@ -43,6 +43,10 @@ def test_a_kernel_recompiles_when_a_kernel_it_calls_from_another_file_changes(tm
     (package / "_probe_callee.py").write_text(CALLEE.format(v=1))
     where, first = _run(tmp_path)
     assert Path(where).parent == package and first == "2"
-    assert list((package / "__pycache__").glob("_probe_caller.probe-*.nbi")), "the kernel was not cached"
+    cached = list((package / "__pycache__").glob("occmap-*/_probe_caller.probe-*.nbi"))
+    assert len(cached) == 1, "the kernel was not cached, or not in its version's folder"
     (package / "_probe_callee.py").write_text(CALLEE.format(v=41))  # the caller's own file is unchanged
     assert _run(tmp_path)[1] == "42"
+    # the new version's kernels live in a folder of their own; the old version's folder is gone
+    now = list((package / "__pycache__").glob("occmap-*/_probe_caller.probe-*.nbi"))
+    assert len(now) == 1 and now[0].parent != cached[0].parent

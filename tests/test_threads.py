@@ -6,13 +6,14 @@ import multiprocessing as mp
 import platform
 import subprocess
 import sys
+import threading
 
 import numba
 import numpy as np
 import pytest
 
 import occmap._threads
-from occmap._threads import ThreadChoice, _tbb_library
+from occmap._threads import ThreadChoice, _tbb_library, run_jobs
 
 two_threads = pytest.mark.skipif(numba.get_num_threads() < 2, reason="Numba has one thread here")
 
@@ -106,3 +107,38 @@ def test_processes_forked_after_a_parallel_kernel_work():
         with mp.get_context(method).Pool(2) as pool:
             result = pool.map_async(_child_integrates, range(4))
             assert result.get(timeout=240) == [expected] * 4, method
+
+
+def test_jobs_come_back_in_order_whichever_thread_ran_them():
+    assert run_jobs([lambda i=i: i * i for i in range(20)], threads=2) == [i * i for i in range(20)]
+
+
+def test_a_worker_that_does_not_start_is_not_waited_for():
+    """The workers are all busy (as when the scheduler gives them no core): the calling thread
+    does every job itself, and the queued helper call is cancelled."""
+    release = threading.Event()
+    workers = occmap._threads.pool("workers", max(occmap._threads._max_threads() - 1, 1))
+    blockers = [workers.submit(release.wait, 60) for _ in range(workers._max_workers)]
+    try:
+        ran_on = run_jobs([lambda: threading.current_thread().name for _ in range(8)], threads=2)
+        assert ran_on == [threading.current_thread().name] * 8
+    finally:
+        release.set()
+        for b in blockers:
+            b.result()
+
+
+def _child_inserts(_):
+    from occmap.octree import OcTree
+
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(30_000, 3)) * 5.0
+    tree = OcTree(0.2)
+    tree.insert_point_clouds([points, points + 1.0], origins=np.zeros((2, 3)))
+    return tree.num_nodes()
+
+
+def test_octree_threads_work_in_forked_children():
+    expected = _child_inserts(None)  # the parent's worker threads now exist
+    with mp.get_context("fork").Pool(2) as pool:
+        assert pool.map_async(_child_inserts, range(2)).get(timeout=240) == [expected] * 2

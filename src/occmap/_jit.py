@@ -7,15 +7,18 @@ compilation. Importing this module sets up the threading layer first (see :mod:`
 
 Numba checks a cached kernel against its own source file only, yet a kernel has the kernels it
 calls from other files compiled into it: after an edit or an upgrade a stale kernel could run
-(it once crashed the tests). Here every kernel of the package is checked against a digest of all
-the package's sources instead (:func:`sources_stamp`), so any change anywhere recompiles them,
-however occmap was installed.
+(it once crashed the tests). Here the package's kernels are cached in a folder named after a
+digest of all the package's sources (:func:`sources_stamp`), inside the folder Numba would use:
+any change anywhere starts an empty one (and removes the folders of other versions), and two
+processes running different versions at once never read each other's files.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import os
+import shutil
 from pathlib import Path
 
 from numba import njit
@@ -38,12 +41,27 @@ def sources_stamp() -> str:
     return digest.hexdigest()
 
 
+_FOLDER_PREFIX = f"{_PACKAGE}-"
+
+
 class _PackageStamp:
-    """A cache locator of Numba's, for this package's kernels only, whose stamp is
-    :func:`sources_stamp` instead of the kernel's own file."""
+    """A cache locator of Numba's, for this package's kernels only: their cache folder is named
+    after :func:`sources_stamp`, which is also their stamp."""
 
     def get_source_stamp(self):
         return sources_stamp()
+
+    def get_cache_path(self):
+        return os.path.join(super().get_cache_path(), _FOLDER_PREFIX + sources_stamp()[:16])
+
+    def ensure_cache_path(self):
+        path = self.get_cache_path()
+        if not os.path.isdir(path):  # a new version: the other versions' kernels go
+            parent = os.path.dirname(path)
+            for name in os.listdir(parent) if os.path.isdir(parent) else ():
+                if name.startswith(_FOLDER_PREFIX):
+                    shutil.rmtree(os.path.join(parent, name), ignore_errors=True)
+        super().ensure_cache_path()
 
     @classmethod
     def from_function(cls, py_func, py_file):

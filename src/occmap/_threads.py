@@ -13,6 +13,12 @@ OpenMP's threads are told to wait passively (``OMP_WAIT_POLICY``, unless set).
 for the cores: there a second thread waits for a core and a parallel call takes longer than one
 thread would; on an idle machine it takes less. :class:`ThreadChoice` measures both paths of a
 kernel as the calls come and runs the cheaper one, trying the other now and then.
+
+**Python worker threads** (for kernels that release the GIL and share work that Numba's
+``prange`` cannot): :func:`share` runs a task on the calling thread and on pool threads at once,
+and never waits for a pool thread that has not started. As many threads as Numba has
+(``NUMBA_NUM_THREADS``, ``numba.set_num_threads``); pools are made per process, so a child made by
+``fork`` has its own.
 """
 
 from __future__ import annotations
@@ -21,6 +27,8 @@ import ctypes
 import math
 import os
 import sys
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
@@ -101,7 +109,7 @@ class ThreadChoice:
     def choose(self, work: float):
         """Yields whether the block should run on several threads; times the block and learns
         from it."""
-        if not work >= self.min_work or _threads() < 2:
+        if not work >= self.min_work or thread_count() < 2:
             yield False
             return
         parallel, trying = self._pick()
@@ -132,7 +140,60 @@ class ThreadChoice:
             self._interval = _FIRST_INTERVAL if changed else min(2 * self._interval, _MAX_INTERVAL)
 
 
-def _threads() -> int:
+def thread_count() -> int:
+    """Threads a call may use: Numba's count for this thread (``numba.set_num_threads``)."""
     from numba import get_num_threads
 
     return get_num_threads()
+
+
+_pools: dict[str, ThreadPoolExecutor] = {}
+os.register_at_fork(after_in_child=_pools.clear)  # the parent's pool threads do not exist in a child
+
+
+def pool(name: str, workers: int) -> ThreadPoolExecutor:
+    """This process's pool of ``workers`` threads named ``occmap-{name}``, made on first use."""
+    if name not in _pools:
+        _pools[name] = ThreadPoolExecutor(max_workers=workers, thread_name_prefix=f"occmap-{name}")
+    return _pools[name]
+
+
+def share(task, threads: int | None = None) -> list:
+    """Call ``task()`` on this thread and on up to ``threads − 1`` worker threads at once (default:
+    Numba's thread count) and return the results of the calls that ran, this thread's first.
+
+    ``task`` must take its work from a queue that the calls share (e.g. a ``collections.deque``
+    of ranges), so that whichever calls run do all of it: a worker that has not started when this
+    thread's call returns is cancelled, so no call waits for a thread the scheduler has not run.
+    """
+    n = thread_count() if threads is None else threads
+    helpers = pool("workers", max(_max_threads() - 1, 1))
+    futures = [helpers.submit(task) for _ in range(n - 1)]
+    results = [task()]
+    results += [f.result() for f in futures if not f.cancel()]
+    return results
+
+
+def run_jobs(jobs, threads: int | None = None) -> list:
+    """The results of the callables ``jobs``, in their order, each called once on this thread or
+    a worker thread as :func:`share` runs them."""
+    queue = deque(enumerate(jobs))
+    results = [None] * len(queue)
+
+    def take():
+        while True:
+            try:
+                i, job = queue.popleft()
+            except IndexError:
+                return
+            results[i] = job()
+
+    share(take, threads)
+    return results
+
+
+def _max_threads() -> int:
+    from numba import config
+
+    return config.NUMBA_NUM_THREADS
+

@@ -66,3 +66,7 @@ class FormatError(OccmapError, ValueError):
         self.path = path
         self.line = line
         self.offset = offset
+
+
+class MissingFileError(FormatError, FileNotFoundError):
+    """A file to read is not there (also a :class:`FileNotFoundError`, as ``open`` would raise)."""

@@ -14,6 +14,7 @@ from scipy.spatial.transform import RigidTransform, Rotation
 
 from occmap.errors import NonFiniteError
 from occmap.geometry import (
+    SE3,
     SO3,
     compose_transforms,
     exp_se3,
@@ -330,3 +331,25 @@ def test_large_clouds_take_the_parallel_path_and_still_name_the_bad_point():
     for call in (lambda: transform_points(T, pts), lambda: quat_rotate(q, pts), lambda: SO3.from_matrix(R).apply(pts)):
         with pytest.raises(NonFiniteError, match=r"\[69123\]"):
             call()
+
+
+def test_repeated_se3_composition_stays_rigid():
+    """SE3 @ renormalises its rotation block as SO3 @ does; compose_transforms does not."""
+    T = SE3.from_rt(SO3.random(rng=4).matrix, [0.1, -0.2, 0.3])
+    raw = T.matrix
+    for _ in range(50):
+        T = T @ T
+        raw = compose_transforms(raw, raw)
+    R = T.matrix[:3, :3]
+    assert np.abs(R.T @ R - np.eye(3)).max() < 1e-14
+    assert np.array_equal(T.matrix[3], [0, 0, 0, 1])
+    T.rotation.as_quat()  # a rotation still
+    Rr = raw[:3, :3]
+    assert np.abs(Rr.T @ Rr - np.eye(3)).max() > 1e-6  # the drift the operator removes
+
+
+def test_se3_composition_still_the_product():
+    A = SE3.from_rt(SO3.random(500, rng=5).matrix, np.random.default_rng(6).normal(size=(500, 3)))
+    B = SE3.from_rt(SO3.random(500, rng=7).matrix, np.random.default_rng(8).normal(size=(500, 3)))
+    np.testing.assert_allclose((A @ B).matrix, A.matrix @ B.matrix, rtol=0, atol=1e-14)
+    np.testing.assert_allclose((A[3] @ B).matrix, A.matrix[3] @ B.matrix, rtol=0, atol=1e-14)

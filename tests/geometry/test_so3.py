@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import kstest
 
 from occmap.geometry import (
+    SO3,
     axis_angle_to_matrix,
     euler_zyx_to_matrix,
     exp_so3,
@@ -386,3 +387,36 @@ def test_empty_and_non_contiguous(rng):
     np.testing.assert_array_equal(log_so3(Rt), log_so3(R))
     w = rng.normal(size=(6, 6))[:, ::2]
     np.testing.assert_array_equal(exp_so3(w), exp_so3(w.copy()))
+
+
+def _orthonormality_error(m):
+    m = np.asarray(m)[..., :3, :3]
+    return float(np.abs(np.swapaxes(m, -1, -2) @ m - np.eye(3)).max())
+
+
+def test_repeated_composition_stays_on_so3():
+    """x = x @ x fifty times doubles the rounding error each time without renormalisation
+    (off SO(3) by about 0.1 and as_quat() refusing it); a long chain of random products too."""
+    for seed in range(5):
+        x = SO3.random(rng=seed)
+        for _ in range(50):
+            x = x @ x
+        assert _orthonormality_error(x.matrix) < 1e-14
+        assert np.isclose(np.linalg.norm(x.as_quat()), 1.0)
+    steps = SO3.random(2000, rng=9)
+    chain = SO3.identity()
+    for k in range(len(steps)):
+        chain = chain @ steps[k]
+    assert _orthonormality_error(chain.matrix) < 1e-14
+    batch = SO3.random(100, rng=3)
+    for _ in range(50):
+        batch = batch @ batch
+    assert _orthonormality_error(batch.matrix) < 1e-14
+
+
+def test_composition_still_the_product(rng):
+    a, b = SO3.random(1000, rng=1), SO3.random(1000, rng=2)
+    np.testing.assert_allclose((a @ b).matrix, a.matrix @ b.matrix, rtol=0, atol=1e-15)
+    np.testing.assert_allclose((a @ b[0]).matrix, a.matrix @ b.matrix[0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose((a[0] @ b[0]).matrix, a.matrix[0] @ b.matrix[0], rtol=0, atol=1e-15)
+    assert (a @ a.inv()).shape == (1000,) and _orthonormality_error((a @ a.inv()).matrix) < 1e-15

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import os
 
 import numpy as np
@@ -99,6 +101,8 @@ def test_yaml_text_matches_map_saver_layout(tmp_path):
         "negate: 0\n"
         "occupied_thresh: 0.65\n"
         "free_thresh: 0.196\n"
+        "# the image this file was written with; occmap checks it on loading\n"
+        f"occmap_image_sha256: {hashlib.sha256((tmp_path / 'office.pgm').read_bytes()).hexdigest()}\n"
     )
 
 
@@ -127,8 +131,9 @@ def test_scale_mode_png_marks_unknown_transparent(tmp_path):
     np.testing.assert_array_equal(picture[0, :, 1], [0, 255, 255, 255])
     np.testing.assert_array_equal(picture[0, 1:, 0], [255, 128, 0])
     loaded = load_map(tmp_path / "s.yaml").occupancy
-    # p = (255 - 128)/255 = 0.498 → rint(99·(0.498 − 0.196)/(0.65 − 0.196)) = 66
-    np.testing.assert_array_equal(loaded, [[-1, 0, 66, 100]])
+    # nav2: p = (255 - 128)/255 = 0.49804 → rint(100·(0.49804 − 0.196)/(0.65 − 0.196)) = rint(66.53)
+    # = 67 (ROS 1's 1 + 98·0.66528 would give 66, and the old rint(99·ratio) 66 too)
+    np.testing.assert_array_equal(loaded, [[-1, 0, 67, 100]])
 
 
 def test_png_and_bmp_trinary(tmp_path):
@@ -241,8 +246,11 @@ def test_load_scale_mode(tmp_path):
         elif p < 0.196:
             expected.append(0)
         else:
-            expected.append(int(np.rint(99 * (p - 0.196) / (0.65 - 0.196))))
-    assert expected == [0, 4, 47, 90, 100, 100]
+            expected.append(int(np.rint(100 * (p - 0.196) / (0.65 - 0.196))))
+    # by hand, nav2's rint(100·ratio): gray 200 → p 0.21569, ratio 0.04336 → 4; gray 150 → p
+    # 0.41176, ratio 0.47525 → 48; gray 100 → p 0.60784, ratio 0.90714 → 91 (the old
+    # rint(99·ratio) gave 47 and 90)
+    assert expected == [0, 4, 48, 91, 100, 100]
     assert load_map(tmp_path / "s.yaml").occupancy.tolist() == [expected]
 
 
@@ -338,14 +346,14 @@ def test_error_unreadable_image(tmp_path):
 @pytest.mark.parametrize(
     ("text", "line", "words"),
     [
-        (GOOD + "this is not yaml\n", 6, "key: value"),
-        (GOOD + "  indented: 1\n", 6, "indented"),
-        (GOOD + "nested:\n", 6, "no value"),
+        (GOOD + "this is not yaml\n", 7, "key: value"),
+        (GOOD + "  indented: 1\n", 6, "not valid YAML"),
+        (GOOD + "mode:\n", 6, "no value"),
         (GOOD + "resolution: 0.1\n", 6, "repeated"),
-        (GOOD + "list: [1, [2]]\n", 6, "nested"),
-        (GOOD + "list: [1, 2\n", 6, "]"),
-        (GOOD + "name: 'open\n", 6, "unterminated"),
-        (GOOD + "- item\n", 6, "key: value"),
+        (GOOD.replace("[0, 0, 0]", "[0, [0], 0]"), 3, "origin must be a number, got a list"),
+        (GOOD + "list: [1, 2\n", 7, "']'"),
+        (GOOD + "name: 'open\n", 7, "not valid YAML"),
+        (GOOD + "- item\n", 6, "not valid YAML"),
         (GOOD.replace("0.05", "fast"), 2, "number"),
         (GOOD.replace("0.05", "-0.05"), 2, "> 0"),
         (GOOD.replace("0.05", "0"), 2, "> 0"),
@@ -449,7 +457,7 @@ def test_trinary_averages_alpha_in_like_map_server(tmp_path):
     assert load_map(tmp_path / "t.yaml").occupancy.tolist() == [[100, -1]]
     write(tmp_path / "t.yaml", "image: t.png\nmode: scale\nresolution: 0.05\n"
           "origin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
-    assert load_map(tmp_path / "t.yaml").occupancy.tolist() == [[100, 90]]
+    assert load_map(tmp_path / "t.yaml").occupancy.tolist() == [[100, 91]]
 
 
 def test_sixteen_bit_and_palette_images(tmp_path):
@@ -466,3 +474,54 @@ def test_sixteen_bit_and_palette_images(tmp_path):
 def test_negative_zero_origin_prints_as_zero(tmp_path):
     save_map(tmp_path / "z.yaml", np.zeros((1, 1), np.int8), 0.05, np.array([-0.0, -0.0]))
     assert "origin: [0.0, 0.0, 0.0]\n" in (tmp_path / "z.yaml").read_text()
+
+
+# ----------------------------------------------------------------------------------------------
+# real YAML, and pairs from two saves
+
+
+def test_block_style_lists_anchors_and_flow_mappings_are_yaml(tmp_path):
+    write_pgm(tmp_path / "b.pgm", [[0, 254]])
+    write(tmp_path / "b.yaml", (
+        "image: b.pgm\n"
+        "resolution: &res 0.25\n"
+        "origin:\n"
+        "  - -1.5\n"
+        "  - 2\n"
+        "  - 0.0\n"
+        "thresholds: {unused: *res}\n"
+        "occupied_thresh: 0.65\n"
+        "free_thresh: 0.196\n"
+    ))
+    m = load_map(tmp_path / "b.yaml")
+    assert m.origin == (-1.5, 2.0, 0.0) and m.resolution == 0.25
+    assert m.occupancy.tolist() == [[100, 0]]
+
+
+def test_block_style_origin_errors_name_the_item_line(tmp_path):
+    text = GOOD.replace("origin: [0, 0, 0]", "origin:\n  - 0\n  - north\n  - 0")
+    error = load_error(tmp_path, text)
+    assert error.line == 5 and "origin must be a number, got 'north'" in str(error)
+
+
+def test_pair_from_two_saves_fails_to_load(tmp_path):
+    save_map(tmp_path / "m.yaml", np.zeros((3, 4), np.int8), 0.05, (1.0, 2.0))
+    old_yaml = (tmp_path / "m.yaml").read_bytes()
+    save_map(tmp_path / "m.yaml", np.full((5, 2), 100, np.int8), 0.1, (-3.0, 0.0))
+    (tmp_path / "m.yaml").write_bytes(old_yaml)  # a save killed between its image and its YAML
+    error = load_error(tmp_path, old_yaml.decode(), name="m.yaml")
+    assert "m.pgm is not the image this file was saved with" in str(error) and error.line == 9
+
+
+def test_yaml_without_the_digest_loads_as_before(tmp_path):
+    save_map(tmp_path / "m.yaml", np.zeros((3, 4), np.int8), 0.05, (1.0, 2.0))
+    text = (tmp_path / "m.yaml").read_text()
+    (tmp_path / "m.yaml").write_text("".join(ln + "\n" for ln in text.splitlines()[:7]))
+    assert load_map(tmp_path / "m.yaml").occupancy.shape == (3, 4)
+
+
+@pytest.mark.parametrize("name, fmt", [("x.pgm", "pgm"), ("x.png", "png")])
+def test_yaml_path_that_is_its_own_image_is_refused(tmp_path, name, fmt):
+    with pytest.raises(InvalidArgumentError, match="would be its own image"):
+        save_map(tmp_path / name, np.zeros((2, 2), np.int8), 0.05, (0, 0), image_format=fmt)
+    assert list(tmp_path.iterdir()) == []

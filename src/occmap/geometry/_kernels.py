@@ -723,21 +723,64 @@ def invert_transform(T, out):
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
 
 
-@kernel
-def compose_transforms(A, B, out):
-    """A @ B for rigid 4×4 transforms, using their (0, 0, 0, 1) last rows."""
-    fa = A.reshape((-1, 4, 4))
-    fb = B.reshape((-1, 4, 4))
-    o = out.reshape((-1, 4, 4))
+@inline_kernel
+def _renormalize(o, i):
+    """Bring the rotation block of ``o[i]``, a product of rotations a few ulp off SO(3), back onto
+    it: the first two rows lose half their dot product each along the other (x − e/2·y,
+    y − e/2·x), the third is their cross product, and each row is scaled by the first-order
+    inverse norm (3 − ‖v‖²)/2. An error ε leaves O(ε²), so long chains of products stay
+    orthonormal to rounding (about 40 flops; the DCM renormalisation of Premerlani & Bizard)."""
+    x0, x1, x2 = o[i, 0, 0], o[i, 0, 1], o[i, 0, 2]
+    y0, y1, y2 = o[i, 1, 0], o[i, 1, 1], o[i, 1, 2]
+    e = 0.5 * (x0 * y0 + x1 * y1 + x2 * y2)
+    x0, x1, x2, y0, y1, y2 = x0 - e * y0, x1 - e * y1, x2 - e * y2, y0 - e * x0, y1 - e * x1, y2 - e * x2
+    z0, z1, z2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
+    sx = 0.5 * (3.0 - (x0 * x0 + x1 * x1 + x2 * x2))
+    sy = 0.5 * (3.0 - (y0 * y0 + y1 * y1 + y2 * y2))
+    sz = 0.5 * (3.0 - (z0 * z0 + z1 * z1 + z2 * z2))
+    o[i, 0, 0], o[i, 0, 1], o[i, 0, 2] = sx * x0, sx * x1, sx * x2
+    o[i, 1, 0], o[i, 1, 1], o[i, 1, 2] = sy * y0, sy * y1, sy * y2
+    o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = sz * z0, sz * z1, sz * z2
+
+
+@inline_kernel
+def _compose(A, B, out, size, renormalize):
+    """A @ B for ``size`` × ``size`` blocks: 3×3 rotations, or 4×4 rigid transforms using their
+    (0, 0, 0, 1) last rows; the rotation block renormalised (:func:`_renormalize`) on request."""
+    fa = A.reshape((-1, size, size))
+    fb = B.reshape((-1, size, size))
+    o = out.reshape((-1, size, size))
     sa = 1 if fa.shape[0] > 1 else 0
     sb = 1 if fb.shape[0] > 1 else 0
     for i in range(o.shape[0]):
         ia, ib = i * sa, i * sb
         for r in range(3):
-            for c in range(4):
+            for c in range(size):
                 o[i, r, c] = fa[ia, r, 0] * fb[ib, 0, c] + fa[ia, r, 1] * fb[ib, 1, c] + fa[ia, r, 2] * fb[ib, 2, c]
-            o[i, r, 3] += fa[ia, r, 3]
-        o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+            if size == 4:
+                o[i, r, 3] += fa[ia, r, 3]
+        if renormalize:
+            _renormalize(o, i)
+        if size == 4:
+            o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+
+
+@kernel
+def compose_transforms(A, B, out):
+    """A @ B for rigid 4×4 transforms, using their (0, 0, 0, 1) last rows."""
+    _compose(A, B, out, 4, False)
+
+
+@kernel
+def compose_rigid(A, B, out):
+    """:func:`compose_transforms` with the rotation block renormalised (``SE3 @``)."""
+    _compose(A, B, out, 4, True)
+
+
+@kernel
+def compose_rotations(A, B, out):
+    """A @ B for 3×3 rotations, renormalised (``SO3 @``)."""
+    _compose(A, B, out, 3, True)
 
 
 @kernel

@@ -50,6 +50,7 @@ _invert2 = entry(K.invert_transform2, (3, 3), _T2)
 _transform = entry(K.transform_points, (3,), _T, _P, otherwise=_transform_any)
 _transform2 = entry(K.transform_points2, (2,), _T2, _P2)
 _compose = entry(K.compose_transforms, (4, 4), ((4, 4), "A", "finite"), ((4, 4), "B", "finite"))
+_compose_rigid = entry(K.compose_rigid, (4, 4), ((4, 4), "A", "finite"), ((4, 4), "B", "finite"))
 _exp = entry(K.exp_se3, (4, 4), ((6,), "twist", "finite"))
 _log = entry(K.log_se3, (6,), ((4, 4), "T", "rigid"))
 
@@ -98,7 +99,8 @@ def log_se3(T):
 class SE3:
     """Batched rigid transforms of shape ``self.shape``, held as read-only (..., 4, 4) matrices.
 
-    Immutable. ``T_a_b @ T_b_c`` composes, ``.inv()`` inverts, ``.apply(points)`` maps (..., 3)
+    Immutable. ``T_a_b @ T_b_c`` composes (rotation block renormalised, as in ``SO3 @``;
+    :func:`compose_transforms` leaves it as multiplied), ``.inv()`` inverts, ``.apply(points)`` maps (..., 3)
     points. ``.rotation`` is an :class:`SO3`, ``.translation`` a (..., 3) array.
     """
 
@@ -188,7 +190,7 @@ class SE3:
     def __matmul__(self, other: SE3) -> SE3:
         if not isinstance(other, SE3):
             return NotImplemented
-        return SE3(compose_transforms(self._m, other._m), _trusted=True)
+        return SE3(_compose_rigid(self._m, other._m), _trusted=True)
 
     def inv(self) -> SE3:
         return SE3(invert_transform(self._m), _trusted=True)

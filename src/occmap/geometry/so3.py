@@ -24,6 +24,7 @@ _exp = entry(K.exp_so3, (3, 3), ((3,), "rotvec", "finite"))
 _axis_angle = entry(K.matrix_to_axis_angle, (4,), ((3, 3), "R", "rotation"), args=(False,))
 _log = entry(K.matrix_to_axis_angle, (3,), ((3, 3), "R", "rotation"), args=(True,))
 _rotate = entry(K.rotate_points, (3,), ((3, 3), "rotation", "rotation"), ((3,), "points", "finite"))
+_compose = entry(K.compose_rotations, (3, 3), ((3, 3), "A", "finite"), ((3, 3), "B", "finite"))
 
 
 def hat(w):
@@ -127,7 +128,9 @@ def random_rotations(n: int | None = None, rng=None):
 class SO3:
     """Batched 3D rotations of shape ``self.shape``, held as read-only (..., 3, 3) matrices.
 
-    Immutable. ``a @ b`` composes (apply ``b`` first); ``.apply(points)`` rotates (..., 3)
+    Immutable. ``a @ b`` composes (apply ``b`` first) and renormalises the product (one
+    cheap step, ``_kernels._renormalize``: a long chain of products stays on SO(3), as scipy's
+    renormalised quaternion products do); ``.apply(points)`` rotates (..., 3)
     points; construct with ``from_matrix``, ``from_quat`` (w, x, y, z), ``from_rotvec``,
     ``from_euler_zyx`` or ``identity``. Indexing and ``len`` act on the batch.
     """
@@ -214,7 +217,7 @@ class SO3:
     def __matmul__(self, other: SO3) -> SO3:
         if not isinstance(other, SO3):
             return NotImplemented
-        return SO3(self._m @ other._m, _trusted=True)
+        return SO3(_compose(self._m, other._m), _trusted=True)
 
     def inv(self) -> SO3:
         return SO3(np.swapaxes(self._m, -1, -2), _trusted=True)

@@ -16,7 +16,11 @@ import numpy as np
 
 from ..errors import FormatError
 
-__all__ = ["Table", "first_non_number", "not_a_number", "numbers", "raise_not_a_number"]
+__all__ = ["Table", "count", "first_non_number", "not_a_number", "numbers", "raise_not_a_number"]
+
+#: Digits a header count may have: any count a file could hold fits, and no token of thousands of
+#: digits reaches ``int()`` (which refuses more than 4300).
+_COUNT_DIGITS = 18
 
 _BLANK = np.zeros(256, dtype=bool)
 _BLANK[[9, 10, 11, 12, 13, 32]] = True  # the bytes str.split() and np.fromstring skip
@@ -81,6 +85,15 @@ class Table:
             i = int(np.argmax(bad))
             need = f"at least {at_least}" if at_least is not None else f"{exactly}"
             raise FormatError(path, f"expected {need} fields ({what}), got {self.counts[i]}", line=int(self.lines[i]))
+
+
+def count(path, token: str, what: str, line: int) -> int:
+    """A count from a header (``element vertex 1000``, ``WIDTH 640``): ASCII digits only (no sign,
+    no ``²`` or other Unicode digits, at most 18 of them), else a FormatError naming the file,
+    the line, the field and the token."""
+    if not (token.isascii() and token.isdigit() and len(token) <= _COUNT_DIGITS):
+        raise FormatError(path, f"{what} must be a whole number of at most {_COUNT_DIGITS} digits, got {token[:40]!r}", line=line)
+    return int(token)
 
 
 def numbers(text: str) -> np.ndarray | None:

@@ -32,7 +32,8 @@ so its theta already points backwards; nothing is added to it) and becomes ``Las
 
 Beam ``i`` points at ``laser_theta + start_angle + i*angular_res`` (``fov`` is not used);
 ``laser_*`` → ``pose``, ``robot_*`` → ``odom``, ``max_range`` → ``max_range`` (unless the caller
-overrides it).
+overrides it; a line's own ``max_range`` that is not a positive finite number makes the line
+malformed, since every reading would then count as "no return" and clear its beam).
 
 Conventions
 -----------
@@ -225,6 +226,11 @@ def _numbers(text: str) -> np.ndarray:
     return _EMPTY if vals is None else vals
 
 
+def _is_count(value) -> bool:
+    """Whether a parsed field is a whole number >= 0 (NaN and inf are not)."""
+    return value >= 0 and float(value).is_integer()
+
+
 def _split_tail(rest: str):
     """Split ``... ipc_timestamp hostname logger_timestamp`` off a message body.
 
@@ -305,7 +311,7 @@ class _Parser:
             err = self._bad_numbers(lineno, kind, text, layout)
             raise err or self._fail(lineno, f"{kind}: no beam count, expected {layout}")
         n_f = vals[0]
-        if not (n_f >= 0 and n_f == int(n_f)):
+        if not _is_count(n_f):
             raise self._fail(lineno, f"{kind}: beam count {n_f!r} is not a non-negative integer")
         n = int(n_f)
         if vals.size != n + 8:
@@ -349,14 +355,14 @@ class _Parser:
             problem = "line too short for the laser configuration and beam count"
         else:
             n_f = vals[7]
-            if not (n_f >= 0 and n_f == int(n_f)):
+            if not _is_count(n_f):
                 raise self._fail(lineno, f"{kind}: beam count {n_f!r} is not a non-negative integer")
             n = int(n_f)
             if size < n + 9:
                 problem = f"beam count n = {n} runs past the end of the line"
             else:
                 k_f = vals[n + 8]
-                if not (k_f >= 0 and k_f == int(k_f)):
+                if not _is_count(k_f):
                     raise self._fail(
                         lineno, f"{kind}: remission count {k_f!r} is not a non-negative integer"
                     )
@@ -377,6 +383,9 @@ class _Parser:
         odom = self._pose(vals, at + 3, lineno, kind, "robot_x robot_y robot_theta")
         stamp = float(vals[size - 1]) if logger is None else logger
         mr = self.max_range if self.max_range is not None else float(vals[4])
+        if not (mr > 0 and math.isfinite(mr)):
+            # a reading at or beyond it means "no return": -1 would clear every beam
+            raise self._fail(lineno, f"{kind}: max_range {mr!r} must be a positive finite number")
         ranges = vals[8 : n + 8]
         if self.no_return:
             self._finish_ranges(ranges, mr)

@@ -42,26 +42,37 @@ Loading (:func:`load_map`) follows ``map_server``'s image loader:
   in scale and raw mode it is left out of the average);
 * ``p = (255 − gray)/255``, or ``gray/255`` with ``negate: 1``;
 * trinary: ``p > occupied_thresh`` → 100, ``p < free_thresh`` → 0, else −1;
-* scale: the same two ends; between them ``rint(99·(p − free)/(occupied − free))``, and −1 where
-  the image has an alpha channel and the pixel's alpha is 0;
+* scale: the same two ends; between them nav2_map_server's ``rint(100·(p − free)/(occupied −
+  free))`` (ROS 1's map_server uses ``1 + 98·ratio`` instead, never 0 or 100 between the
+  thresholds; occmap follows ROS 2), and −1 where the image has an alpha channel and the pixel's
+  alpha is 0;
 * raw: the gray value itself, reinterpreted as a signed byte (255 → −1); with ``negate: 1`` it is
   ``255 − gray`` first, as in ROS 1's loader. Colour pixels are averaged and truncated.
 
 16-bit gray images are brought to 0 … 255 by dividing by 257.
 
-The YAML reader is a strict parser for the subset map files use (no PyYAML dependency): one
-``key: value`` per line, ``#`` comments, an optional leading ``---``, bare or quoted ('…' or "…")
-scalars, numbers and one-level flow lists ``[a, b, c]``. Anything else raises
-:class:`~occmap.errors.FormatError` naming the file and line. Unknown keys are ignored (as
-map_server does); a repeated key is an error.
+The YAML file is read with PyYAML's safe parser (any YAML: flow ``[x, y, yaw]`` or block-style
+lists, comments, quotes, a leading ``---``); numbers must be plain unquoted decimals (``0.05``,
+``.196``, ``-1e3``), strings may be quoted. Unknown keys are ignored (as map_server does); a
+repeated key is an error. Any problem raises :class:`~occmap.errors.FormatError` naming the file,
+the line and the key.
 
-Every file is written atomically: a temporary file in the target's folder, then ``os.replace``.
+Saving a pair is all-or-nothing for a reader of the pair: each file is written atomically
+(:func:`occmap._files.write_atomic`: the old file or the new one, never a mix or half a file),
+the image first, then the YAML, which ends with ``occmap_image_sha256:`` — the SHA-256 of the
+image bytes it was written with. :func:`load_map` checks that digest when the key is there, so
+a save killed between the two files (the new image beside the old YAML) fails to load with a
+FormatError saying so, instead of loading at the wrong size or origin. YAML files without the key
+(map_saver's, hand-written ones) load as before. A YAML path that would also be the image's path
+(``map.pgm`` with ``image_format="pgm"``) is refused.
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,6 +83,7 @@ from .. import checks
 from .._files import write_atomic
 from ..errors import FormatError, InvalidArgumentError, ShapeError
 from ..png import write_png
+from . import _limits
 from ._compression import read_bytes
 
 __all__ = ["MapFile", "load_map", "save_map", "save_probability_png"]
@@ -82,6 +94,8 @@ OCCUPIED_PIXEL = 0
 UNKNOWN_PIXEL = 205
 
 _MODES = ("trinary", "scale", "raw")
+#: YAML key holding the SHA-256 of the image a pair was saved with (map_server ignores it).
+_DIGEST_KEY = "occmap_image_sha256"
 _IMAGE_FORMATS = {"pgm": "PPM", "png": "PNG", "bmp": "BMP"}
 
 
@@ -219,6 +233,10 @@ def save_map(
         alpha = np.where(known, 255, 0).astype(np.uint8)
 
     image_path = path_yaml.with_name(path_yaml.stem + "." + fmt)
+    if os.path.realpath(image_path) == os.path.realpath(path_yaml):
+        raise InvalidArgumentError(
+            f"the map's YAML file {str(path_yaml)!r} would be its own image: name it .yaml"
+        )
     height, width = gray.shape
     if fmt == "pgm":
         data = b"P5\n%d %d\n255\n" % (width, height) + np.ascontiguousarray(gray).tobytes()
@@ -241,170 +259,57 @@ def save_map(
         f"negate: 0\n"
         f"occupied_thresh: {_fmt_float(occ_t)}\n"
         f"free_thresh: {_fmt_float(free_t)}\n"
+        f"# the image this file was written with; occmap checks it on loading\n"
+        f"{_DIGEST_KEY}: {hashlib.sha256(data).hexdigest()}\n"
     )
-    write_atomic(image_path, data)
+    write_atomic(image_path, data)  # the image first: the YAML names it and holds its digest
     write_atomic(path_yaml, text.encode("utf-8"))
     return image_path
 
 
 # ----------------------------------------------------------------------------------------------
-# the YAML subset
+# the YAML file
 
-
-@dataclass(frozen=True)
-class _Scalar:
-    text: str
-    quoted: bool
-
-
-_KEY_LINE = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)[ \t]*:(?:[ \t]+(.*))?$")
 _NUMBER = re.compile(r"^[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?$")
 
 
-def _parse_number(text: str):
-    if not _NUMBER.match(text):
-        return None
-    if re.match(r"^[-+]?\d+$", text):
-        return int(text)
-    return float(text)
+def _parse_number(text: str) -> float | None:
+    """A plain decimal number as float (thousands of digits give inf), or None."""
+    return float(text) if _NUMBER.match(text) else None
 
 
-def _strip_comment(text: str) -> str:
-    """Drop a ``#`` comment (at the start or after whitespace, outside quotes)."""
-    quote = None
-    i = 0
-    while i < len(text):
-        ch = text[i]
-        if quote:
-            if ch == "\\" and quote == '"':
-                i += 2
-                continue
-            if ch == quote:
-                if quote == "'" and text[i + 1 : i + 2] == "'":
-                    i += 2
-                    continue
-                quote = None
-        elif ch in "'\"" and (i == 0 or text[i - 1] in " \t[,"):
-            quote = ch
-        elif ch == "#" and (i == 0 or text[i - 1] in " \t"):
-            return text[:i]
-        i += 1
-    return text
+def _line(node) -> int:
+    return node.start_mark.line + 1
 
 
-class _SyntaxProblem(Exception):
-    pass
+def _parse_yaml(path: Path, text: str) -> dict:
+    """The top-level mapping of a map YAML file as ``{key: node}`` (PyYAML's safe composer: any
+    YAML, flow or block style, anchors resolved; no Python objects are built). Keys must be
+    plain strings and not repeat."""
+    import yaml
 
-
-def _parse_quoted(text: str, start: int) -> tuple[str, int]:
-    """Parse a quoted scalar beginning at ``text[start]``; return (value, index after it)."""
-    quote = text[start]
-    out = []
-    i = start + 1
-    escapes = {"\\": "\\", '"': '"', "n": "\n", "t": "\t", "/": "/", "0": "\0"}
-    while i < len(text):
-        ch = text[i]
-        if quote == '"' and ch == "\\":
-            nxt = text[i + 1 : i + 2]
-            if nxt not in escapes:
-                raise _SyntaxProblem(f"unsupported escape '\\{nxt}' in a double-quoted string")
-            out.append(escapes[nxt])
-            i += 2
-            continue
-        if ch == quote:
-            if quote == "'" and text[i + 1 : i + 2] == "'":
-                out.append("'")
-                i += 2
-                continue
-            return "".join(out), i + 1
-        out.append(ch)
-        i += 1
-    raise _SyntaxProblem(f"unterminated {quote}-quoted string")
-
-
-def _parse_scalar(text: str) -> _Scalar:
-    text = text.strip()
-    if not text:
-        raise _SyntaxProblem("empty value")
-    if text[0] in "'\"":
-        value, end = _parse_quoted(text, 0)
-        if text[end:].strip():
-            raise _SyntaxProblem(f"unexpected text after the quoted string: {text[end:].strip()!r}")
-        return _Scalar(value, True)
-    if text[0] in "[]{}&*!|>%@`" or text[0] == "-" and text[1:2] in ("", " "):
-        raise _SyntaxProblem(f"unsupported YAML construct {text!r}")
-    if ": " in text or text.endswith(":"):
-        raise _SyntaxProblem(f"unexpected ':' in value {text!r} (nested mappings are not supported)")
-    return _Scalar(text, False)
-
-
-def _parse_value(text: str):
-    text = text.strip()
-    if text.startswith("["):
-        if not text.endswith("]"):
-            raise _SyntaxProblem("a flow list must end with ']' on the same line")
-        inner = text[1:-1].strip()
-        if not inner:
-            return []
-        items = []
-        i = 0
-        while True:
-            while i < len(inner) and inner[i] in " \t":
-                i += 1
-            if i < len(inner) and inner[i] in "'\"":
-                value, i = _parse_quoted(inner, i)
-                items.append(_Scalar(value, True))
-                rest_start = i
-            else:
-                j = inner.find(",", i)
-                j = len(inner) if j < 0 else j
-                token = inner[i:j]
-                if any(c in token for c in "[]{}"):
-                    raise _SyntaxProblem("nested lists or mappings are not supported")
-                items.append(_parse_scalar(token))
-                rest_start = j
-            k = rest_start
-            while k < len(inner) and inner[k] in " \t":
-                k += 1
-            if k == len(inner):
-                return items
-            if inner[k] != ",":
-                raise _SyntaxProblem(f"expected ',' in the flow list, found {inner[k:]!r}")
-            i = k + 1
-            if not inner[i:].strip():
-                raise _SyntaxProblem("empty item at the end of the flow list")
-    return _parse_scalar(text)
-
-
-def _parse_yaml(path: Path, text: str) -> dict[str, tuple[object, int]]:
-    """Parse the map_server YAML subset; return ``{key: (value, line_number)}``."""
-    result: dict[str, tuple[object, int]] = {}
-    for number, raw in enumerate(text.splitlines(), start=1):
-        line = _strip_comment(raw).rstrip()
-        if not line.strip():
-            continue
-        if line.strip() == "---" and not result:
-            continue
-        if line[0] in " \t":
-            raise FormatError(
-                path, "indented line: nested structures are not supported in a map file",
-                line=number,
-            )
-        match = _KEY_LINE.match(line)
-        if not match:
-            raise FormatError(path, f"expected 'key: value', got {raw.strip()!r}", line=number)
-        key, value_text = match.group(1), match.group(2)
-        if value_text is None or not value_text.strip():
-            raise FormatError(path, f"key {key!r} has no value", line=number)
-        if key in result:
-            raise FormatError(
-                path, f"key {key!r} repeated (first on line {result[key][1]})", line=number
-            )
-        try:
-            result[key] = (_parse_value(value_text), number)
-        except _SyntaxProblem as problem:
-            raise FormatError(path, f"{key}: {problem}", line=number) from None
-    return result
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None) or getattr(error, "context_mark", None)
+        problem = getattr(error, "problem", None) or str(error)
+        raise FormatError(
+            path, f"not valid YAML: {problem} (a map file holds 'key: value' lines)",
+            line=None if mark is None else mark.line + 1,
+        ) from None
+    if root is None:
+        raise FormatError(path, "empty map file: required key 'image' is missing")
+    if not isinstance(root, yaml.MappingNode):
+        raise FormatError(path, "a map file must be a mapping of 'key: value' lines", line=_line(root))
+    fields: dict = {}
+    for key, value in root.value:
+        if not isinstance(key, yaml.ScalarNode):
+            raise FormatError(path, "keys must be plain names", line=_line(key))
+        if key.value in fields:
+            first = _line(fields[key.value])
+            raise FormatError(path, f"key {key.value!r} repeated (first on line {first})", line=_line(key))
+        fields[key.value] = value
+    return fields
 
 
 # ----------------------------------------------------------------------------------------------
@@ -417,38 +322,44 @@ def _require(path, fields, key):
     return fields[key]
 
 
-def _as_number(path, key, value, line) -> float:
-    if isinstance(value, _Scalar) and not value.quoted:
-        number = _parse_number(value.text)
-        if number is not None:
-            return float(number)
-    shown = value.text if isinstance(value, _Scalar) else value
-    raise FormatError(path, f"{key} must be a number, got {shown!r}", line=line)
+def _scalar(path, key, node, what: str):
+    import yaml
+
+    if not isinstance(node, yaml.ScalarNode):
+        kind = "a list" if isinstance(node, yaml.SequenceNode) else "a mapping"
+        raise FormatError(path, f"{key} must be {what}, got {kind}", line=_line(node))
+    if node.style is None and node.value in ("", "~", "null", "Null", "NULL"):
+        raise FormatError(path, f"key {key!r} has no value", line=_line(node))
+    return node
 
 
-def _as_string(path, key, value, line) -> str:
-    if isinstance(value, _Scalar):
-        return value.text
-    raise FormatError(path, f"{key} must be a string, got a list", line=line)
+def _as_number(path, key, node) -> float:
+    """An unquoted decimal number (``0.05``, ``-10``, ``.196``, ``1e-3``), as map_server reads it."""
+    node = _scalar(path, key, node, "a number")
+    number = _parse_number(node.value) if node.style is None else None
+    if number is None:
+        raise FormatError(path, f"{key} must be a number, got {node.value[:40]!r}", line=_line(node))
+    return number
+
+
+def _as_string(path, key, node) -> str:
+    return _scalar(path, key, node, "a string").value
 
 
 def load_map(path_yaml) -> MapFile:
     """Read a map_server YAML file and its image; see the module docstring for the rules.
 
     Raises:
-        FormatError: the YAML or the image is missing or unreadable, a line is not in the
-            supported subset, a required key (image, resolution, origin, occupied_thresh,
-            free_thresh) is missing, or a value is out of range (resolution <= 0, thresholds
-            outside [0, 1] or free_thresh >= occupied_thresh, unknown mode, negate not 0/1).
-            The message names the file and, where there is one, the line.
+        FormatError: the YAML or the image is missing or unreadable, the YAML is not valid,
+            a required key (image, resolution, origin, occupied_thresh, free_thresh) is missing,
+            a value is out of range (resolution <= 0, thresholds outside [0, 1] or free_thresh
+            >= occupied_thresh, unknown mode, negate not 0/1), the image is larger than
+            :func:`occmap.io.read_limits` allows, or it is not the image the YAML was saved
+            with (``occmap_image_sha256``). The message names the file and, where there is
+            one, the line.
     """
     path_yaml = Path(path_yaml)
-    try:
-        raw = read_bytes(path_yaml)
-    except FileNotFoundError:
-        raise FormatError(path_yaml, "map YAML file not found") from None
-    except OSError as error:
-        raise FormatError(path_yaml, f"cannot read the map YAML file: {error}") from error
+    raw = read_bytes(path_yaml)
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as error:
@@ -456,66 +367,73 @@ def load_map(path_yaml) -> MapFile:
         raise FormatError(path_yaml, "not UTF-8 text", line=line) from None
     fields = _parse_yaml(path_yaml, text)
 
-    image_value, image_line = _require(path_yaml, fields, "image")
-    image_name = _as_string(path_yaml, "image", image_value, image_line)
+    image_node = _require(path_yaml, fields, "image")
+    image_name = _as_string(path_yaml, "image", image_node)
     if not image_name:
-        raise FormatError(path_yaml, "image is empty", line=image_line)
+        raise FormatError(path_yaml, "image is empty", line=_line(image_node))
 
-    res_value, res_line = _require(path_yaml, fields, "resolution")
-    resolution = _as_number(path_yaml, "resolution", res_value, res_line)
+    res_node = _require(path_yaml, fields, "resolution")
+    resolution = _as_number(path_yaml, "resolution", res_node)
     if not (math.isfinite(resolution) and resolution > 0):
-        raise FormatError(path_yaml, f"resolution must be > 0, got {resolution!r}", line=res_line)
+        raise FormatError(path_yaml, f"resolution must be > 0, got {resolution!r}", line=_line(res_node))
 
-    origin_value, origin_line = _require(path_yaml, fields, "origin")
-    if not isinstance(origin_value, list) or len(origin_value) != 3:
+    origin_node = _require(path_yaml, fields, "origin")
+    origin_line = _line(origin_node)
+    if not isinstance(origin_node.value, list) or len(origin_node.value) != 3:
         raise FormatError(path_yaml, "origin must be a list [x, y, yaw]", line=origin_line)
-    origin = tuple(_as_number(path_yaml, "origin", v, origin_line) for v in origin_value)
+    origin = tuple(_as_number(path_yaml, "origin", v) for v in origin_node.value)
     if not all(math.isfinite(v) for v in origin):
         raise FormatError(path_yaml, "origin must be finite", line=origin_line)
 
     thresholds = {}
     for key in ("occupied_thresh", "free_thresh"):
-        value, line = _require(path_yaml, fields, key)
-        number = _as_number(path_yaml, key, value, line)
+        node = _require(path_yaml, fields, key)
+        number = _as_number(path_yaml, key, node)
         if not (0.0 <= number <= 1.0):
-            raise FormatError(path_yaml, f"{key} must lie in [0, 1], got {number!r}", line=line)
+            raise FormatError(path_yaml, f"{key} must lie in [0, 1], got {number!r}", line=_line(node))
         thresholds[key] = number
     occ_t, free_t = thresholds["occupied_thresh"], thresholds["free_thresh"]
     if free_t >= occ_t:
         raise FormatError(
             path_yaml,
             f"free_thresh ({free_t!r}) must be below occupied_thresh ({occ_t!r})",
-            line=fields["free_thresh"][1],
+            line=_line(fields["free_thresh"]),
         )
 
     mode = "trinary"
     if "mode" in fields:
-        value, line = fields["mode"]
-        mode = _as_string(path_yaml, "mode", value, line)
+        mode = _as_string(path_yaml, "mode", fields["mode"])
         if mode not in _MODES:
-            raise FormatError(path_yaml, f"mode must be one of {_MODES}, got {mode!r}", line=line)
+            raise FormatError(path_yaml, f"mode must be one of {_MODES}, got {mode[:40]!r}", line=_line(fields["mode"]))
 
     negate = False
     if "negate" in fields:
-        value, line = fields["negate"]
-        text_value = value.text.lower() if isinstance(value, _Scalar) and not value.quoted else None
-        if text_value in ("0", "false"):
-            negate = False
-        elif text_value in ("1", "true"):
-            negate = True
-        else:
-            shown = value.text if isinstance(value, _Scalar) else value
-            raise FormatError(path_yaml, f"negate must be 0 or 1, got {shown!r}", line=line)
+        node = _scalar(path_yaml, "negate", fields["negate"], "0 or 1")
+        text_value = node.value.lower() if node.style is None else None
+        if text_value not in ("0", "false", "1", "true"):
+            raise FormatError(path_yaml, f"negate must be 0 or 1, got {node.value[:40]!r}", line=_line(node))
+        negate = text_value in ("1", "true")
+
+    digest = None
+    if _DIGEST_KEY in fields:
+        digest = _as_string(path_yaml, _DIGEST_KEY, fields[_DIGEST_KEY]).lower()
 
     image_path = Path(image_name)
     if not image_path.is_absolute():
         image_path = path_yaml.parent / image_path
     if not image_path.is_file():
         raise FormatError(
-            path_yaml, f"image file {str(image_path)!r} not found", line=image_line
+            path_yaml, f"image file {str(image_path)!r} not found", line=_line(image_node)
         )
-
-    channels = _read_image(image_path)
+    data = read_bytes(image_path)
+    if digest is not None and hashlib.sha256(data).hexdigest() != digest:
+        raise FormatError(
+            path_yaml,
+            f"{image_path.name} is not the image this file was saved with ({_DIGEST_KEY} differs): "
+            "the pair comes from two different saves (one was interrupted, or a file was replaced)",
+            line=_line(fields[_DIGEST_KEY]),
+        )
+    channels = _read_image(image_path, data)
     occupancy = _classify(channels, mode=mode, negate=negate, occ_t=occ_t, free_t=free_t)
     return MapFile(
         occupancy=np.ascontiguousarray(occupancy[::-1]),
@@ -534,13 +452,18 @@ def load_map(path_yaml) -> MapFile:
 # the image
 
 
-def _read_image(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    """Return ``(colour, alpha)``: float64 ``(H, W, C)`` colour channels on 0 … 255 and the
-    alpha channel ``(H, W)`` (or None), both top row first as stored."""
+def _read_image(path: Path, data: bytes) -> tuple[np.ndarray, np.ndarray | None]:
+    """Return ``(colour, alpha)`` of the image file ``path`` whose bytes are ``data``: float64
+    ``(H, W, C)`` colour channels on 0 … 255 and the alpha channel ``(H, W)`` (or None), both top
+    row first as stored. The header's width × height is checked against the read limits
+    (:mod:`occmap.io._limits`, one unit a pixel) before any pixel is decoded; Pillow refuses
+    more than 2 × ``PIL.Image.MAX_IMAGE_PIXELS`` (179 M pixels by default) itself."""
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(path) as picture:
+        with Image.open(io.BytesIO(data)) as picture:
+            width, height = picture.size
+            _limits.current().check(path, f"a {width} × {height} image", width * height, len(data), "pixels")
             picture.load()
             mode = picture.mode
             if mode == "P":
@@ -555,6 +478,10 @@ def _read_image(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
                 picture = picture.convert(mode[:-1] + "A")
             mode = picture.mode
             data = np.asarray(picture)
+    except FormatError:
+        raise
+    except Image.DecompressionBombError as error:  # Pillow's own limit, met in Image.open
+        raise FormatError(path, f"image too large: {error}") from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as error:
         raise FormatError(path, f"cannot read the map image: {error}") from None
     if mode.startswith("I;16") or mode == "I":
@@ -587,7 +514,7 @@ def _classify(channels, *, mode: str, negate: bool, occ_t: float, free_t: float)
     out = np.full(gray.shape, -1, dtype=np.int8)
     if mode == "scale":
         ratio = (p - free_t) / (occ_t - free_t)
-        out[:] = np.clip(np.rint(99.0 * ratio), 0, 99).astype(np.int8)
+        out[:] = np.clip(np.rint(100.0 * ratio), 0, 100).astype(np.int8)  # nav2's rule
     out[p > occ_t] = 100
     out[p < free_t] = 0
     if mode == "scale" and alpha is not None:

@@ -49,9 +49,10 @@ import numpy as np
 
 from .._files import write_atomic
 from ..cloud import PointCloud
-from ..errors import FormatError, InvalidArgumentError, ShapeError
+from ..errors import FormatError, InvalidArgumentError, MissingFileError, ShapeError
 from ..geometry.se3 import SE3
 from ._compression import EXTENSIONS, read_bytes
+from . import _text
 from ._text import Table
 
 __all__ = [
@@ -251,14 +252,9 @@ def read_pcd(path, drop_origin: bool = True) -> PointCloud:
 
     def ints(key, count=None):
         line, words = need(key)
-        try:
-            vals = [int(w) for w in words]
-        except ValueError:
-            raise FormatError(path, f"{key} values must be integers, got {' '.join(words)[:80]!r}", line=line) from None
+        vals = [_text.count(path, w, f"{key} value (integers >= 0)", line) for w in words]
         if count is not None and len(vals) != count:
             raise FormatError(path, f"{key} has {len(vals)} values, expected {count} (one per field)", line=line)
-        if any(v < 0 for v in vals):
-            raise FormatError(path, f"{key} values must be >= 0, got {vals[:8]}", line=line)
         return vals
 
     fields_line, fields = need("FIELDS")
@@ -393,10 +389,10 @@ def read_ply(path) -> PointCloud:
                 raise FormatError(path, f"unsupported PLY format line {text.strip()[:80]!r}", line=number)
             fmt = words[1]
         elif key == "element":
-            if len(words) != 3 or not words[2].isdigit():
+            if len(words) != 3:
                 msg = f"bad element line {text.strip()[:80]!r}, expected 'element NAME COUNT'"
                 raise FormatError(path, msg, line=number)
-            elements.append([words[1], int(words[2]), number, []])
+            elements.append([words[1], _text.count(path, words[2], f"element {words[1][:40]} count", number), number, []])
         elif key == "property":
             if not elements:
                 raise FormatError(path, "property before any element", line=number)
@@ -558,7 +554,7 @@ def _uos_sidecar(scan_path: Path, suffixes) -> Path:
         if p.exists():
             return p
         tried.append(str(p))
-    raise FileNotFoundError(f"no pose file for {scan_path}: tried {', '.join(tried)}")
+    raise MissingFileError(scan_path, f"no pose file beside the scan: tried {', '.join(tried)}")
 
 
 def _uos_frames(path) -> np.ndarray:

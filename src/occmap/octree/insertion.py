@@ -5,27 +5,33 @@ without a tree class: functions of a :class:`.pool.Pool` and plain arrays).
 A scan goes through three stages: its rays are marked into blocks (:func:`scan_voxels`, which
 leaves the tree alone, so the next scan can be traced while the tree takes this one), the blocks
 are listed as voxels in Morton order, and the voxels update the pool (:func:`apply`). Every
-Numba kernel releases the GIL, so two Python threads run kernels side by side.
+Numba kernel releases the GIL, so Python threads run kernels side by side: the calling thread and
+as many workers as Numba has threads (:func:`occmap._threads.share`, which never waits for a
+worker that has not started). Whether a scan takes several threads at all, :data:`THREADS`
+decides from the measured cost of both ways.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .. import _threads
+from .._threads import ThreadChoice, run_jobs, share
 from . import blocks as B
 from . import marking as M
 from . import pool as P
 from .keys import shared_depth
 from .update import apply_voxels, subtree_split
 
-#: Scans with at least this many rays are marked by two threads, in this many runs of rays.
+#: Scans with at least this many rays are marked by several threads, in this many runs of rays.
 _PARALLEL_RAYS = 20_000
 _MARK_RUNS = 8
-#: Scans with at least this many marked blocks list their voxels on two threads.
+#: Scans with at least this many marked blocks list their voxels on several threads, in this
+#: many runs of blocks.
 _PARALLEL_BLOCKS = 256
+_LIST_RUNS = 8
 #: Scans with at least this many voxels update the tree on two threads.
 _PARALLEL_VOXELS = 20_000
 #: Slots a thread's range holds: this many a voxel, and a margin.
@@ -34,9 +40,15 @@ _ROOM_MARGIN = 8 * 16 * 8
 #: Scans with at least this many rays mark the voxels near the sensor in a dense cube (see
 #: occmap.octree.marking.CUBE).
 _CUBE_RAYS = 4096
-_THREADS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="occmap-octree")
-#: Traces the next scan of OcTree.insert_point_clouds while the tree takes the current one.
-PIPELINE = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occmap-octree-next")
+#: One thread or several for a scan, by their measured cost per point (scans of fewer points than
+#: this take one).
+THREADS = ThreadChoice(min_work=_CUBE_RAYS)
+
+
+def pipeline():
+    """The thread that traces the next scan of OcTree.insert_point_clouds while the tree takes
+    the current one."""
+    return _threads.pool("octree-next", 1)
 
 
 def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int):
@@ -44,18 +56,22 @@ def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int)
     by the threads, each run taken once) until none is left, grown until they fit, a block
     possibly listed twice; with a cube (``corner`` ≥ 0) the voxels around the sensor are marked
     in a dense one of this thread's."""
-    storage = B.new_blocks(capacity)
-    cube = M.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.uint8))
+    storage = cube = None
     while True:
         try:
             start, stop = runs.popleft()
         except IndexError:
             break
+        if storage is None:  # (a thread that finds the runs taken allocates nothing)
+            storage = B.new_blocks(capacity)
+            cube = M.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.uint8))
         while True:
             start = M.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
             if start == stop:
                 break
             storage = B.grow_blocks(*storage)
+    if storage is None:
+        return None
     table, slots, codes, hits, frees, count = storage
     n = int(count[0])
     blocks = codes[:n], hits[:n], frees[:n]
@@ -66,9 +82,9 @@ def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int)
 
 def mark(origin, ends, hit, res, rays: bool, threads: bool):
     """The scan's voxels as Morton-sorted blocks of hit and free bits (only hits unless ``rays``);
-    with ``threads``, large scans are marked by two threads (the kernels release the GIL), which
-    take runs of rays in turn: the work of a run is hard to foresee (a step outside the cube
-    costs several inside it), so a thread that is done early takes more."""
+    with ``threads``, large scans are marked by several threads (the kernels release the GIL),
+    which take runs of rays in turn: the work of a run is hard to foresee (a step outside the
+    cube costs several inside it), so a thread that is done early takes more."""
     n = len(ends)
     corner = M.cube_corner(origin, ends, res) if rays and n >= _CUBE_RAYS else -1
     if not threads or n < _PARALLEL_RAYS:
@@ -76,21 +92,21 @@ def mark(origin, ends, hit, res, rays: bool, threads: bool):
     else:
         bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
         runs = deque(zip(bounds[:-1], bounds[1:]))
-        futures = [_THREADS.submit(_mark_runs, origin, ends, hit, res, rays, corner, runs, max(64, n // 16))
-                   for _ in range(2)]
-        parts = [f.result() for f in futures]
+        parts = [p for p in share(lambda: _mark_runs(origin, ends, hit, res, rays, corner, runs, max(64, n // 16)))
+                 if p is not None]
     return B.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
 
 
 def voxels(blocks, kbox, threads: bool):
     """:func:`occmap.octree.blocks.block_voxels` of Morton-sorted blocks; with ``threads``, many
-    blocks are listed by two threads, each a half (Morton order kept)."""
+    blocks are listed by several threads, in runs (Morton order kept)."""
     n = len(blocks[0])
     if not threads or n < _PARALLEL_BLOCKS:
         return B.block_voxels(*blocks, kbox)
-    halves = [_THREADS.submit(B.block_voxels, *(b[a:z] for b in blocks), kbox) for a, z in ((0, n // 2), (n // 2, n))]
-    (k0, h0), (k1, h1) = (f.result() for f in halves)
-    return np.concatenate([k0, k1]), np.concatenate([h0, h1])
+    bounds = np.linspace(0, n, _LIST_RUNS + 1).astype(np.int64).tolist()
+    parts = run_jobs([lambda a=a, z=z: B.block_voxels(*(b[a:z] for b in blocks), kbox)
+                      for a, z in zip(bounds[:-1], bounds[1:])])
+    return np.concatenate([k for k, _ in parts]), np.concatenate([h for _, h in parts])
 
 
 def scan_voxels(origin32, ends, hit, res: float, rays: bool, kbox, threads: bool):
@@ -150,11 +166,11 @@ def _apply_halves(pool: P.Pool, keys, is_hit, rule, lazy: bool) -> bool:
         pool.grow(top + room_a + room_b)
     meta_a = np.array([top, pool.meta[P.FREE], 0], np.int64)
     meta_b = np.array([top + room_a, -1, 0], np.int64)
-    runs = [_THREADS.submit(apply_voxels, pool.value, pool.child, meta_a, keys[:split], is_hit[:split], first,
-                            *rule, not lazy, top + room_a, shared + 1),
-            _THREADS.submit(apply_voxels, pool.value, pool.child, meta_b, keys, is_hit, split,
-                            *rule, not lazy, pool.value.shape[0], shared + 1)]
-    (end_a, changed_a), (end_b, changed_b) = (r.result() for r in runs)
+    (end_a, changed_a), (end_b, changed_b) = run_jobs([
+        lambda: apply_voxels(pool.value, pool.child, meta_a, keys[:split], is_hit[:split], first, *rule, not lazy,
+                             top + room_a, shared + 1),
+        lambda: apply_voxels(pool.value, pool.child, meta_b, keys, is_hit, split, *rule, not lazy,
+                             pool.value.shape[0], shared + 1)], threads=2)
     P.join_pools(pool.child, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
     changed = changed_a or changed_b
     if end_a < split:  # a range ran out of slots: the rest here

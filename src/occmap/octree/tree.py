@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._threads import thread_count
 from ..errors import InvalidArgumentError, ShapeError
 from . import insertion, pool, query, views
 from .keys import CENTER, MAX_KEY, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
@@ -204,16 +205,18 @@ class OcTree:
         ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
         :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
         """
-        keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
-        insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=True)
+        with insertion.THREADS.choose(len(points)) as threads:
+            keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads)
+            insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads)
         return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
                             lazy: bool = False) -> dict:
         """Integrate many scans in order, each as :meth:`insert_point_cloud`. ``clouds`` holds
         (N_i, 3) arrays with ``origins`` (S, 3), or objects with ``world_points()`` and ``origin``
-        (:class:`occmap.cloud.PointCloud`). The next scan's rays are traced on the second core
-        while the tree takes the current one. Returns the summed summary."""
+        (:class:`occmap.cloud.PointCloud`). With two threads or more (Numba's count), the next
+        scan's rays are traced on a second thread while the tree takes the current one (here when
+        that thread has not started by then). Returns the summed summary."""
         clouds = list(clouds)
         if origins is None:
             pairs = [(c.world_points(), c.origin) for c in clouds]
@@ -224,10 +227,13 @@ class OcTree:
             pairs = list(zip(clouds, O))
         total = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         pending = None
+        ahead = thread_count() >= 2
         for k in range(len(pairs)):
+            if pending is not None and pending.cancel():
+                pending = None
             current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, True)
-            pending = (insertion.PIPELINE.submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
-                       if k + 1 < len(pairs) else None)
+            pending = (insertion.pipeline().submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
+                       if ahead and k + 1 < len(pairs) else None)
             keys, is_hit, summary = current
             # (the second core traces the next scan)
             insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=pending is None)
