@@ -54,7 +54,7 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
         stop = min(n, start + chunk)
         a = angles if angles.ndim == 1 else angles[start:stop]
         with clock.running():
-            grid.integrate_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
+            grid.insert_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
         if progress:
             done = stop / n
             bar = "#" * int(30 * done)

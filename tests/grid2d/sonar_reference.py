@@ -57,7 +57,7 @@ def map_like_exercise(log, model: SonarModel | None = None) -> OccupancyGrid2D:
     and max range Z_max = 5 m."""
     model = SonarModel.udacity_exercise() if model is None else model
     g = OccupancyGrid2D(EXERCISE_RESOLUTION, size=EXERCISE_SIZE, origin=EXERCISE_ORIGIN, clamp=NO_CLAMP)
-    g.integrate_sonar(log.poses, log.ranges, log.bearings, max_range=EXERCISE_MAX_RANGE, model=model)
+    g.insert_sonar(log.poses, log.ranges, log.bearings, max_range=EXERCISE_MAX_RANGE, model=model)
     return g
 
 
@@ -156,7 +156,7 @@ def map_with_cone_model(log) -> OccupancyGrid2D:
     """occmap's own cone model on the exercise's grid, for contrast: beam 20°, arc 0.2 m,
     quadratic weighting, OctoMap's clamping, no-echo readings (5.11 m) clearing their cone."""
     g = OccupancyGrid2D(EXERCISE_RESOLUTION, size=EXERCISE_SIZE, origin=EXERCISE_ORIGIN)
-    g.integrate_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
+    g.insert_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
                       model=SonarModel(beam_width=math.radians(20), arc=0.2))
     return g
 

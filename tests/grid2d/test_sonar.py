@@ -1,4 +1,4 @@
-"""SonarModel / integrate_sonar: cone geometry, angular weighting, max-range readings, the nearest-
+"""SonarModel / insert_sonar: cone geometry, angular weighting, max-range readings, the nearest-
 transducer sectors of Thrun's Table 9.2, real data, and the Udacity exercise's reference picture."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from occmap.grid2d import OccupancyGrid2D, SonarModel, logit
 
 def one_reading(r, max_range=5.0, model=SonarModel()):
     g = OccupancyGrid2D(0.05, size=(6.0, 6.0), origin=(-3.0, -3.0))
-    counts = g.integrate_sonar((0.0, 0.0, 0.0), [r], [0.0], max_range=max_range, model=model)
+    counts = g.insert_sonar((0.0, 0.0, 0.0), [r], [0.0], max_range=max_range, model=model)
     return g, counts
 
 
@@ -78,7 +78,7 @@ def test_nearest_sectors_give_each_direction_to_one_transducer():
     assert (lo[0], hi[0]) == pytest.approx((-math.pi, math.pi)) and lo[1] == hi[1] == 0.0
     # ahead (0.5 m) and left (2.0 m): sectors −135°…45° and 45°…135° around the circle
     g = OccupancyGrid2D(0.05, size=(6.0, 6.0), origin=(-3.0, -3.0))
-    g.integrate_sonar((0.0, 0.0, 0.0), [0.5, 2.0], [0.0, math.pi / 2], max_range=5.0, model=model)
+    g.insert_sonar((0.0, 0.0, 0.0), [0.5, 2.0], [0.0, math.pi / 2], max_range=5.0, model=model)
     at = lambda deg, r=1.0: g.value_at([[r * math.cos(math.radians(deg)), r * math.sin(math.radians(deg))]])[0]  # noqa: E731
     assert math.isnan(at(30))  # the ahead reading's, beyond its 0.5 m: untouched though inside the left cone
     assert at(30, 0.3) == pytest.approx(logit(0.4), rel=1e-6)
@@ -95,7 +95,7 @@ def test_unwrapped_angles_give_cells_to_the_exercises_transducer():
     values = []
     for wrap in (True, False):
         g = OccupancyGrid2D(0.05, size=(6.0, 6.0), origin=(-3.0, -3.0))
-        g.integrate_sonar((0.0, 0.0, math.pi), [1.0, 2.0], [-math.pi / 2, math.pi / 2], max_range=5.0,
+        g.insert_sonar((0.0, 0.0, math.pi), [1.0, 2.0], [-math.pi / 2, math.pi / 2], max_range=5.0,
                           model=SonarModel(wrap_angles=wrap, **kw))
         values.append(g.value_at([[0.0125, -0.9875]])[0])
     assert values[0] < 0 < values[1]
@@ -103,10 +103,10 @@ def test_unwrapped_angles_give_cells_to_the_exercises_transducer():
 
 def test_invalid_readings_and_arguments():
     g = OccupancyGrid2D(0.1, size=(4.0, 4.0), origin=(-2.0, -2.0))
-    counts = g.integrate_sonar(np.zeros((1, 3)), [[np.nan, -1.0, 1.0]], [0.0, 1.0, 2.0], max_range=3.0)
+    counts = g.insert_sonar(np.zeros((1, 3)), [[np.nan, -1.0, 1.0]], [0.0, 1.0, 2.0], max_range=3.0)
     assert counts["dropped"] == 2 and counts["beams"] == 1
     with pytest.raises(ShapeError):
-        g.integrate_sonar(np.zeros((1, 3)), [[1.0, 1.0]], [0.0], max_range=3.0)
+        g.insert_sonar(np.zeros((1, 3)), [[1.0, 1.0]], [0.0], max_range=3.0)
     with pytest.raises(InvalidArgumentError):
         SonarModel(beam_width=0.0)
     with pytest.raises(InvalidArgumentError):
@@ -128,7 +128,7 @@ def test_shared_sonar_ring_maps_its_corridor(data_dir):
     log = read_sonar_ring(data_dir / "sonar")
     assert log.ranges.shape == (413, 8) and log.max_range == pytest.approx(5.11)
     g = OccupancyGrid2D(0.1, size=(30.0, 15.0), origin=(-6.0, -10.0))
-    g.integrate_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
+    g.insert_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
                       model=SonarModel(beam_width=math.radians(20), arc=0.2))
     ml = g.maximum_likelihood()
     path = log.poses[(log.poses[:, 0] > 1.0) & (log.poses[:, 0] < 8.0)]  # the straight corridor part

@@ -113,7 +113,7 @@ def map_simulated_office(out: Path, seed: int = 1) -> list[str]:
     grid = OccupancyGrid2D(0.05, size=(xmax - xmin, ymax - ymin), origin=(xmin, ymin))
     clock = WorkClock()
     with clock.running():
-        counts = grid.integrate_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
+        counts = grid.insert_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
     seconds = clock.seconds
     grid.save(out / "sim_office.yaml")
     grid.save_png(out / "sim_office.png")

@@ -151,12 +151,12 @@ class OccupancyGrid2D:
 
     # ------------------------------------------------------------------ integration
 
-    def integrate_scan(self, pose, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
-        """Integrate one scan from sensor pose ``(x, y, theta)``; see :meth:`integrate_scans`."""
+    def insert_scan(self, pose, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
+        """Integrate one scan from sensor pose ``(x, y, theta)``; see :meth:`insert_scans`."""
         r = np.asarray(ranges, dtype=np.float64)
-        return self.integrate_scans(np.asarray(pose, dtype=np.float64)[None], r[None], angles, max_range, model)
+        return self.insert_scans(np.asarray(pose, dtype=np.float64)[None], r[None], angles, max_range, model)
 
-    def integrate_scans(self, poses, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
+    def insert_scans(self, poses, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
         """Integrate N scans in one call.
 
         ``poses`` (N, 3) are sensor poses ``(x, y, theta)``; ``ranges`` (N, n) in metres;
@@ -200,7 +200,7 @@ class OccupancyGrid2D:
         ))
         return self._record(len(P), used, dropped, maxed)
 
-    def integrate_sonar(self, poses, ranges, bearings, max_range: float, model: SonarModel | None = None) -> dict:
+    def insert_sonar(self, poses, ranges, bearings, max_range: float, model: SonarModel | None = None) -> dict:
         """Integrate rings of sonar readings with the cone model of :class:`SonarModel`.
 
         ``poses`` (3,) or (N, 3) are robot poses; ``ranges`` (k,) or (N, k) in metres, one per

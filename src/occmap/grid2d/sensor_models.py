@@ -85,7 +85,7 @@ class SonarModel:
         Readings shorter than this (metres) are dropped and counted as dropped (Table 9.2's Zmin).
     ignore_max_range : bool
         False (default): a reading at or beyond the ``max_range`` given to
-        :meth:`~occmap.grid2d.OccupancyGrid2D.integrate_sonar` had no echo and clears its cone up
+        :meth:`~occmap.grid2d.OccupancyGrid2D.insert_sonar` had no echo and clears its cone up
         to ``max_range``. True: readings *beyond* ``max_range`` are not integrated at all (only
         counted under ``max_range``); one exactly at ``max_range`` still clears its cone. That is
         the Udacity exercise's rule (``Z_k > Z_max`` returns ``l0``; ``Z_k = Z_max`` is free space).
