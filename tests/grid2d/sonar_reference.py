@@ -65,7 +65,7 @@ def exercise_cells(grid: OccupancyGrid2D) -> np.ndarray:
     """The grid's classes (int8) indexed like the exercise's picture, ``[x, y]`` with ``y`` up the
     plot (= grid row ``H − 1 − y``): OCCUPIED where l > 0, FREE where l < 0, UNKNOWN where no
     reading touched the cell or l == 0 (the exercise's test for green)."""
-    L = np.asarray(grid.log_odds, dtype=np.float64)
+    L = np.asarray(grid.log_odds(), dtype=np.float64)
     cls = np.full(L.shape, UNKNOWN, dtype=np.int8)
     cls[L > 0] = OCCUPIED
     cls[L < 0] = FREE

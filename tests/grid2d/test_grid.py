@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from occmap.errors import InvalidArgumentError, NonFiniteError, ShapeError
-from occmap.grid2d import LidarModel, OccupancyGrid2D, logit
+from occmap.grid2d import LidarModel, OccupancyGrid2D
+from occmap.logodds import logit
 from occmap.grid2d import _kernels as K
 
 L_HIT, L_MISS, L_MAX, L_MIN = logit(0.7), logit(0.4), logit(0.971), logit(0.1192)
@@ -21,7 +22,7 @@ def single_beam(grid, r, max_range=None, pose=(0.05, 0.05, 0.0)):
 def test_one_beam_frees_the_cells_before_its_end_and_hits_the_end_cell():
     g = OccupancyGrid2D(0.1, size=(2.0, 1.0))
     single_beam(g, 1.0)  # from the centre of cell (0, 0) to the centre of cell (0, 10)
-    row = g.log_odds[0]
+    row = g.log_odds()[0]
     np.testing.assert_allclose(row[:10], L_MISS, rtol=1e-6)
     assert row[10] == pytest.approx(L_HIT, rel=1e-6)
     assert (g.occupancy()[0, 11:] == -1).all() and (g.occupancy()[1:] == -1).all()
@@ -34,15 +35,15 @@ def test_hit_wins_over_miss_and_each_cell_is_updated_once_per_scan():
     angles = np.concatenate([[0.0, 0.0], np.linspace(-0.01, 0.01, 50)])
     ranges = np.concatenate([[1.0, 2.0], np.full(50, 1.5)])
     g.insert_scan((0.05, 0.05, 0.0), ranges, angles, max_range=5.0)
-    assert g.log_odds[0, 10] == pytest.approx(L_HIT, rel=1e-6)
-    assert g.log_odds[0, 1] == pytest.approx(L_MISS, rel=1e-6)  # crossed by 52 beams, updated once
+    assert g.log_odds()[0, 10] == pytest.approx(L_HIT, rel=1e-6)
+    assert g.log_odds()[0, 1] == pytest.approx(L_MISS, rel=1e-6)  # crossed by 52 beams, updated once
 
 
 def test_max_range_and_infinite_readings_clear_without_marking():
     g = OccupancyGrid2D(0.1, size=(3.0, 1.0))
     counts = g.insert_scan((0.05, 0.05, 0.0), [2.5, np.inf], [0.0, 0.0], max_range=2.0)
-    assert counts["max_range"] == 2 and counts["dropped"] == 0
-    row = g.log_odds[0]
+    assert counts["beyond_max_range"] == 2 and counts["dropped"] == 0
+    row = g.log_odds()[0]
     np.testing.assert_allclose(row[:20], L_MISS, rtol=1e-6)  # free up to 2.0 m, end cell excluded
     assert not g.observed[0, 20:].any() and not (row > 0).any()
 
@@ -50,7 +51,7 @@ def test_max_range_and_infinite_readings_clear_without_marking():
 def test_invalid_readings_are_dropped_and_counted():
     g = OccupancyGrid2D(0.1, size=(2.0, 2.0))
     counts = g.insert_scan((1.0, 1.0, 0.0), [np.nan, -1.0, 0.0, 0.5], [0.0, 0.5, 1.0, 1.5])
-    assert counts == {"scans": 1, "beams": 1, "dropped": 3, "max_range": 0}
+    assert counts == {"scans": 1, "points": 1, "dropped": 3, "beyond_max_range": 0}
     assert g.stats["dropped"] == 3
 
 
@@ -58,8 +59,8 @@ def test_clamping_bounds():
     g = OccupancyGrid2D(0.1, size=(2.0, 1.0))
     for _ in range(20):
         single_beam(g, 1.0)
-    assert g.log_odds[0, 10] == pytest.approx(L_MAX, rel=1e-6)
-    assert g.log_odds[0, 5] == pytest.approx(L_MIN, rel=1e-6)
+    assert g.log_odds()[0, 10] == pytest.approx(L_MAX, rel=1e-6)
+    assert g.log_odds()[0, 5] == pytest.approx(L_MIN, rel=1e-6)
 
 
 def test_a_moving_object_is_free_again_after_ceil_lmax_over_lmiss_scans():
@@ -85,7 +86,7 @@ def test_batched_integration_equals_one_scan_at_a_time(rng):
     a.insert_scans(poses, ranges, angles, max_range=5.0)
     for p, r in zip(poses, ranges):
         b.insert_scan(p, r, angles, max_range=5.0)
-    np.testing.assert_array_equal(a.log_odds, b.log_odds)
+    np.testing.assert_array_equal(a.log_odds(), b.log_odds())
     np.testing.assert_array_equal(a.observed, b.observed)
 
 
@@ -108,7 +109,7 @@ def test_scans_past_the_stamp_codes_equal_wide_stamps(rng):
     K.integrate_lidar(L, S, 1, poses, ranges, np.ascontiguousarray(np.broadcast_to(angles, ranges.shape)), 1.0,
                       -1.5, -1.5, 20.0, L_HIT, L_MISS, L_MIN, L_MAX)
     for g in (one, split):
-        np.testing.assert_array_equal(g.log_odds.view(np.int32), L.view(np.int32))
+        np.testing.assert_array_equal(g.log_odds().view(np.int32), np.where(S != 0, L, np.float32(np.nan)).view(np.int32))
         np.testing.assert_array_equal(g.observed, S != 0)
 
 
@@ -117,20 +118,20 @@ def test_growing_map_keeps_content_and_alignment(rng):
     angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
     g.insert_scan((0.0, 0.0, 0.0), np.full(360, 1.5), angles)
     probe = rng.uniform(-1.6, 1.6, (500, 2))
-    before = g.value_at(probe)
+    before = g.log_odds_at(probe)
     g.insert_scan((30.0, -20.0, 0.0), np.full(360, 1.5), angles)  # far away: the map must grow
-    after = g.value_at(probe)
+    after = g.log_odds_at(probe)
     np.testing.assert_array_equal(np.isnan(before), np.isnan(after))
     np.testing.assert_array_equal(before[~np.isnan(before)], after[~np.isnan(after)])
     assert np.allclose(g.origin / 0.05, np.round(g.origin / 0.05))  # still on the same cell lattice
-    assert g.value_at([[30.0 + 1.5, -20.0]])[0] == pytest.approx(L_HIT, rel=1e-6)
+    assert g.log_odds_at([[30.0 + 1.5, -20.0]])[0] == pytest.approx(L_HIT, rel=1e-6)
 
 
 def test_fixed_map_ignores_ray_parts_outside():
     g = OccupancyGrid2D(0.1, size=(1.0, 1.0))
     counts = g.insert_scan((-5.0, 0.55, 0.0), [10.0], [0.0])  # starts outside, crosses, ends outside
-    assert counts["beams"] == 1
-    np.testing.assert_allclose(g.log_odds[5], L_MISS, rtol=1e-6)
+    assert counts["points"] == 1
+    np.testing.assert_allclose(g.log_odds()[5], L_MISS, rtol=1e-6)
 
 
 def test_world_cell_conversions_and_occupancy_values():
@@ -156,7 +157,7 @@ def test_bad_input():
     with pytest.raises(ShapeError):
         g.insert_scan((0.0, 0.0, 0.0), [1.0, 2.0], [0.0, 0.1, 0.2])
     with pytest.raises(InvalidArgumentError):
-        LidarModel(p_hit=0.4)
+        LidarModel(prob_hit=0.4)
 
 
 def test_save_load_round_trip_keeps_the_trinary_map(tmp_path, rng):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from occmap.errors import InvalidArgumentError, NonFiniteError
-from occmap.grid2d.sensor_models import logit
+from occmap.logodds import logit
 from occmap.local import LETHAL, LocalMap
 from occmap.raster.walk2d import traverse_2d
 

@@ -65,7 +65,7 @@ def test_grid_and_local_map_update_the_same_cells_of_the_one_walk(split, monkeyp
         expected[y, x] = True
     np.testing.assert_array_equal(grid.observed, expected)
     np.testing.assert_array_equal(~np.isnan(got), expected)
-    np.testing.assert_array_equal(got[expected], grid.log_odds[expected])
+    np.testing.assert_array_equal(got[expected], grid.log_odds()[expected])
 
 
 def test_local_map_scan_codes_roll_over_like_fresh_codes():

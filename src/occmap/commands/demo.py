@@ -119,7 +119,7 @@ def map_simulated_office(out: Path, seed: int = 1) -> list[str]:
     grid.save_png(out / "sim_office.png")
     world.render_png(out / "sim_office_truth.png", poses=poses)
     return [
-        f"simulated office: {counts['scans']} scans, {counts['beams']:,} beams (σ 1 cm, 1 % outliers) in {seconds:.2f} s",
+        f"simulated office: {counts['scans']} scans, {counts['points']:,} beams (σ 1 cm, 1 % outliers) in {seconds:.2f} s",
         f"  wrote {out / 'sim_office.yaml'} (+ .pgm), {out / 'sim_office.png'}, truth {out / 'sim_office_truth.png'}",
     ]
 

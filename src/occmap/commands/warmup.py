@@ -129,7 +129,7 @@ def grids(folder: Path) -> None:
     growing = OccupancyGrid2D(0.1)
     growing.insert_scan(P[0], R[0], scans[0].angles, max_range=10.0, model=LidarModel(0.7, 0.45))
     growing.insert_scans(P, R, np.repeat(scans[0].angles[None], len(P), axis=0), max_range=8.0)
-    growing.value_at(P[:, :2])
+    growing.log_odds_at(P[:, :2])
     sonar = simulate_sonar(world, P[0], np.radians(np.arange(0.0, 360.0, 45.0)), rng=2)
     fixed = OccupancyGrid2D.load(folder / "sim_office.yaml")
     fixed.insert_sonar(P[:1], sonar.ranges[None], sonar.angles, 5.0)
