@@ -189,3 +189,19 @@ def test_save_png_draws_unknown_distinctly(tmp_path):
     bottom = rgb[-1]  # row 0 of the grid is drawn at the bottom of the picture
     assert (bottom[5] > 100).all() and (bottom[10] < 100).all()  # free light, hit dark
     assert tuple(rgb[0, 0]) != tuple(bottom[5])  # unknown is neither free nor occupied colour
+
+
+def test_log_odds_is_a_copy_with_nan_where_unobserved_and_occupancy_at_follows_the_threshold():
+    g = OccupancyGrid2D(0.1, size=(2.0, 1.0), occupied_threshold=0.65)
+    single_beam(g, 1.0)
+    L = g.log_odds()
+    assert L.dtype == np.float32 and np.isnan(L[~g.observed]).all() and not np.isnan(L[g.observed]).any()
+    L[0, 10] = 0.0
+    assert g.log_odds()[0, 10] == pytest.approx(L_HIT, rel=1e-6)  # a copy: the map is untouched
+    # cell centres along row 0: free before the end cell, occupied (0.7 ≥ 0.65) at it, unknown after
+    at = g.occupancy_at([[0.05 + 0.1 * i, 0.05] for i in range(12)] + [[-1.0, 0.05], [np.nan, 0.05]])
+    assert at.dtype == np.int8 and at.tolist() == [0] * 10 + [1, -1, -1, -1]
+    assert OccupancyGrid2D(0.1, size=(2.0, 1.0), occupied_threshold=0.75).occupancy_at([[0.05, 0.05]]).tolist() == [-1]
+    g75 = OccupancyGrid2D(0.1, size=(2.0, 1.0), occupied_threshold=0.75)
+    single_beam(g75, 1.0)
+    assert g75.occupancy_at([[1.05, 0.05]]).tolist() == [0]  # 0.7 < 0.75

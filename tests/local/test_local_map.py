@@ -429,3 +429,27 @@ def test_check_path_lethal_collides_even_beside_unknown():
     assert check.max_cost[1] == 255 and check.first_collision == 1
     disc = local.check_path(np.array([[0.0, 0.0, 0.0], [2.9, 0.0, 0.0]]), footprint=0.3)
     assert disc.first_collision == 1
+
+
+def test_log_odds_at_and_occupancy_at_read_the_window_cells():
+    """Per point, the value log_odds() holds in its cell (after a move, so the ring is started
+    mid-buffer, and with forgetting); NaN / −1 outside the window, in unknown cells and for NaN
+    points; occupied from occupied_threshold on."""
+    lm = LocalMap((4.0, 3.0), 0.1, half_life=1.0, occupied_threshold=0.6)
+    angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
+    lm.insert_scan((0.0, 0.0, 0.0), np.full(90, 1.0), angles, stamp=0.0, max_range=5.0)
+    lm.move_to(0.35, -0.25)
+    lm.insert_scan((0.35, -0.25, 0.0), np.full(90, 0.8), angles, stamp=0.4, max_range=5.0)
+    H, W = lm.shape
+    cells = np.stack(np.meshgrid(np.arange(H), np.arange(W), indexing="ij"), -1)
+    centres = lm.cell_to_world(cells)
+    full = lm.log_odds()
+    at = lm.log_odds_at(centres)
+    assert at.shape == (H, W) and at.dtype == np.float64
+    np.testing.assert_array_equal(at, full)
+    occ = lm.occupancy_at(centres)
+    np.testing.assert_array_equal(occ == -1, np.isnan(full))
+    np.testing.assert_array_equal(occ == 1, np.nan_to_num(full, nan=-np.inf) >= logit(0.6))
+    assert (occ == 1).any() and (occ == 0).any() and (occ == -1).any()
+    outside = [[lm.origin[0] - 0.05, lm.origin[1] + 1.0], [lm.origin[0] + 1.0, lm.origin[1] + 3.05], [np.nan, 0.0]]
+    assert np.isnan(lm.log_odds_at(outside)).all() and (lm.occupancy_at(outside) == -1).all()

@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import checks
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
-from ..logodds import logit, probability
+from ..logodds import logit, occupancy_classes, probability
 from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _kernels as K
 from .sensor_models import LidarModel, SonarModel
@@ -143,11 +143,13 @@ class OccupancyGrid2D:
 
     def log_odds_at(self, points) -> np.ndarray:
         """Log-odds (float64, shape (...)) at world points (..., 2); NaN outside the map or where
-        unobserved."""
-        cells = self.world_to_cell(points)
+        unobserved (NaN points too)."""
+        p = np.asarray(points, dtype=np.float64)
+        good = np.isfinite(p).all(axis=-1)
+        cells = self.world_to_cell(np.where(good[..., None], p, 0.0))
         iy, ix = cells[..., 0], cells[..., 1]
         H, W = self.shape
-        inside = (iy >= 0) & (iy < H) & (ix >= 0) & (ix < W)
+        inside = good & (iy >= 0) & (iy < H) & (ix >= 0) & (ix < W)
         out = np.full(iy.shape, np.nan)
         jy, jx = iy[inside], ix[inside]
         seen = self._stamp[jy, jx] != UNSEEN
@@ -158,10 +160,7 @@ class OccupancyGrid2D:
     def occupancy_at(self, points) -> np.ndarray:
         """Per world point (..., 2), int8: −1 unknown or outside the map, 1 occupied
         (``p ≥ occupied_threshold``), else 0 free."""
-        l = self.log_odds_at(points)
-        out = np.where(l >= self._l_occ, 1, 0).astype(np.int8)
-        out[np.isnan(l)] = -1
-        return out
+        return occupancy_classes(self.log_odds_at(points), self._l_occ)
 
     # ------------------------------------------------------------------ insertion
 

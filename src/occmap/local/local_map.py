@@ -38,7 +38,7 @@ import numpy as np
 from .. import checks
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..grid2d.sensor_models import LidarModel
-from ..logodds import logit
+from ..logodds import logit, occupancy_classes
 from ..raster.ring import slot
 from ..raster.update import UNSEEN, ScanCodes
 from . import _kernels as K
@@ -384,10 +384,7 @@ class LocalMap:
     def occupancy_at(self, points) -> np.ndarray:
         """Per world point (..., 2), int8: −1 unknown or outside the window, 1 occupied
         (``p ≥ occupied_threshold``), else 0 free."""
-        l = self.log_odds_at(points)
-        out = np.where(l >= self.l_occupied, 1, 0).astype(np.int8)
-        out[np.isnan(l)] = -1
-        return out
+        return occupancy_classes(self.log_odds_at(points), self.l_occupied)
 
     def costmap(self) -> tuple[np.ndarray, np.ndarray]:
         """``(cost, origin)``: Nav2 costs (uint8 (H, W), row 0 at the origin; see
