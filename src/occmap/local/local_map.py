@@ -257,7 +257,9 @@ class LocalMap:
 
     # ------------------------------------------------------------------ sensing
 
-    def _integrate(self, px, py, ends, kinds) -> dict:
+    def _insert(self, px, py, ends, kinds, dropped: int, maxed: int) -> dict:
+        """Insert one scan's ray ends from the sensor at (px, py); record and return its counts
+        (the keys of :attr:`stats`, ``docs/vocabulary.md``)."""
         g = self._g
         lp = self.l_prior
         hits, rays, updated, visited = K.integrate(
@@ -265,11 +267,18 @@ class LocalMap:
             1.0 / self.resolution, float(px), float(py), ends, kinds, self._next_scan(),
             (self.model.l_hit - lp) / g, (self.model.l_miss - lp) / g, (self.l_min - lp) / g, (self.l_max - lp) / g,
             self.parallel)
-        self.stats["scans"] += 1
-        self.stats["rays"] += rays
+        counts = {"scans": 1, "points": len(kinds), "dropped": int(dropped), "beyond_max_range": int(maxed),
+                  "rays": int(rays)}
+        for key, value in counts.items():
+            self.stats[key] += value
         self.stats["cells_updated"] += hits + updated
         self._changed()
-        return {"hits": int(hits), "rays": int(rays), "free_updates": int(updated), "cells_visited": int(visited)}
+        return {**counts, "hits": int(hits), "free_updates": int(updated), "cells_visited": int(visited)}
+
+    def _dropped_pose(self, n: int) -> dict:
+        """A scan or cloud whose sensor pose is not finite: counted, nothing inserted."""
+        self.stats["dropped_poses"] += 1
+        return {"scans": 0, "points": 0, "dropped": n, "beyond_max_range": 0, "dropped_pose": True}
 
     def insert_scan(self, pose, ranges, angles, stamp, max_range: float | None = None) -> dict:
         """Insert one planar scan from sensor pose ``(x, y, theta)`` taken at ``stamp`` seconds.
@@ -290,8 +299,7 @@ class LocalMap:
             raise ShapeError(f"ranges and angles must both have shape (n,), got {R.shape} and {A.shape}")
         self._advance(stamp)
         if not np.isfinite(P).all():
-            self.stats["dropped_poses"] += 1
-            return {"dropped_pose": True, "dropped": int(R.size), "beyond_max_range": 0}
+            return self._dropped_pose(int(R.size))
         if max_range is None:
             finite = R[np.isfinite(R) & (R > 0)]
             mr = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
@@ -302,12 +310,7 @@ class LocalMap:
         ends = np.empty((R.size, 2))
         kinds = np.empty(R.size, dtype=np.int8)
         dropped, maxed = K.scan_ends(P, R, A, mr, ends, kinds)
-        self.stats["points"] += int(R.size)
-        self.stats["dropped"] += int(dropped)
-        self.stats["beyond_max_range"] += int(maxed)
-        out = self._integrate(P[0], P[1], ends, kinds)
-        out.update(dropped=int(dropped), beyond_max_range=int(maxed))
-        return out
+        return self._insert(P[0], P[1], ends, kinds, dropped, maxed)
 
     def insert_point_cloud(self, points, origin, stamp, z_min: float, z_max: float) -> dict:
         """Insert a 3D cloud: ``points`` (N, 3) in the world frame, seen from the sensor at
@@ -331,16 +334,11 @@ class LocalMap:
             raise InvalidArgumentError(f"z_min ({z_min}) must not exceed z_max ({z_max})")
         self._advance(stamp)
         if not np.isfinite(o[:2]).all():
-            self.stats["dropped_poses"] += 1
-            return {"dropped_pose": True, "dropped": len(pts)}
+            return self._dropped_pose(len(pts))
         ends = np.empty((len(pts), 2))
         kinds = np.empty(len(pts), dtype=np.int8)
         dropped = K.cloud_ends(pts, z_min, z_max, ends, kinds)
-        self.stats["points"] += len(pts)
-        self.stats["dropped"] += int(dropped)
-        out = self._integrate(o[0], o[1], ends, kinds)
-        out["dropped"] = int(dropped)
-        return out
+        return self._insert(o[0], o[1], ends, kinds, dropped, 0)
 
     # ------------------------------------------------------------------ read-outs
 

@@ -203,12 +203,13 @@ class OcTree:
         (< 0: no limit) clears free space up to ``max_range`` and marks nothing. ``discretize``
         merges points that fall in one voxel first (one ray per voxel, from the voxel centre).
         ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
-        :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
+        :meth:`prune` when done). NaN/inf points are dropped and counted. Returns this scan's counts:
+        ``scans``, ``points``, ``dropped``, ``beyond_max_range`` (``docs/vocabulary.md``).
         """
         with insertion.THREADS.choose(len(points)) as threads:
             keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads)
             insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads)
-        return self._count(summary)
+        return {"scans": 1, **self._count(summary)}
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
                             lazy: bool = False) -> dict:
