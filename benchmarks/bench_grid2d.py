@@ -75,7 +75,7 @@ def main() -> int:
     ranges = np.full((n_scans, n_beams), 9.99)
 
     def ours():
-        OccupancyGrid2D(0.05, size=(40, 40), origin=(-20, -20)).integrate_scans(poses, ranges, angles, max_range=10.0)
+        OccupancyGrid2D(0.05, size=(40, 40), origin=(-20, -20)).insert_scans(poses, ranges, angles, max_range=10.0)
 
     def ours_one_thread():
         threads = numba.get_num_threads()
@@ -119,7 +119,7 @@ def main() -> int:
 
         def call():
             k[0] += 1
-            grid.integrate_scan((0.01 * (k[0] % 16), 0.0, 0.0), scans[k[0] % 16], beam_angles, max_range=30.0)
+            grid.insert_scan((0.01 * (k[0] % 16), 0.0, 0.0), scans[k[0] % 16], beam_angles, max_range=30.0)
 
         return call
 

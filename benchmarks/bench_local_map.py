@@ -1,7 +1,7 @@
 """Local map: one full sensor cycle on a real 70,000-point HDL-32 cloud, and path checks.
 
 Rows: the full cycle — ``move_to`` (the window follows a robot shuttling 0.5 m per cycle, so a
-5-cell strip leaves and enters), ``integrate_points`` of the cloud from
+5-cell strip leaves and enters), ``insert_point_cloud`` of the cloud from
 ``../shared/data/scans3d/hdl32_pair`` (height band −1.5 … 0.5 m in the sensor frame; ground
 and overhangs clear), the half-life decay (lazy: one global factor) and ``costmap()`` (threshold
 + exact inflation, Nav2 defaults) — for 40 m × 40 m and 100 m × 100 m windows at 0.1 m, then each
@@ -69,7 +69,7 @@ class Cycle:
         if "move" in parts:
             self.lm.move_to(self.origins[i][0], 0.0)
         if "integrate" in parts:
-            self.lm.integrate_points(self.clouds[i], self.origins[i], 0.1 * self.k, Z_MIN, Z_MAX)
+            self.lm.insert_point_cloud(self.clouds[i], self.origins[i], 0.1 * self.k, Z_MIN, Z_MAX)
         if "costmap" in parts:
             self.lm._cost_cache = None  # recompute even when nothing changed (costmap-only rows)
             self.lm.costmap()
@@ -97,7 +97,7 @@ def main(argv=None) -> int:
         cyc = Cycle(size, pts, origin)
         for _ in range(3):
             cyc.step()
-        info = cyc.lm.integrate_points(pts, origin, 0.1 * cyc.k + 0.05, Z_MIN, Z_MAX)
+        info = cyc.lm.insert_point_cloud(pts, origin, 0.1 * cyc.k + 0.05, Z_MIN, Z_MAX)
         cyc.k += 1
         fns = [lambda: cyc.step(), lambda: cyc.step(("move",)), lambda: cyc.step(("integrate",)),
                lambda: cyc.step(("costmap",)), lambda: scipy_inflation(cyc.lm),

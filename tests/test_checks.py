@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from occmap import checks
+from occmap import LocalMap, OccupancyGrid2D, OcTree, checks
 from occmap.errors import InvalidArgumentError, OccmapError
 
 
@@ -68,3 +68,23 @@ def test_count_minimum():
     assert checks.count("n", 0, minimum=0) == 0
     with pytest.raises(InvalidArgumentError, match="n must be an integer ≥ 1, got 0"):
         checks.count("n", 0)
+
+
+MAPS = {
+    "OccupancyGrid2D": OccupancyGrid2D,
+    "OcTree": OcTree,
+    "LocalMap": lambda **kw: LocalMap(size=(2.0, 2.0), **kw),
+}
+
+
+@pytest.mark.parametrize("make", MAPS.values(), ids=MAPS.keys())
+def test_the_three_maps_follow_the_rule(make):
+    """The maps check their arguments by this module: a float32 resolution is a resolution, a bool
+    or NaN is refused with the argument's name."""
+    assert make(resolution=np.float32(0.1)).resolution == 0.10000000149011612
+    for bad in (True, math.nan):
+        with pytest.raises(InvalidArgumentError, match="resolution"):
+            make(resolution=bad)
+    with pytest.raises(InvalidArgumentError, match="occupied_threshold"):
+        make(resolution=0.1, occupied_threshold=np.nan)
+    assert make(resolution=0.1, occupied_threshold=np.float32(0.6)).occupied_threshold == float(np.float32(0.6))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from occmap.errors import InvalidArgumentError
-from occmap.logodds import logit, logit32, probability
+from occmap.logodds import logit, logit32, occupancy_classes, probability
 
 # OctoMap's parameters as it stores them: (float) log(p / (1 - p)) evaluated in double, written
 # here as float32 bit patterns (checked against octomap-python below where it is installed)
@@ -51,3 +51,9 @@ def test_round_trip_scalars_and_arrays():
 def test_scalar_probability_is_checked(bad):
     with pytest.raises(InvalidArgumentError, match="prob_hit must be a probability"):
         logit(bad, "prob_hit")
+
+
+def test_occupancy_classes():
+    l = np.array([[np.nan, -0.5, 0.0], [0.4, 0.41, np.inf]], np.float32)
+    got = occupancy_classes(l, 0.4)
+    assert got.dtype == np.int8 and got.tolist() == [[-1, 0, 0], [1, 1, 1]]

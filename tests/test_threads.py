@@ -93,7 +93,7 @@ def _child_integrates(_):
 
     grid = OccupancyGrid2D(0.05)
     angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
-    grid.integrate_scan((0.0, 0.0, 0.0), np.full(720, 4.0), angles, max_range=10.0)
+    grid.insert_scan((0.0, 0.0, 0.0), np.full(720, 4.0), angles, max_range=10.0)
     return int((grid.occupancy() == 100).sum())
 
 

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidArgumentError, ShapeError
+from . import checks
+from .errors import ShapeError
 from .geometry.se3 import SE3
 
 __all__ = ["PointCloud"]
@@ -60,10 +61,7 @@ class PointCloud:
         object.__setattr__(self, "pose", pose)
         if self.stamp is not None:
             object.__setattr__(self, "stamp", float(self.stamp))
-        dropped = int(self.dropped)
-        if dropped < 0 or dropped != self.dropped:
-            raise InvalidArgumentError(f"dropped must be a non-negative integer, got {self.dropped!r}")
-        object.__setattr__(self, "dropped", dropped)
+        object.__setattr__(self, "dropped", checks.count("dropped", self.dropped, 0))
 
     @property
     def origin(self) -> np.ndarray:

@@ -20,7 +20,7 @@ import numpy as np
 
 from .checks import probability as _check_probability
 
-__all__ = ["logit", "logit32", "probability"]
+__all__ = ["logit", "logit32", "occupancy_classes", "probability"]
 
 
 def logit(p, name: str = "probability"):
@@ -48,3 +48,12 @@ def probability(l):
             return 0.0
     with np.errstate(over="ignore"):
         return 1.0 / (1.0 + np.exp(-np.asarray(l, dtype=np.float64)))
+
+
+def occupancy_classes(l, l_occupied) -> np.ndarray:
+    """What every map's ``occupancy_at`` answers, per log-odds ``l`` (NaN: unknown): int8 −1
+    unknown, 1 occupied (``l ≥ l_occupied``), else 0 free."""
+    l = np.asarray(l)
+    out = np.where(l >= l_occupied, 1, 0).astype(np.int8)
+    out[np.isnan(l)] = -1
+    return out

@@ -15,9 +15,9 @@ from .scan import ScanStack
 @dataclass
 class MappingSummary:
     scans: int
-    beams: int
+    points: int
     dropped: int
-    max_range_readings: int
+    beyond_max_range: int
     seconds: float
     grid: OccupancyGrid2D
 
@@ -26,8 +26,8 @@ class MappingSummary:
         ml = self.grid.maximum_likelihood()
         res = self.grid.resolution
         return [
-            f"scans {self.scans:,}, beams {self.beams:,}, dropped readings {self.dropped:,}, "
-            f"no-return readings {self.max_range_readings:,}",
+            f"scans {self.scans:,}, beams {self.points:,}, dropped readings {self.dropped:,}, "
+            f"no-return readings {self.beyond_max_range:,}",
             f"map {W} × {H} cells at {res} m ({W * res:.1f} m × {H * res:.1f} m), origin "
             f"({self.grid.origin[0]:.2f}, {self.grid.origin[1]:.2f}); occupied {(ml == 1).sum():,}, "
             f"free {(ml == 0).sum():,}, unknown {(ml == -1).sum():,} cells",
@@ -54,7 +54,7 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
         stop = min(n, start + chunk)
         a = angles if angles.ndim == 1 else angles[start:stop]
         with clock.running():
-            grid.integrate_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
+            grid.insert_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
         if progress:
             done = stop / n
             bar = "#" * int(30 * done)
@@ -62,4 +62,4 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
     if progress and n:
         print(file=sys.stderr)
     s = grid.stats
-    return MappingSummary(s["scans"], s["beams"], s["dropped"], s["max_range"], clock.seconds, grid)
+    return MappingSummary(s["scans"], s["points"], s["dropped"], s["beyond_max_range"], clock.seconds, grid)

@@ -49,14 +49,14 @@ def test_options_are_checked_before_the_data_is_read(tmp_path, capsys):
     """A missing log is not what the user hears about when an option is wrong."""
     missing = tmp_path / "missing.log"
     for option in (["--resolution", "0"], ["--resolution", "nan"], ["--every", "0"], ["--max-range", "-3"],
-                   ["--p-hit", "1.5"], ["--every", "two"]):
+                   ["--prob-hit", "1.5"], ["--every", "two"]):
         with pytest.raises(SystemExit) as stop:
             main(["map2d", str(missing), "-o", str(tmp_path / "m.yaml"), *option])
         assert stop.value.code == 2
         err = capsys.readouterr().err
         assert option[0] in err and "missing.log" not in err
     # a pair of probabilities the lidar model rejects, still before the log is opened
-    _refused(["map2d", missing, "-o", tmp_path / "m.yaml", "--p-hit", "0.3"], capsys, "p_hit")
+    _refused(["map2d", missing, "-o", tmp_path / "m.yaml", "--prob-hit", "0.3"], capsys, "prob_hit")
     assert "missing.log" not in capsys.readouterr().err
 
 

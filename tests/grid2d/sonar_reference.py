@@ -57,7 +57,7 @@ def map_like_exercise(log, model: SonarModel | None = None) -> OccupancyGrid2D:
     and max range Z_max = 5 m."""
     model = SonarModel.udacity_exercise() if model is None else model
     g = OccupancyGrid2D(EXERCISE_RESOLUTION, size=EXERCISE_SIZE, origin=EXERCISE_ORIGIN, clamp=NO_CLAMP)
-    g.integrate_sonar(log.poses, log.ranges, log.bearings, max_range=EXERCISE_MAX_RANGE, model=model)
+    g.insert_sonar(log.poses, log.ranges, log.bearings, max_range=EXERCISE_MAX_RANGE, model=model)
     return g
 
 
@@ -65,7 +65,7 @@ def exercise_cells(grid: OccupancyGrid2D) -> np.ndarray:
     """The grid's classes (int8) indexed like the exercise's picture, ``[x, y]`` with ``y`` up the
     plot (= grid row ``H − 1 − y``): OCCUPIED where l > 0, FREE where l < 0, UNKNOWN where no
     reading touched the cell or l == 0 (the exercise's test for green)."""
-    L = np.asarray(grid.log_odds, dtype=np.float64)
+    L = np.asarray(grid.log_odds(), dtype=np.float64)
     cls = np.full(L.shape, UNKNOWN, dtype=np.int8)
     cls[L > 0] = OCCUPIED
     cls[L < 0] = FREE
@@ -156,7 +156,7 @@ def map_with_cone_model(log) -> OccupancyGrid2D:
     """occmap's own cone model on the exercise's grid, for contrast: beam 20°, arc 0.2 m,
     quadratic weighting, OctoMap's clamping, no-echo readings (5.11 m) clearing their cone."""
     g = OccupancyGrid2D(EXERCISE_RESOLUTION, size=EXERCISE_SIZE, origin=EXERCISE_ORIGIN)
-    g.integrate_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
+    g.insert_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
                       model=SonarModel(beam_width=math.radians(20), arc=0.2))
     return g
 

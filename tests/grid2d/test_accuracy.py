@@ -23,7 +23,7 @@ def test_simulated_office_meets_the_precision_recall_and_free_space_targets():
     xmin, ymin, xmax, ymax = world.bounds
     res = 0.05
     grid = OccupancyGrid2D(res, size=(xmax - xmin, ymax - ymin), origin=(xmin, ymin))
-    grid.integrate_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
+    grid.insert_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
 
     wall, _ = world.occupancy(res, origin=(xmin, ymin), shape=grid.shape)
     free, _ = world.free_space(res, origin=(xmin, ymin), shape=grid.shape)

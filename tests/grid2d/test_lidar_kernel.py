@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from occmap.grid2d import _kernels as K
-from occmap.grid2d import logit
+from occmap.logodds import logit
 
 L_HIT, L_MISS = logit(0.7), logit(0.4)
 L_MIN, L_MAX = logit(0.1192), logit(0.971)

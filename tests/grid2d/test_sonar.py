@@ -1,4 +1,4 @@
-"""SonarModel / integrate_sonar: cone geometry, angular weighting, max-range readings, the nearest-
+"""SonarModel / insert_sonar: cone geometry, angular weighting, max-range readings, the nearest-
 transducer sectors of Thrun's Table 9.2, real data, and the Udacity exercise's reference picture."""
 
 from __future__ import annotations
@@ -9,19 +9,20 @@ import numpy as np
 import pytest
 
 from occmap.errors import InvalidArgumentError, ShapeError
-from occmap.grid2d import OccupancyGrid2D, SonarModel, logit
+from occmap.grid2d import OccupancyGrid2D, SonarModel
+from occmap.logodds import logit
 
 
 def one_reading(r, max_range=5.0, model=SonarModel()):
     g = OccupancyGrid2D(0.05, size=(6.0, 6.0), origin=(-3.0, -3.0))
-    counts = g.integrate_sonar((0.0, 0.0, 0.0), [r], [0.0], max_range=max_range, model=model)
+    counts = g.insert_sonar((0.0, 0.0, 0.0), [r], [0.0], max_range=max_range, model=model)
     return g, counts
 
 
 def test_cone_is_free_before_the_arc_and_occupied_on_it():
     g, counts = one_reading(2.0)
-    assert counts == {"scans": 1, "beams": 1, "dropped": 0, "max_range": 0}
-    v = lambda x, y: g.value_at([[x, y]])[0]  # noqa: E731
+    assert counts == {"scans": 1, "points": 1, "dropped": 0, "beyond_max_range": 0}
+    v = lambda x, y: g.log_odds_at([[x, y]])[0]  # noqa: E731
     assert v(1.0125, 0.0125) < 0 and v(1.9875, 0.0125) > 0  # on the axis: free, then the arc
     assert math.isnan(v(2.5, 0.0))  # beyond the arc: untouched
     assert math.isnan(v(1.0, 0.3))  # 16.7° off the axis, outside the 15° cone
@@ -33,27 +34,27 @@ def test_cone_is_free_before_the_arc_and_occupied_on_it():
 
 def test_no_echo_clears_the_cone_up_to_max_range_and_marks_nothing():
     g, counts = one_reading(5.11, max_range=2.5)
-    assert counts["max_range"] == 1
-    lo = g.log_odds[g.observed]
+    assert counts["beyond_max_range"] == 1
+    lo = g.log_odds()[g.observed]
     assert (lo < 0).all() and lo.size > 100
-    assert math.isnan(g.value_at([[2.6, 0.0]])[0])
+    assert math.isnan(g.log_odds_at([[2.6, 0.0]])[0])
 
 
 def test_an_echo_near_max_range_marks_nothing_beyond_it():
     g, counts = one_reading(2.45, max_range=2.5, model=SonarModel(arc=0.2))
-    assert counts["max_range"] == 0
-    assert g.value_at([[2.4875, 0.0125]])[0] > 0  # on the arc, inside max range
-    assert math.isnan(g.value_at([[2.5125, 0.0125]])[0])  # the arc would reach 2.55 m: cut at 2.5
+    assert counts["beyond_max_range"] == 0
+    assert g.log_odds_at([[2.4875, 0.0125]])[0] > 0  # on the arc, inside max range
+    assert math.isnan(g.log_odds_at([[2.5125, 0.0125]])[0])  # the arc would reach 2.55 m: cut at 2.5
 
 
 def test_ignore_max_range_skips_readings_beyond_it_and_clears_at_it():
     model = SonarModel(ignore_max_range=True)
     g, counts = one_reading(5.11, max_range=2.5, model=model)
-    assert counts == {"scans": 1, "beams": 0, "dropped": 0, "max_range": 1}
+    assert counts == {"scans": 1, "points": 0, "dropped": 0, "beyond_max_range": 1}
     assert not g.observed.any()
     g, counts = one_reading(2.5, max_range=2.5, model=model)  # exactly at max range: a no-echo
-    assert counts["beams"] == 1 and counts["max_range"] == 1
-    lo = g.log_odds[g.observed]
+    assert counts["points"] == 1 and counts["beyond_max_range"] == 1
+    lo = g.log_odds()[g.observed]
     assert (lo < 0).all() and lo.size > 100
 
 
@@ -61,7 +62,7 @@ def test_min_range_and_uniform_weighting():
     g, counts = one_reading(0.1, model=SonarModel(min_range=0.17))
     assert counts["dropped"] == 1 and not g.observed.any()
     g, _ = one_reading(2.0, model=SonarModel(weighting="uniform"))
-    v = g.value_at([[1.0, 0.11], [1.0125, 0.0125]])
+    v = g.log_odds_at([[1.0, 0.11], [1.0125, 0.0125]])
     assert v == pytest.approx([logit(0.4)] * 2, rel=1e-6)  # the rim as loud as the axis
 
 
@@ -75,11 +76,11 @@ def test_nearest_sectors_give_each_direction_to_one_transducer():
     assert lo[0] == -np.inf and hi[2] == np.inf and np.degrees(hi[0]) == pytest.approx(45)
     # a repeated bearing: the first transducer takes the sector
     lo, hi = model.sector_bounds([0.0, 0.0])
-    assert (lo[0], hi[0]) == pytest.approx((-math.pi, math.pi)) and lo[1] == hi[1] == 0.0
+    assert (lo[0], hi[0]) == (-np.inf, np.inf) and lo[1] == hi[1] == 0.0  # a lone bearing: the whole circle
     # ahead (0.5 m) and left (2.0 m): sectors −135°…45° and 45°…135° around the circle
     g = OccupancyGrid2D(0.05, size=(6.0, 6.0), origin=(-3.0, -3.0))
-    g.integrate_sonar((0.0, 0.0, 0.0), [0.5, 2.0], [0.0, math.pi / 2], max_range=5.0, model=model)
-    at = lambda deg, r=1.0: g.value_at([[r * math.cos(math.radians(deg)), r * math.sin(math.radians(deg))]])[0]  # noqa: E731
+    g.insert_sonar((0.0, 0.0, 0.0), [0.5, 2.0], [0.0, math.pi / 2], max_range=5.0, model=model)
+    at = lambda deg, r=1.0: g.log_odds_at([[r * math.cos(math.radians(deg)), r * math.sin(math.radians(deg))]])[0]  # noqa: E731
     assert math.isnan(at(30))  # the ahead reading's, beyond its 0.5 m: untouched though inside the left cone
     assert at(30, 0.3) == pytest.approx(logit(0.4), rel=1e-6)
     assert at(60) == pytest.approx(logit(0.4), rel=1e-6)  # the left one's free space
@@ -95,18 +96,18 @@ def test_unwrapped_angles_give_cells_to_the_exercises_transducer():
     values = []
     for wrap in (True, False):
         g = OccupancyGrid2D(0.05, size=(6.0, 6.0), origin=(-3.0, -3.0))
-        g.integrate_sonar((0.0, 0.0, math.pi), [1.0, 2.0], [-math.pi / 2, math.pi / 2], max_range=5.0,
+        g.insert_sonar((0.0, 0.0, math.pi), [1.0, 2.0], [-math.pi / 2, math.pi / 2], max_range=5.0,
                           model=SonarModel(wrap_angles=wrap, **kw))
-        values.append(g.value_at([[0.0125, -0.9875]])[0])
+        values.append(g.log_odds_at([[0.0125, -0.9875]])[0])
     assert values[0] < 0 < values[1]
 
 
 def test_invalid_readings_and_arguments():
     g = OccupancyGrid2D(0.1, size=(4.0, 4.0), origin=(-2.0, -2.0))
-    counts = g.integrate_sonar(np.zeros((1, 3)), [[np.nan, -1.0, 1.0]], [0.0, 1.0, 2.0], max_range=3.0)
-    assert counts["dropped"] == 2 and counts["beams"] == 1
+    counts = g.insert_sonar(np.zeros((1, 3)), [[np.nan, -1.0, 1.0]], [0.0, 1.0, 2.0], max_range=3.0)
+    assert counts["dropped"] == 2 and counts["points"] == 1
     with pytest.raises(ShapeError):
-        g.integrate_sonar(np.zeros((1, 3)), [[1.0, 1.0]], [0.0], max_range=3.0)
+        g.insert_sonar(np.zeros((1, 3)), [[1.0, 1.0]], [0.0], max_range=3.0)
     with pytest.raises(InvalidArgumentError):
         SonarModel(beam_width=0.0)
     with pytest.raises(InvalidArgumentError):
@@ -128,7 +129,7 @@ def test_shared_sonar_ring_maps_its_corridor(data_dir):
     log = read_sonar_ring(data_dir / "sonar")
     assert log.ranges.shape == (413, 8) and log.max_range == pytest.approx(5.11)
     g = OccupancyGrid2D(0.1, size=(30.0, 15.0), origin=(-6.0, -10.0))
-    g.integrate_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
+    g.insert_sonar(log.poses, log.ranges, log.bearings, max_range=log.max_range,
                       model=SonarModel(beam_width=math.radians(20), arc=0.2))
     ml = g.maximum_likelihood()
     path = log.poses[(log.poses[:, 0] > 1.0) & (log.poses[:, 0] < 8.0)]  # the straight corridor part
@@ -159,13 +160,13 @@ def test_shared_sonar_ring_reproduces_the_exercise_reference(data_dir):
     assert 0.25 < (ref == sd.FREE).mean() < 0.28 and 0.03 < (ref == sd.OCCUPIED).mean() < 0.04
 
     g = sd.map_like_exercise(log)
-    assert g.stats == {"scans": 413, "beams": 2213, "dropped": 0, "max_range": 1093}  # 1091 beyond 5 m, 2 at it
+    assert g.stats == {"scans": 413, "points": 2213, "dropped": 0, "beyond_max_range": 1093}  # 1091 beyond 5 m, 2 at it
     ours = sd.exercise_cells(g)
     fig = sd.agreement(ours, ref)
     assert fig["cells"] == readable.sum()
     assert fig["agree"] >= 0.995 and fig["free_iou"] >= 0.99 and fig["occupied_iou"] >= 0.93
     # what differs is (all but a handful) cells whose evidence cancels exactly
-    L = np.asarray(g.log_odds, dtype=np.float64)[::-1].T
+    L = np.asarray(g.log_odds(), dtype=np.float64)[::-1].T
     differ = (ours != ref) & readable
     assert (differ & (np.abs(L) > 0.2)).sum() <= 3
 

@@ -106,7 +106,7 @@ def test_geb079_counts_and_byte_identical_rewrite(data_dir, tmp_path):
     assert tree.resolution == 0.08
     assert tree.num_nodes() == 532_566
     lv = tree.leaves()
-    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupancy_log_odds)))
+    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupied_log_odds)))
     assert (occupied, len(lv.log_odds) - occupied) == (143_729, 284_415)
     assert set(np.unique(lv.log_odds)) == set(np.float32(tree.clamping_log_odds))
     before = _arrays(tree)
@@ -127,7 +127,7 @@ def test_fr079_counts_and_speed(data_dir, tmp_path):
     assert tree.resolution == 0.05
     assert tree.num_nodes() == 1_829_134
     lv = tree.leaves()
-    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupancy_log_odds)))
+    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupied_log_odds)))
     assert (occupied, len(lv.log_odds) - occupied) == (372_904, 1_103_266)
     assert F.encode_bt(tree) == path.read_bytes()
 

@@ -74,7 +74,7 @@ def test_local_map_costmap_equals_inflate_of_its_classes():
     angles = np.linspace(-math.pi, math.pi, 720, endpoint=False)
     for t in range(6):
         ranges = 2.0 + rng.uniform(-0.3, 0.3) + 0.5 * np.cos(4 * angles)
-        lm.integrate_scan([0.8, -0.4, 0.0], ranges, angles, stamp=0.1 * t, max_range=10.0)
+        lm.insert_scan([0.8, -0.4, 0.0], ranges, angles, stamp=0.1 * t, max_range=10.0)
     lo = lm.log_odds()
     lethal = np.nan_to_num(lo, nan=-np.inf) >= math.log(0.65 / 0.35)
     unknown = ~(np.nan_to_num(lo, nan=np.inf) < math.log(0.196 / 0.804)) & ~lethal

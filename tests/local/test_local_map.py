@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from occmap.errors import InvalidArgumentError, NonFiniteError
-from occmap.grid2d.sensor_models import logit
+from occmap.logodds import logit
 from occmap.local import LETHAL, LocalMap
 from occmap.raster.walk2d import traverse_2d
 
@@ -61,14 +61,14 @@ def random_scan(rng, centre, n=180, max_range=6.0):
 
 
 @pytest.mark.parametrize("parallel", [False, True])
-def test_integrate_scan_matches_exact_traversal_reference(parallel):
+def test_insert_scan_matches_exact_traversal_reference(parallel):
     rng = np.random.default_rng(1)
     lm = LocalMap((6.0, 5.0), 0.1, center=(1.0, -2.0))
     lm.parallel = parallel  # two threads: the window cut at the sensor's column
     lm.move_to(1.73, -1.61)  # storage offsets ≠ 0: the circular indexing is exercised
     scans = [random_scan(rng, (1.7, -1.6)) for _ in range(4)]  # rays cross the window's edges
     for t, (pose, ranges, angles, max_range) in enumerate(scans):
-        lm.integrate_scan(pose, ranges, angles, stamp=float(t), max_range=max_range)
+        lm.insert_scan(pose, ranges, angles, stamp=float(t), max_range=max_range)
     ref = reference_log_odds(lm, scans)
     got = lm.log_odds()
     np.testing.assert_array_equal(np.isnan(got), np.isnan(ref))
@@ -99,14 +99,14 @@ def test_move_equals_rebuild_from_scratch(shift, half_life):
     a.move_to(0.31, 0.22)  # start with non-zero storage offsets
     scans = [random_scan(rng, (0.3, 0.2), max_range=4.0) for _ in range(3)]
     for t, s in enumerate(scans):
-        a.integrate_scan(s[0], s[1], s[2], stamp=0.5 * t, max_range=s[3])
+        a.insert_scan(s[0], s[1], s[2], stamp=0.5 * t, max_range=s[3])
     before = a.log_odds()
     origin_before = a.origin
     a.move_to(0.31 + shift[0], 0.22 + shift[1])
     # rebuilt: a fresh map at the new place given the same scans
     b = LocalMap((5.0, 4.0), 0.1, half_life=half_life, center=(0.31 + shift[0], 0.22 + shift[1]))
     for t, s in enumerate(scans):
-        b.integrate_scan(s[0], s[1], s[2], stamp=0.5 * t, max_range=s[3])
+        b.insert_scan(s[0], s[1], s[2], stamp=0.5 * t, max_range=s[3])
     np.testing.assert_array_equal(a.origin, b.origin)
     la, lb = a.log_odds(), b.log_odds()
     H, W = a.shape
@@ -120,7 +120,7 @@ def test_move_equals_rebuild_from_scratch(shift, half_life):
     # nothing remains of the cells that left: the entering ones are unknown
     assert np.isnan(la[~stayed]).all()
     assert not a.observed[~stayed].any()
-    np.testing.assert_array_equal(a.to_occupancy_grid()[0][~stayed], -1)
+    np.testing.assert_array_equal(a.occupancy()[~stayed], -1)
     assert set(np.unique(a.costmap()[0][~stayed])) <= {253, 255}  # unknown (253: within the inscribed radius)
 
 
@@ -131,7 +131,7 @@ def test_decay_leaves_lethal_at_the_predicted_time():
     lm = LocalMap((4.0, 4.0), 0.1, half_life=2.0)
     pose = np.array([0.0, 0.0, 0.0])
     for t in range(12):  # one beam, hit 12 times: the cell reaches the upper clamp
-        lm.integrate_scan(pose, [1.0], [0.0], stamp=0.01 * t, max_range=5.0)
+        lm.insert_scan(pose, [1.0], [0.0], stamp=0.01 * t, max_range=5.0)
     cell = lm.world_to_cell(np.array([1.0, 0.0]))
     l0 = lm.log_odds()[tuple(cell)]
     assert l0 == pytest.approx(L_MAX, abs=1e-5)
@@ -153,11 +153,11 @@ def test_refreshed_free_space_clears_faster_than_decay():
     lm = LocalMap((6.0, 6.0), 0.1, half_life=10.0)
     pose = np.array([0.0, 0.0, 0.0])
     for t in range(12):
-        lm.integrate_scan(pose, [1.5], [0.0], stamp=0.1 * t, max_range=5.0)
+        lm.insert_scan(pose, [1.5], [0.0], stamp=0.1 * t, max_range=5.0)
     assert lm.cost_at([1.5, 0.0]) == LETHAL
     t = 1.2
     while lm.cost_at([1.5, 0.0]) == LETHAL:  # the obstacle is gone: the beam now reads 3 m
-        lm.integrate_scan(pose, [3.0], [0.0], stamp=t, max_range=5.0)
+        lm.insert_scan(pose, [3.0], [0.0], stamp=t, max_range=5.0)
         t += 0.1
     assert t - 1.1 < 0.5 * lm.time_to_clear()
 
@@ -194,7 +194,7 @@ def test_corridor_with_a_crossing_person():
         scan = simulate_lidar(world, pose, n_beams=180, fov=math.radians(240), max_range=8.0, sigma=0.005, rng=rng)
         # the person is only seen through a narrow window in the scan: the rest of the time their
         # cells are occluded by nothing but also not re-observed (the beams are cut to 3.5 m)
-        lm.integrate_scan(pose, scan.ranges, scan.angles, stamp=t, max_range=scan.max_range)
+        lm.insert_scan(pose, scan.ranges, scan.angles, stamp=t, max_range=scan.max_range)
         if 2.0 <= t <= 4.0:
             cost, origin = lm.costmap()
             cells = np.argwhere(cost == LETHAL)
@@ -218,7 +218,7 @@ def test_corridor_with_a_crossing_person():
     far_edge = lm.origin[0]
     assert far_edge > 0.5
     lm.move_to(0.0, 0.0)
-    occ, origin = lm.to_occupancy_grid()
+    occ, origin = lm.occupancy(), lm.origin
     back = lm.world_to_cell(np.array([[-0.5, -1.0], [-0.5, 0.99], [0.2, 0.0]]))
     assert (occ[back[:, 0], back[:, 1]] == -1).all()
     centres_x = origin[0] + (np.arange(lm.shape[1]) + 0.5) * lm.resolution
@@ -234,7 +234,7 @@ def test_corridor_person_decays_without_reobservation():
     angles = np.radians(np.arange(-10.0, 10.5, 1.0))
     t = 0.0
     for _ in range(15):  # the person stands 2 m ahead: every beam ends on them
-        lm.integrate_scan(pose, np.full(angles.shape, 2.0), angles, stamp=t, max_range=8.0)
+        lm.insert_scan(pose, np.full(angles.shape, 2.0), angles, stamp=t, max_range=8.0)
         t += 0.1
     seen = np.argwhere(lm.costmap()[0] == LETHAL)
     assert len(seen) >= 3
@@ -251,7 +251,7 @@ def test_corridor_person_decays_without_reobservation():
 # ------------------------------------------------------------------ 3D clouds
 
 
-def test_integrate_points_height_band(data_dir):
+def test_insert_point_cloud_height_band(data_dir):
     from occmap.io.pointclouds import read_pcd
 
     cloud = read_pcd(data_dir / "scans3d" / "hdl32_pair" / "251370668.pcd")
@@ -259,16 +259,16 @@ def test_integrate_points_height_band(data_dir):
     lm = LocalMap((40.0, 40.0), 0.1)
     bad = pts.copy()
     bad[::1000, 1] = np.nan
-    out = lm.integrate_points(bad, cloud.origin, stamp=0.0, z_min=-1.5, z_max=0.5)
+    out = lm.insert_point_cloud(bad, cloud.origin, stamp=0.0, z_min=-1.5, z_max=0.5)
     assert out["dropped"] == len(pts[::1000])
-    assert lm.stats["dropped_points"] == out["dropped"]
+    assert lm.stats["dropped"] == out["dropped"]
     band = (pts[:, 2] >= -1.5) & (pts[:, 2] <= 0.5) & np.isfinite(bad).all(1)
     wc = lm.world_to_cell(pts[:, :2])
     inside = ((wc >= 0) & (wc < np.array(lm.shape))).all(1)
     # every band point's cell is an obstacle (one scan: hit → l_hit ≥ occupied? 0.7 ≥ 0.65)
     assert (lm.cost_at(pts[band & inside][:, :2]) == LETHAL).all()
     # ground points mark nothing: a cell is hit exactly when a band point ends in it
-    occ, origin = lm.to_occupancy_grid()
+    occ, origin = lm.occupancy(), lm.origin
     assert occ.dtype == np.int8 and set(np.unique(occ)) <= {-1, 40, 50, 70}
     hit = np.zeros(lm.shape, bool)
     c = lm.world_to_cell(pts[band & inside][:, :2])
@@ -288,7 +288,7 @@ def test_parallel_and_serial_give_the_same_cells(data_dir):
         for k in range(3):
             shift = np.array([0.37 * k, -0.21 * k, 0.0])
             lm.move_to(shift[0], shift[1])
-            counts.append(lm.integrate_points(pts + shift, shift, 0.1 * k, -1.5, 0.5))
+            counts.append(lm.insert_point_cloud(pts + shift, shift, 0.1 * k, -1.5, 0.5))
         maps.append((lm, counts))
     (a, ca), (b, cb) = maps
     assert ca == cb
@@ -334,7 +334,7 @@ def test_check_path_matches_brute_force_and_reports_first_collision():
     angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
     ranges = 1.5 + 0.8 * np.sin(3 * angles) + rng.normal(0, 0.01, 360)
     for t in range(5):  # free cells need 4 misses to fall below the free threshold (p < 0.196)
-        lm.integrate_scan(pose, ranges, angles, stamp=float(t), max_range=5.0)
+        lm.insert_scan(pose, ranges, angles, stamp=float(t), max_range=5.0)
     cost, origin = lm.costmap()
     poses = np.column_stack([rng.uniform(-2.5, 2.5, 60), rng.uniform(-2.5, 2.5, 60), rng.uniform(-3, 3, 60)])
     poses[7] = np.nan
@@ -364,7 +364,7 @@ def test_check_path_matches_brute_force_and_reports_first_collision():
 def test_cost_at_frames():
     lm = LocalMap((6.0, 6.0), 0.1)
     angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
-    lm.integrate_scan([0.0, 0.0, 0.0], np.full(360, 2.0), angles, stamp=0.0, max_range=5.0)
+    lm.insert_scan([0.0, 0.0, 0.0], np.full(360, 2.0), angles, stamp=0.0, max_range=5.0)
     robot = np.array([0.5, -0.3, 0.7])
     body = np.array([[1.0, 0.0], [0.0, 1.0], [-0.4, 0.2], [np.nan, 0.0]])
     c, s = math.cos(0.7), math.sin(0.7)
@@ -382,19 +382,19 @@ def test_cost_at_frames():
 def test_bad_input():
     lm = LocalMap((4.0, 4.0), 0.1, half_life=1.0)
     angles = np.linspace(-1, 1, 5)
-    out = lm.integrate_scan([0, 0, 0], [1.0, np.nan, 2.0, -1.0, 0.5], angles, stamp=1.0, max_range=3.0)
-    assert out["dropped"] == 2 and lm.stats["dropped_points"] == 2
-    out = lm.integrate_scan([np.nan, 0, 0], [1.0] * 5, angles, stamp=1.5, max_range=3.0)
+    out = lm.insert_scan([0, 0, 0], [1.0, np.nan, 2.0, -1.0, 0.5], angles, stamp=1.0, max_range=3.0)
+    assert out["dropped"] == 2 and lm.stats["dropped"] == 2
+    out = lm.insert_scan([np.nan, 0, 0], [1.0] * 5, angles, stamp=1.5, max_range=3.0)
     assert out["dropped_pose"] and lm.stats["dropped_poses"] == 1
     with pytest.raises(InvalidArgumentError, match="backwards"):
-        lm.integrate_scan([0, 0, 0], [1.0] * 5, angles, stamp=1.2, max_range=3.0)
+        lm.insert_scan([0, 0, 0], [1.0] * 5, angles, stamp=1.2, max_range=3.0)
     with pytest.raises(InvalidArgumentError, match="backwards"):
-        lm.integrate_points(np.zeros((3, 3)), (0, 0, 0), stamp=0.0, z_min=0, z_max=1)
-    lm.integrate_scan([0, 0, 0], [1.0] * 5, angles, stamp=1.5, max_range=3.0)  # equal stamps are fine
+        lm.insert_point_cloud(np.zeros((3, 3)), (0, 0, 0), stamp=0.0, z_min=0, z_max=1)
+    lm.insert_scan([0, 0, 0], [1.0] * 5, angles, stamp=1.5, max_range=3.0)  # equal stamps are fine
     with pytest.raises(NonFiniteError):
         lm.move_to(np.nan, 0.0)
     with pytest.raises(InvalidArgumentError):
-        lm.integrate_scan([0, 0, 0], [1.0] * 5, angles, stamp=np.nan)
+        lm.insert_scan([0, 0, 0], [1.0] * 5, angles, stamp=np.nan)
     with pytest.raises(InvalidArgumentError):
         LocalMap((4.0, 4.0), 0.1, footprint=[[1, 1], [-1, -1], [1, -1], [-1, 1]])  # a bow tie
     with pytest.raises(InvalidArgumentError):
@@ -423,9 +423,33 @@ def test_check_path_lethal_collides_even_beside_unknown():
     max_cost reports 255 (unknown ranks highest), but the pose is a collision."""
     local = LocalMap(size=(20.0, 20.0), resolution=0.1)
     angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
-    local.integrate_scan((0.0, 0.0, 0.0), np.full(720, 3.0), angles, stamp=0.0)
+    local.insert_scan((0.0, 0.0, 0.0), np.full(720, 3.0), angles, stamp=0.0)
     box = [[0.3, 0.2], [-0.3, 0.2], [-0.3, -0.2], [0.3, -0.2]]
     check = local.check_path(np.array([[0.0, 0.0, 0.0], [2.9, 0.0, 0.0]]), footprint=box)
     assert check.max_cost[1] == 255 and check.first_collision == 1
     disc = local.check_path(np.array([[0.0, 0.0, 0.0], [2.9, 0.0, 0.0]]), footprint=0.3)
     assert disc.first_collision == 1
+
+
+def test_log_odds_at_and_occupancy_at_read_the_window_cells():
+    """Per point, the value log_odds() holds in its cell (after a move, so the ring is started
+    mid-buffer, and with forgetting); NaN / −1 outside the window, in unknown cells and for NaN
+    points; occupied from occupied_threshold on."""
+    lm = LocalMap((4.0, 3.0), 0.1, half_life=1.0, occupied_threshold=0.6)
+    angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
+    lm.insert_scan((0.0, 0.0, 0.0), np.full(90, 1.0), angles, stamp=0.0, max_range=5.0)
+    lm.move_to(0.35, -0.25)
+    lm.insert_scan((0.35, -0.25, 0.0), np.full(90, 0.8), angles, stamp=0.4, max_range=5.0)
+    H, W = lm.shape
+    cells = np.stack(np.meshgrid(np.arange(H), np.arange(W), indexing="ij"), -1)
+    centres = lm.cell_to_world(cells)
+    full = lm.log_odds()
+    at = lm.log_odds_at(centres)
+    assert at.shape == (H, W) and at.dtype == np.float64
+    np.testing.assert_array_equal(at, full)
+    occ = lm.occupancy_at(centres)
+    np.testing.assert_array_equal(occ == -1, np.isnan(full))
+    np.testing.assert_array_equal(occ == 1, np.nan_to_num(full, nan=-np.inf) >= logit(0.6))
+    assert (occ == 1).any() and (occ == 0).any() and (occ == -1).any()
+    outside = [[lm.origin[0] - 0.05, lm.origin[1] + 1.0], [lm.origin[0] + 1.0, lm.origin[1] + 3.05], [np.nan, 0.0]]
+    assert np.isnan(lm.log_odds_at(outside)).all() and (lm.occupancy_at(outside) == -1).all()

@@ -31,7 +31,7 @@ def sim_map(world):
     path = world.default_trajectory(n=600)
     scans = simulate_scans(world, path, n_beams=360, max_range=10.0, sigma=0.01, rng=1)
     grid = OccupancyGrid2D(RES, size=(20.4, 15.4), origin=(-0.2, -0.2))
-    grid.integrate_scans(path, np.array([s.ranges for s in scans]), scans[0].angles, max_range=10.0)
+    grid.insert_scans(path, np.array([s.ranges for s in scans]), scans[0].angles, max_range=10.0)
     return grid
 
 
@@ -215,7 +215,7 @@ def test_empty_map_is_rejected():
 def test_map_without_free_cell_is_rejected():
     grid = OccupancyGrid2D(0.1, size=(2.0, 2.0))
     # one short beam: its end cell is occupied, nothing was ever seen free
-    grid.integrate_scans(np.array([[1.05, 1.05, 0.0]]), np.array([[0.02]]), np.array([0.0]), max_range=5.0)
+    grid.insert_scans(np.array([[1.05, 1.05, 0.0]]), np.array([[0.02]]), np.array([0.0]), max_range=5.0)
     with pytest.raises(InvalidArgumentError, match="no free cell") as info:
         MonteCarloLocalizer(grid)
     assert isinstance(info.value, OccmapError)

@@ -57,15 +57,15 @@ def test_grid_and_local_map_update_the_same_cells_of_the_one_walk(split, monkeyp
     assert lm.origin.tolist() == [0.0, 0.0] and (lm._sr, lm._sc) != (0, 0)
     lm.parallel = split
     for t, (pose, ranges, angles, max_range, _) in enumerate(scans):
-        grid.integrate_scan(pose, ranges, angles, max_range=max_range)
-        lm.integrate_scan(pose, ranges, angles, stamp=float(t), max_range=max_range)
+        grid.insert_scan(pose, ranges, angles, max_range=max_range)
+        lm.insert_scan(pose, ranges, angles, stamp=float(t), max_range=max_range)
     got = lm.log_odds()
     expected = np.zeros((N, N), bool)
     for y, x in walk_cells(scans):
         expected[y, x] = True
     np.testing.assert_array_equal(grid.observed, expected)
     np.testing.assert_array_equal(~np.isnan(got), expected)
-    np.testing.assert_array_equal(got[expected], grid.log_odds[expected])
+    np.testing.assert_array_equal(got[expected], grid.log_odds()[expected])
 
 
 def test_local_map_scan_codes_roll_over_like_fresh_codes():
@@ -79,6 +79,6 @@ def test_local_map_scan_codes_roll_over_like_fresh_codes():
         if t == 1:
             b._codes.code = b._codes.last - 1  # scan 1 takes the last code, scan 2 starts again at 1
         for lm in (a, b):
-            lm.integrate_scan(pose, ranges, angles, stamp=float(t), max_range=max_range)
+            lm.insert_scan(pose, ranges, angles, stamp=float(t), max_range=max_range)
     np.testing.assert_array_equal(a.log_odds(), b.log_odds())
     assert a.stats == b.stats

@@ -113,13 +113,13 @@ def map_simulated_office(out: Path, seed: int = 1) -> list[str]:
     grid = OccupancyGrid2D(0.05, size=(xmax - xmin, ymax - ymin), origin=(xmin, ymin))
     clock = WorkClock()
     with clock.running():
-        counts = grid.integrate_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
+        counts = grid.insert_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
     seconds = clock.seconds
     grid.save(out / "sim_office.yaml")
     grid.save_png(out / "sim_office.png")
     world.render_png(out / "sim_office_truth.png", poses=poses)
     return [
-        f"simulated office: {counts['scans']} scans, {counts['beams']:,} beams (σ 1 cm, 1 % outliers) in {seconds:.2f} s",
+        f"simulated office: {counts['scans']} scans, {counts['points']:,} beams (σ 1 cm, 1 % outliers) in {seconds:.2f} s",
         f"  wrote {out / 'sim_office.yaml'} (+ .pgm), {out / 'sim_office.png'}, truth {out / 'sim_office_truth.png'}",
     ]
 

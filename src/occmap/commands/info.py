@@ -16,7 +16,7 @@ def run(args) -> int:
 
     tree = read_octree(args.file)
     lv = tree.leaves()
-    occupied = lv.log_odds >= tree.occupancy_log_odds
+    occupied = lv.log_odds >= tree.occupied_log_odds
     n_occupied = int(occupied.sum())
     lo, hi = tree.metric_bounds()
     print(f"{args.file}")

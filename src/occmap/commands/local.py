@@ -68,7 +68,7 @@ def run(args) -> int:
             continue
         with clock.running():
             lm.move_to(x, y)
-            lm.integrate_scan(scan.pose, scan.ranges, scan.angles, stamp, max_range=scan.max_range)
+            lm.insert_scan(scan.pose, scan.ranges, scan.angles, stamp, max_range=scan.max_range)
             cost = lm.costmap()[0] if used % args.frame_every == 0 else None
         if cost is not None:
             robot = lm.world_to_cell(np.array([x, y]))
@@ -86,7 +86,7 @@ def run(args) -> int:
     print(f"{used} scans through a {W}×{H} local map at {args.resolution:g} m "
           f"(half-life {args.half_life:g} s): {1e3 * clock.seconds / max(used, 1):.2f} ms per scan for move + "
           f"integrate (+ costmap on frames); {len(frames)} frames → {path} in {time.perf_counter() - t0:.1f} s")
-    if lm.stats["dropped_points"] or lm.stats["dropped_poses"] or clamped:
-        print(f"dropped: {lm.stats['dropped_points']} readings (NaN, ≤ 0), {lm.stats['dropped_poses']} poses; "
+    if lm.stats["dropped"] or lm.stats["dropped_poses"] or clamped:
+        print(f"dropped: {lm.stats['dropped']} readings (NaN, ≤ 0), {lm.stats['dropped_poses']} poses; "
               f"{clamped} stamps going backwards held at the previous one")
     return 0

@@ -22,9 +22,9 @@ def add_parser(subparsers):
     p.add_argument("--max-range", type=_options.positive, help="ignore the parts of beams beyond this many metres")
     p.add_argument("--every", type=_options.count, default=1, help="use every N-th scan (default: %(default)s)")
     p.add_argument("--lenient", action="store_true", help="skip and count malformed lines instead of stopping")
-    p.add_argument("--p-hit", type=_options.probability, default=0.7,
+    p.add_argument("--prob-hit", type=_options.probability, default=0.7,
                    help="P(occupied) for a beam's end cell (default: %(default)s, OctoMap's)")
-    p.add_argument("--p-miss", type=_options.probability, default=0.4,
+    p.add_argument("--prob-miss", type=_options.probability, default=0.4,
                    help="P(occupied) for cells a beam passes (default: %(default)s, OctoMap's; 0.45 keeps walls "
                    "that many grazing beams cross more continuous)")
     return p
@@ -39,7 +39,7 @@ def run(args) -> int:
     check_suffix("-o", args.output, (".yaml", ".yml"))
     image = Path(args.output).with_suffix(".pgm")
     check_outputs({"-o": args.output, "the map's image": image, "--png": args.png}, {"LOG": args.log})
-    model = LidarModel(args.p_hit, args.p_miss)  # checks the pair before the log is read
+    model = LidarModel(args.prob_hit, args.prob_miss)  # checks the pair before the log is read
 
     t0 = time.perf_counter()
     log = read_carmen(args.log, lenient=args.lenient, every=args.every)

@@ -1,6 +1,6 @@
 """2D occupancy grids: the log-odds Bayes filter per cell, lidar and sonar inverse sensor models."""
 
 from .grid import OccupancyGrid2D
-from .sensor_models import LidarModel, SonarModel, logit
+from .sensor_models import LidarModel, SonarModel
 
-__all__ = ["LidarModel", "OccupancyGrid2D", "SonarModel", "logit"]
+__all__ = ["LidarModel", "OccupancyGrid2D", "SonarModel"]

@@ -16,6 +16,7 @@ from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
 from .._threads import ThreadChoice
+from ..geometry.so2 import wrap_angle_one
 from ..raster.update import clamp_add, hit_stamp, miss_stamp
 from ..raster.walk2d import cell_of, dda_init, miss_walk
 
@@ -201,7 +202,7 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_
     """Cone updates for N readings rings (poses (N, 3), ranges (N, k), bearings (k,)).
 
     For reading b a cell's angle from the transducer axis is φ = atan2(cell − robot) − θ − bearing,
-    wrapped into [−π, π) when ``wrap``. The reading updates, once, every cell within its reach whose
+    wrapped into (−π, π] when ``wrap``. The reading updates, once, every cell within its reach whose
     φ satisfies |φ| ≤ half_width and sector_lo[b] ≤ φ < sector_hi[b] (±inf: no sector limit),
     weighted by 1 − (φ/half_width)², or by 1 when ``uniform``. Readings that are NaN, ≤ 0 or below
     ``min_range`` are dropped; those at or beyond ``max_range`` clear their cone up to it, except
@@ -244,7 +245,7 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_
                         continue
                     phi = math.atan2(cy, cx) - axis
                     if wrap:
-                        phi = (phi + math.pi) % (2.0 * math.pi) - math.pi
+                        phi = wrap_angle_one(phi)
                     if abs(phi) > half_width or phi < lo or phi >= hi:
                         continue
                     w = 1.0 if uniform else 1.0 - (phi / half_width) ** 2

@@ -12,10 +12,12 @@ import math
 
 import numpy as np
 
+from .. import checks
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
+from ..logodds import logit, occupancy_classes, probability
 from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _kernels as K
-from .sensor_models import LidarModel, SonarModel, logit
+from .sensor_models import LidarModel, SonarModel
 
 #: Cells added on each side when a growing map must grow, at least (amortises the copies).
 _GROW_MARGIN_CELLS = 64
@@ -41,6 +43,9 @@ def _beam_bounds(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) 
 class OccupancyGrid2D:
     """A 2D occupancy grid in log-odds.
 
+    Method and parameter names follow the vocabulary shared by the three maps
+    (``docs/vocabulary.md``).
+
     Parameters
     ----------
     resolution : float
@@ -55,26 +60,29 @@ class OccupancyGrid2D:
         Prior occupancy probability of every cell (0.5: no prior knowledge).
     clamp : (p_min, p_max)
         Clamping bounds in probability (OctoMap's defaults), keeping cells able to change.
+    occupied_threshold : float
+        Probability at or above which an observed cell counts as occupied in :meth:`occupancy_at`
+        (OctoMap's 0.5).
     """
 
-    def __init__(self, resolution: float, size=None, origin=None, prior: float = 0.5, clamp=(0.1192, 0.971)):
-        if not (isinstance(resolution, (int, float)) and math.isfinite(resolution) and resolution > 0):
-            raise InvalidArgumentError(f"resolution must be a positive number of metres, got {resolution!r}")
-        self.resolution = float(resolution)
-        self.l_prior = logit(prior)
-        self.l_min, self.l_max = logit(clamp[0]), logit(clamp[1])
+    def __init__(self, resolution: float, size=None, origin=None, prior: float = 0.5, clamp=(0.1192, 0.971),
+                 occupied_threshold: float = 0.5):
+        self.resolution = checks.resolution(resolution)
+        self.l_prior = logit(prior, "prior")
+        self.l_min, self.l_max = logit(clamp[0], "clamp[0]"), logit(clamp[1], "clamp[1]")
         if not self.l_min < self.l_prior < self.l_max:
             raise InvalidArgumentError(f"prior {prior!r} must lie strictly between the clamping bounds {clamp!r}")
+        self.occupied_threshold = checks.probability("occupied_threshold", occupied_threshold)
+        self._l_occ = logit(self.occupied_threshold)
         self.growing = size is None
         self._codes = ScanCodes(np.uint16)
-        self.stats = {"scans": 0, "beams": 0, "dropped": 0, "max_range": 0}
+        self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         if size is None:
             self.origin = None if origin is None else np.array(origin, dtype=np.float64)
             shape = (0, 0)
         else:
-            w, h = (float(v) for v in size)
-            if not (w > 0 and h > 0):
-                raise InvalidArgumentError(f"size must be positive (width, height) in metres, got {size!r}")
+            w, h = size
+            w, h = checks.positive("size[0] (width)", w, "metres"), checks.positive("size[1] (height)", h, "metres")
             self.origin = np.zeros(2) if origin is None else np.array(origin, dtype=np.float64)
             shape = (int(math.ceil(h / self.resolution - 1e-9)), int(math.ceil(w / self.resolution - 1e-9)))
         self._L, self._stamp = _new_cells(shape, self.l_prior)
@@ -107,12 +115,9 @@ class OccupancyGrid2D:
 
     # ------------------------------------------------------------------ read-outs
 
-    @property
     def log_odds(self) -> np.ndarray:
-        """Log-odds per cell (read-only view, float32, (H, W))."""
-        v = self._L.view()
-        v.flags.writeable = False
-        return v
+        """Log-odds per cell (a copy, float32, (H, W), row 0 at the origin), NaN where unobserved."""
+        return np.where(self.observed, self._L, np.float32(np.nan))
 
     @property
     def observed(self) -> np.ndarray:
@@ -121,7 +126,7 @@ class OccupancyGrid2D:
 
     def probability(self) -> np.ndarray:
         """Occupancy probability per cell (float64); unobserved cells hold the prior."""
-        return 1.0 / (1.0 + np.exp(-self._L.astype(np.float64)))
+        return probability(self._L)
 
     def occupancy(self) -> np.ndarray:
         """nav_msgs/OccupancyGrid values (int8, (H, W), row 0 at the origin): −1 unknown, else
@@ -136,12 +141,15 @@ class OccupancyGrid2D:
         ml[~self.observed] = -1
         return ml
 
-    def value_at(self, points) -> np.ndarray:
-        """Log-odds at world points (..., 2); NaN outside the map or where unobserved."""
-        cells = self.world_to_cell(points)
+    def log_odds_at(self, points) -> np.ndarray:
+        """Log-odds (float64, shape (...)) at world points (..., 2); NaN outside the map or where
+        unobserved (NaN points too)."""
+        p = np.asarray(points, dtype=np.float64)
+        good = np.isfinite(p).all(axis=-1)
+        cells = self.world_to_cell(np.where(good[..., None], p, 0.0))
         iy, ix = cells[..., 0], cells[..., 1]
         H, W = self.shape
-        inside = (iy >= 0) & (iy < H) & (ix >= 0) & (ix < W)
+        inside = good & (iy >= 0) & (iy < H) & (ix >= 0) & (ix < W)
         out = np.full(iy.shape, np.nan)
         jy, jx = iy[inside], ix[inside]
         seen = self._stamp[jy, jx] != UNSEEN
@@ -149,22 +157,28 @@ class OccupancyGrid2D:
         out[inside] = vals
         return out
 
-    # ------------------------------------------------------------------ integration
+    def occupancy_at(self, points) -> np.ndarray:
+        """Per world point (..., 2), int8: −1 unknown or outside the map, 1 occupied
+        (``p ≥ occupied_threshold``), else 0 free."""
+        return occupancy_classes(self.log_odds_at(points), self._l_occ)
 
-    def integrate_scan(self, pose, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
-        """Integrate one scan from sensor pose ``(x, y, theta)``; see :meth:`integrate_scans`."""
+    # ------------------------------------------------------------------ insertion
+
+    def insert_scan(self, pose, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
+        """Insert one scan from sensor pose ``(x, y, theta)``; see :meth:`insert_scans`."""
         r = np.asarray(ranges, dtype=np.float64)
-        return self.integrate_scans(np.asarray(pose, dtype=np.float64)[None], r[None], angles, max_range, model)
+        return self.insert_scans(np.asarray(pose, dtype=np.float64)[None], r[None], angles, max_range, model)
 
-    def integrate_scans(self, poses, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
-        """Integrate N scans in one call.
+    def insert_scans(self, poses, ranges, angles, max_range: float | None = None, model: LidarModel | None = None) -> dict:
+        """Insert N scans in one call.
 
         ``poses`` (N, 3) are sensor poses ``(x, y, theta)``; ``ranges`` (N, n) in metres;
         ``angles`` (n,) or (N, n) beam angles relative to the sensor heading. A reading at or
         beyond ``max_range``, or infinite, frees the cells up to ``max_range`` and marks nothing;
         NaN, zero and negative readings are dropped and counted. Without ``max_range`` every
-        finite reading is a return and infinite ones are dropped too. Within one scan a cell is updated at most once and a hit wins over a miss.
-        Returns the counts of this call: beams used, readings dropped, max-range readings.
+        finite reading is a return and infinite ones are dropped too. Within one scan a cell is
+        updated at most once and a hit wins over a miss. Returns the counts of this call:
+        ``scans``, ``points`` (readings used), ``dropped``, ``beyond_max_range``.
         """
         model = LidarModel() if model is None else model
         P = np.ascontiguousarray(poses, dtype=np.float64)
@@ -189,8 +203,7 @@ class OccupancyGrid2D:
             max_range = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
             if np.isinf(R).any():
                 R = np.where(np.isinf(R), np.nan, R)
-        if not (math.isfinite(max_range) and max_range > 0):
-            raise InvalidArgumentError(f"max_range must be a positive finite number of metres, got {max_range!r}")
+        max_range = checks.positive("max_range", max_range, "metres")
         if self.growing and len(P):
             self._grow_to(*_beam_bounds(P, R, A, max_range))
         used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_lidar(
@@ -200,8 +213,8 @@ class OccupancyGrid2D:
         ))
         return self._record(len(P), used, dropped, maxed)
 
-    def integrate_sonar(self, poses, ranges, bearings, max_range: float, model: SonarModel | None = None) -> dict:
-        """Integrate rings of sonar readings with the cone model of :class:`SonarModel`.
+    def insert_sonar(self, poses, ranges, bearings, max_range: float, model: SonarModel | None = None) -> dict:
+        """Insert rings of sonar readings with the cone model of :class:`SonarModel`.
 
         ``poses`` (3,) or (N, 3) are robot poses; ``ranges`` (k,) or (N, k) in metres, one per
         transducer; ``bearings`` (k,) the transducers' directions relative to the heading. Each
@@ -221,8 +234,7 @@ class OccupancyGrid2D:
             raise ShapeError(f"expected poses (N, 3), ranges (N, k), bearings (k,); got {P.shape}, {R.shape}, {B.shape}")
         if not np.isfinite(P).all():
             raise NonFiniteError("sonar poses must be finite")
-        if not (math.isfinite(max_range) and max_range > 0):
-            raise InvalidArgumentError(f"max_range must be a positive finite number of metres, got {max_range!r}")
+        max_range = checks.positive("max_range", max_range, "metres")
         arc = self.resolution if model.arc is None else model.arc
         if self.growing and len(P):
             reach = max_range + arc
@@ -233,7 +245,7 @@ class OccupancyGrid2D:
             self._L, self._stamp, code, P[i:j], R[i:j], B, lo, hi,
             0.5 * model.beam_width, bool(model.wrap_angles), model.weighting == "uniform", float(model.min_range),
             float(max_range), bool(model.ignore_max_range), float(arc), float(self.origin[0]), float(self.origin[1]),
-            self.resolution, model.l_occupied - self.l_prior, model.l_free - self.l_prior, self.l_min, self.l_max,
+            self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior, self.l_min, self.l_max,
         ))
         return self._record(len(P), used, dropped, maxed)
 
@@ -249,9 +261,9 @@ class OccupancyGrid2D:
             i += k
         return tuple(totals)
 
-    def _record(self, scans: int, beams, dropped, maxed) -> dict:
+    def _record(self, scans: int, points, dropped, maxed) -> dict:
         """Add one call's counts to :attr:`stats`; returns them."""
-        counts = {"scans": scans, "beams": int(beams), "dropped": int(dropped), "max_range": int(maxed)}
+        counts = {"scans": scans, "points": int(points), "dropped": int(dropped), "beyond_max_range": int(maxed)}
         for key, value in counts.items():
             self.stats[key] += value
         return counts
@@ -317,7 +329,7 @@ class OccupancyGrid2D:
         occ = m.occupancy.astype(np.float64)
         known = occ >= 0
         p = np.clip(occ / 100.0, 1e-9, 1 - 1e-9)
-        grid._L[known] = np.clip(np.log(p / (1.0 - p)), grid.l_min, grid.l_max)[known]
+        grid._L[known] = np.clip(logit(p), grid.l_min, grid.l_max)[known]
         grid._stamp[known] = SEEN  # known from a file: before every scan
         return grid
 

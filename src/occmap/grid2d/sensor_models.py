@@ -12,40 +12,44 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import checks
 from ..errors import InvalidArgumentError
+from ..geometry.so2 import wrap_angle
+from ..logodds import logit, probability
 
 
-def logit(p: float) -> float:
-    """``log(p / (1 − p))`` for ``0 < p < 1``."""
-    if not 0.0 < p < 1.0:
-        raise InvalidArgumentError(f"probability must be in (0, 1), got {p!r}")
-    return math.log(p / (1.0 - p))
+def _on_side(name: str, p, occupied: bool) -> float:
+    """A probability on the occupied side of 0.5 (``occupied``) or the free side."""
+    v = checks.probability(name, p)
+    if occupied and not v > 0.5:
+        raise InvalidArgumentError(f"{name} must be in (0.5, 1), got {p!r}")
+    if not occupied and not v < 0.5:
+        raise InvalidArgumentError(f"{name} must be in (0, 0.5), got {p!r}")
+    return v
 
 
 @dataclass(frozen=True)
 class LidarModel:
     """Beam-end model of a laser: the end cell of a return is hit, the cells before it are free.
 
-    ``p_hit`` is P(occupied | return ends in the cell), ``p_miss`` is P(occupied | beam passes
-    through the cell); both must lie on their side of 0.5.
+    ``prob_hit`` is P(occupied | return ends in the cell), ``prob_miss`` is P(occupied | beam
+    passes through the cell); both must lie on their side of 0.5 (names: ``docs/vocabulary.md``).
     """
 
-    p_hit: float = 0.7
-    p_miss: float = 0.4
+    prob_hit: float = 0.7
+    prob_miss: float = 0.4
 
     def __post_init__(self):
-        if not 0.5 < self.p_hit < 1.0:
-            raise InvalidArgumentError(f"p_hit must be in (0.5, 1), got {self.p_hit!r}")
-        if not 0.0 < self.p_miss < 0.5:
-            raise InvalidArgumentError(f"p_miss must be in (0, 0.5), got {self.p_miss!r}")
+        object.__setattr__(self, "prob_hit", _on_side("prob_hit", self.prob_hit, True))
+        object.__setattr__(self, "prob_miss", _on_side("prob_miss", self.prob_miss, False))
 
     @property
     def l_hit(self) -> float:
-        return logit(self.p_hit)
+        return logit(self.prob_hit)
 
     @property
     def l_miss(self) -> float:
-        return logit(self.p_miss)
+        return logit(self.prob_miss)
 
 
 @dataclass(frozen=True)
@@ -62,14 +66,15 @@ class SonarModel:
     beam_width : float
         Full opening angle of the cone in radians, in (0, π). With ``sectors="nearest"`` it may be
         up to ``math.inf`` (no limit beyond the transducer's sector).
-    p_occupied, p_free : float
-        P(occupied) for a cell on the arc / inside the cone before it.
+    prob_hit, prob_miss : float
+        P(occupied) for a cell on the arc / inside the cone before it (names:
+        ``docs/vocabulary.md``).
     arc : float or None
         Thickness of the occupied arc in metres (Thrun's α); ``None``: one cell.
     weighting : ``"quadratic"`` (default) or ``"uniform"``
         ``"quadratic"`` weights both updates by ``w = 1 − (φ / (beam_width/2))²``, so the axis
         speaks loudest and the rim not at all; ``"uniform"`` gives every cell of the cone the full
-        ``l_occupied`` / ``l_free``, as in Thrun's Table 9.2.
+        ``l_hit`` / ``l_miss``, as in Thrun's Table 9.2.
     sectors : ``"cone"`` (default) or ``"nearest"``
         ``"cone"``: each reading updates every cell of its own cone; overlapping cones of one ring
         each contribute. ``"nearest"``: a cell is updated only by the transducer whose bearing is
@@ -85,7 +90,7 @@ class SonarModel:
         Readings shorter than this (metres) are dropped and counted as dropped (Table 9.2's Zmin).
     ignore_max_range : bool
         False (default): a reading at or beyond the ``max_range`` given to
-        :meth:`~occmap.grid2d.OccupancyGrid2D.integrate_sonar` had no echo and clears its cone up
+        :meth:`~occmap.grid2d.OccupancyGrid2D.insert_sonar` had no echo and clears its cone up
         to ``max_range``. True: readings *beyond* ``max_range`` are not integrated at all (only
         counted under ``max_range``); one exactly at ``max_range`` still clears its cone. That is
         the Udacity exercise's rule (``Z_k > Z_max`` returns ``l0``; ``Z_k = Z_max`` is free space).
@@ -94,8 +99,8 @@ class SonarModel:
     """
 
     beam_width: float = math.radians(15.0)
-    p_occupied: float = 0.7
-    p_free: float = 0.4
+    prob_hit: float = 0.7
+    prob_miss: float = 0.4
     arc: float | None = None
     weighting: str = "quadratic"
     sectors: str = "cone"
@@ -109,25 +114,24 @@ class SonarModel:
         if self.weighting not in ("quadratic", "uniform"):
             raise InvalidArgumentError(f"weighting must be 'quadratic' or 'uniform', got {self.weighting!r}")
         widest = math.inf if self.sectors == "nearest" else math.pi
-        if not (0.0 < self.beam_width < widest or self.beam_width == widest == math.inf):
-            raise InvalidArgumentError(
-                f"beam_width must be in (0, π) radians (up to inf with sectors='nearest'), got {self.beam_width!r}")
-        if not 0.5 < self.p_occupied < 1.0:
-            raise InvalidArgumentError(f"p_occupied must be in (0.5, 1), got {self.p_occupied!r}")
-        if not 0.0 < self.p_free < 0.5:
-            raise InvalidArgumentError(f"p_free must be in (0, 0.5), got {self.p_free!r}")
-        if self.arc is not None and not self.arc > 0:
-            raise InvalidArgumentError(f"arc must be a positive thickness in metres, got {self.arc!r}")
-        if not (math.isfinite(self.min_range) and self.min_range >= 0):
-            raise InvalidArgumentError(f"min_range must be a finite number of metres ≥ 0, got {self.min_range!r}")
+        what = "in (0, π) radians (up to inf with sectors='nearest')"
+        width = math.inf if self.beam_width == widest == math.inf else checks.positive("beam_width", self.beam_width)
+        if not (width < widest or width == widest == math.inf):
+            raise InvalidArgumentError(f"beam_width must be {what}, got {self.beam_width!r}")
+        object.__setattr__(self, "beam_width", width)
+        object.__setattr__(self, "prob_hit", _on_side("prob_hit", self.prob_hit, True))
+        object.__setattr__(self, "prob_miss", _on_side("prob_miss", self.prob_miss, False))
+        if self.arc is not None:
+            object.__setattr__(self, "arc", checks.positive("arc", self.arc, "metres"))
+        object.__setattr__(self, "min_range", checks.non_negative("min_range", self.min_range, "metres"))
 
     @property
-    def l_occupied(self) -> float:
-        return logit(self.p_occupied)
+    def l_hit(self) -> float:
+        return logit(self.prob_hit)
 
     @property
-    def l_free(self) -> float:
-        return logit(self.p_free)
+    def l_miss(self) -> float:
+        return logit(self.prob_miss)
 
     @classmethod
     def udacity_exercise(cls) -> "SonarModel":
@@ -138,7 +142,7 @@ class SonarModel:
         nearest (unwrapped) bearing. Its β = 20 is compared with angles in radians, so the beam
         width never limits anything: ``beam_width=inf``. Integrate with ``max_range=5.0`` (its
         Z_max) on a grid whose clamping does not bind (the exercise clamps nothing)."""
-        return cls(beam_width=math.inf, p_occupied=1.0 / (1.0 + math.exp(-0.4)), p_free=1.0 / (1.0 + math.exp(0.4)),
+        return cls(beam_width=math.inf, prob_hit=probability(0.4), prob_miss=probability(-0.4),
                    arc=0.2, weighting="uniform", sectors="nearest", wrap_angles=False, min_range=0.17,
                    ignore_max_range=True)
 
@@ -149,7 +153,8 @@ class SonarModel:
         ``sectors="cone"``: no limit. ``sectors="nearest"``: half-way to the neighbouring bearings
         (so each direction belongs to the transducer of nearest bearing), around the circle when
         ``wrap_angles``, else on the open line (the outermost transducers reach out to ±inf). Of
-        transducers sharing a bearing the first takes the sector and the others get none.
+        transducers sharing a bearing the first takes the sector and the others get none; a lone
+        bearing takes the whole circle (no limit).
         """
         B = np.asarray(bearings, dtype=np.float64)
         k = B.size
@@ -158,7 +163,7 @@ class SonarModel:
         if self.sectors == "cone" or k == 0:
             return lo, hi
         two_pi = 2.0 * math.pi
-        b = np.mod(B + math.pi, two_pi) - math.pi if self.wrap_angles else B.copy()
+        b = wrap_angle(B) if self.wrap_angles else B.copy()
         # order by angle, then by index, and keep the first of each run of equal angles
         order = np.lexsort((np.arange(k), b))
         first = np.ones(k, dtype=bool)
@@ -168,6 +173,9 @@ class SonarModel:
         hi[:] = 0.0
         angles = b[lead]
         n = lead.size
+        if n == 1:
+            lo[lead], hi[lead] = -np.inf, np.inf
+            return lo, hi
         for j, i in enumerate(lead):
             if self.wrap_angles:
                 prev = angles[j - 1] - (two_pi if j == 0 else 0.0)

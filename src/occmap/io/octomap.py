@@ -82,7 +82,7 @@ def encode_bt(tree: OcTree) -> bytes:
     likelihood and prunes it first); ``tree`` itself is left unchanged."""
     nodes = tree.nodes()
     lo, hi = (np.float32(v) for v in tree.clamping_log_odds)
-    body, nodes = C.encode_bt(nodes.value, nodes.child, len(nodes.value), np.float32(tree.occupancy_log_odds), lo, hi)
+    body, nodes = C.encode_bt(nodes.value, nodes.child, len(nodes.value), np.float32(tree.occupied_log_odds), lo, hi)
     if nodes < 0:
         raise RuntimeError("octree node pool is inconsistent: a node lies below depth 16")
     return _header(BINARY_MAGIC, "OcTree", int(nodes), tree.resolution) + body.tobytes()

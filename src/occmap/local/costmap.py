@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from .. import checks
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from . import _kernels as K
 
@@ -57,16 +58,10 @@ class InflationParams:
 
     def __init__(self, resolution: float, inflation_radius: float = 0.55, cost_scaling_factor: float = 10.0,
                  inscribed_radius: float = 0.0):
-        for name, v in (("resolution", resolution), ("inflation_radius", inflation_radius),
-                        ("cost_scaling_factor", cost_scaling_factor), ("inscribed_radius", inscribed_radius)):
-            if not (isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v) and v >= 0):
-                raise InvalidArgumentError(f"{name} must be a non-negative finite number, got {v!r}")
-        if not resolution > 0:
-            raise InvalidArgumentError(f"resolution must be > 0, got {resolution!r}")
-        self.resolution = float(resolution)
-        self.inflation_radius = float(inflation_radius)
-        self.cost_scaling_factor = float(cost_scaling_factor)
-        self.inscribed_radius = float(inscribed_radius)
+        self.resolution = checks.resolution(resolution)
+        self.inflation_radius = checks.non_negative("inflation_radius", inflation_radius, "metres")
+        self.cost_scaling_factor = checks.non_negative("cost_scaling_factor", cost_scaling_factor)
+        self.inscribed_radius = checks.non_negative("inscribed_radius", inscribed_radius, "metres")
         reach = max(self.inflation_radius, self.inscribed_radius)
         R = int(math.floor(reach / self.resolution + 1e-9))
         self.radius_cells = R
@@ -222,8 +217,5 @@ def as_footprint(footprint) -> tuple[np.ndarray, float]:
     """``(vertices (M, 2), radius)`` for the kernels: a polygon gives radius −1, a radius gives
     an empty vertex array."""
     if np.ndim(footprint) == 0:
-        r = float(footprint)
-        if not (math.isfinite(r) and r >= 0):
-            raise InvalidArgumentError(f"a footprint radius must be a non-negative finite number, got {footprint!r}")
-        return np.zeros((0, 2)), r
+        return np.zeros((0, 2)), checks.non_negative("footprint radius", footprint, "metres")
     return validate_footprint(footprint), -1.0

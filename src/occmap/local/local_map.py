@@ -22,7 +22,7 @@ Forgetting: with ``half_life`` (seconds) every cell relaxes toward the prior,
 store ``u = (l − l_prior) / g`` with one global factor ``g`` that the clock multiplies by
 ``2^(−Δt / half_life)`` (sensor evidence and clamping bounds are divided by ``g`` as they are
 applied; ``g`` is folded back into the cells, one pass, when it falls below 2⁻³⁰). A cell is
-lethal while ``p ≥ occupied`` (default 0.65) and free while ``p < free`` (default 0.196); so a
+lethal while ``p ≥ occupied_threshold`` (default 0.65) and free while ``p < free_threshold`` (default 0.196); so a
 cell at the upper clamp ``l_max`` that is no longer seen leaves lethal after exactly
 ``half_life · log2((l_max − l_prior) / (l_occupied − l_prior))`` seconds
 (:meth:`LocalMap.time_to_clear`), and re-observed free space clears faster than that.
@@ -35,10 +35,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import checks
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
-from ..grid2d.sensor_models import LidarModel, logit
+from ..grid2d.sensor_models import LidarModel
+from ..logodds import logit, occupancy_classes
 from ..raster.ring import slot
-from ..raster.update import ScanCodes
+from ..raster.update import UNSEEN, ScanCodes
 from . import _kernels as K
 from .costmap import InflationParams, as_footprint, inscribed_radius as _inscribed_radius
 
@@ -60,18 +62,11 @@ class PathCheck(NamedTuple):
     dropped: int
 
 
-def _finite_number(name, v, positive=False, allow_none=False):
-    if v is None and allow_none:
-        return None
-    if not (isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v)):
-        raise InvalidArgumentError(f"{name} must be a finite number, got {v!r}")
-    if positive and not v > 0:
-        raise InvalidArgumentError(f"{name} must be > 0, got {v!r}")
-    return float(v)
-
-
 class LocalMap:
     """A rolling, forgetting occupancy window centred on the robot, with a Nav2 costmap.
+
+    Method and parameter names follow the vocabulary shared by the three maps
+    (``docs/vocabulary.md``).
 
     Parameters
     ----------
@@ -82,11 +77,12 @@ class LocalMap:
     half_life : float or None
         Seconds for a cell's log-odds (relative to the prior) to halve when nothing updates it;
         ``None``: no forgetting.
-    occupied, free : float
-        Probability thresholds: lethal when ``p ≥ occupied``, free when ``p < free``; between
-        them, and where never observed, unknown (map_server's trinary rule).
+    occupied_threshold, free_threshold : float
+        Probability thresholds: lethal when ``p ≥ occupied_threshold``, free when
+        ``p < free_threshold``; between them, and where never observed, unknown (map_server's
+        trinary rule). :meth:`occupancy_at` uses ``occupied_threshold`` alone.
     model : LidarModel
-        ``p_hit`` / ``p_miss`` of the beam-end model (OctoMap's 0.7 / 0.4).
+        ``prob_hit`` / ``prob_miss`` of the beam-end model (OctoMap's 0.7 / 0.4).
     prior, clamp : as :class:`~occmap.OccupancyGrid2D`.
     inflation_radius, cost_scaling_factor : float
         Nav2's inflation parameters (defaults 0.55 m, 10).
@@ -98,17 +94,16 @@ class LocalMap:
     """
 
     def __init__(self, size=(40.0, 40.0), resolution: float = 0.1, half_life: float | None = None, *,
-                 occupied: float = 0.65, free: float = 0.196, model: LidarModel | None = None, prior: float = 0.5,
+                 occupied_threshold: float = 0.65, free_threshold: float = 0.196, model: LidarModel | None = None, prior: float = 0.5,
                  clamp=(0.1192, 0.971), inflation_radius: float = 0.55, cost_scaling_factor: float = 10.0,
                  footprint=0.1, center=(0.0, 0.0)):
-        self.resolution = _finite_number("resolution", resolution, positive=True)
-        self.half_life = _finite_number("half_life", half_life, positive=True, allow_none=True)
+        self.resolution = checks.resolution(resolution)
+        self.half_life = None if half_life is None else checks.positive("half_life", half_life, "seconds")
         try:
-            w, h = (float(v) for v in size)
+            w, h = size
         except (TypeError, ValueError):
             raise InvalidArgumentError(f"size must be (width, height) in metres, got {size!r}") from None
-        if not (math.isfinite(w) and math.isfinite(h) and w > 0 and h > 0):
-            raise InvalidArgumentError(f"size must be positive (width, height) in metres, got {size!r}")
+        w, h = checks.positive("size[0] (width)", w, "metres"), checks.positive("size[1] (height)", h, "metres")
         W = int(math.ceil(w / self.resolution - 1e-9))
         H = int(math.ceil(h / self.resolution - 1e-9))
         self.model = LidarModel() if model is None else model
@@ -116,11 +111,15 @@ class LocalMap:
         self.l_min, self.l_max = logit(clamp[0]), logit(clamp[1])
         if not self.l_min < self.l_prior < self.l_max:
             raise InvalidArgumentError(f"prior {prior!r} must lie strictly between the clamping bounds {clamp!r}")
-        self.l_occupied, self.l_free = logit(occupied), logit(free)
+        self.occupied_threshold = checks.probability("occupied_threshold", occupied_threshold)
+        self.free_threshold = checks.probability("free_threshold", free_threshold)
+        self.l_occupied, self.l_free = logit(self.occupied_threshold), logit(self.free_threshold)
         if not self.l_free <= self.l_prior < self.l_occupied:
-            raise InvalidArgumentError(f"thresholds must satisfy free ({free}) ≤ prior ({prior}) < occupied ({occupied})")
+            raise InvalidArgumentError(f"thresholds must satisfy free_threshold ({free_threshold}) ≤ prior ({prior}) "
+                                       f"< occupied_threshold ({occupied_threshold})")
         if not self.l_occupied <= self.l_max:
-            raise InvalidArgumentError(f"occupied threshold {occupied} lies above the upper clamp {clamp[1]}: nothing could be lethal")
+            raise InvalidArgumentError(f"occupied_threshold {occupied_threshold} lies above the upper clamp {clamp[1]}: "
+                                       "nothing could be lethal")
         self.footprint = footprint
         self._footprint = as_footprint(footprint)
         self.inflation = InflationParams(self.resolution, inflation_radius, cost_scaling_factor,
@@ -140,9 +139,9 @@ class LocalMap:
         self._time = None
         self._version = 0
         self._cost_cache = None
-        self.stats = {"scans": 0, "points": 0, "dropped_points": 0, "dropped_poses": 0, "max_range": 0,
+        self.stats = {"scans": 0, "points": 0, "dropped": 0, "dropped_poses": 0, "beyond_max_range": 0,
                       "rays": 0, "cells_updated": 0, "cells_cleared_by_moves": 0}
-        cx, cy = (_finite_number("center", v) for v in center)
+        cx, cy = (checks.finite("center", v) for v in center)
         self._gx0, self._gy0 = self._corner_for(cx, cy)
 
     # ------------------------------------------------------------------ geometry
@@ -227,9 +226,7 @@ class LocalMap:
 
     def _advance(self, stamp) -> None:
         """Move the clock to ``stamp``: check it, and decay by the time passed."""
-        if not (isinstance(stamp, (int, float, np.floating, np.integer)) and math.isfinite(stamp)):
-            raise InvalidArgumentError(f"stamp must be a finite time in seconds, got {stamp!r}")
-        stamp = float(stamp)
+        stamp = checks.finite("stamp", stamp)
         if self._time is not None:
             dt = stamp - self._time
             if dt < 0:
@@ -260,7 +257,9 @@ class LocalMap:
 
     # ------------------------------------------------------------------ sensing
 
-    def _integrate(self, px, py, ends, kinds) -> dict:
+    def _insert(self, px, py, ends, kinds, dropped: int, maxed: int) -> dict:
+        """Insert one scan's ray ends from the sensor at (px, py); record and return its counts
+        (the keys of :attr:`stats`, ``docs/vocabulary.md``)."""
         g = self._g
         lp = self.l_prior
         hits, rays, updated, visited = K.integrate(
@@ -268,14 +267,21 @@ class LocalMap:
             1.0 / self.resolution, float(px), float(py), ends, kinds, self._next_scan(),
             (self.model.l_hit - lp) / g, (self.model.l_miss - lp) / g, (self.l_min - lp) / g, (self.l_max - lp) / g,
             self.parallel)
-        self.stats["scans"] += 1
-        self.stats["rays"] += rays
+        counts = {"scans": 1, "points": len(kinds), "dropped": int(dropped), "beyond_max_range": int(maxed),
+                  "rays": int(rays)}
+        for key, value in counts.items():
+            self.stats[key] += value
         self.stats["cells_updated"] += hits + updated
         self._changed()
-        return {"hits": int(hits), "rays": int(rays), "free_updates": int(updated), "cells_visited": int(visited)}
+        return {**counts, "hits": int(hits), "free_updates": int(updated), "cells_visited": int(visited)}
 
-    def integrate_scan(self, pose, ranges, angles, stamp, max_range: float | None = None) -> dict:
-        """Integrate one planar scan from sensor pose ``(x, y, theta)`` taken at ``stamp`` seconds.
+    def _dropped_pose(self, n: int) -> dict:
+        """A scan or cloud whose sensor pose is not finite: counted, nothing inserted."""
+        self.stats["dropped_poses"] += 1
+        return {"scans": 0, "points": 0, "dropped": n, "beyond_max_range": 0, "dropped_pose": True}
+
+    def insert_scan(self, pose, ranges, angles, stamp, max_range: float | None = None) -> dict:
+        """Insert one planar scan from sensor pose ``(x, y, theta)`` taken at ``stamp`` seconds.
 
         ``ranges`` (n,) metres; ``angles`` (n,) relative to the sensor heading. Readings at or
         beyond ``max_range`` (or infinite) clear up to it and mark nothing; NaN, zero and negative
@@ -293,28 +299,22 @@ class LocalMap:
             raise ShapeError(f"ranges and angles must both have shape (n,), got {R.shape} and {A.shape}")
         self._advance(stamp)
         if not np.isfinite(P).all():
-            self.stats["dropped_poses"] += 1
-            return {"dropped_pose": True, "dropped": int(R.size), "max_range": 0}
+            return self._dropped_pose(int(R.size))
         if max_range is None:
             finite = R[np.isfinite(R) & (R > 0)]
             mr = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
             if np.isinf(R).any():
                 R = np.where(np.isinf(R), np.nan, R)
         else:
-            mr = _finite_number("max_range", max_range, positive=True)
+            mr = checks.positive("max_range", max_range, "metres")
         ends = np.empty((R.size, 2))
         kinds = np.empty(R.size, dtype=np.int8)
         dropped, maxed = K.scan_ends(P, R, A, mr, ends, kinds)
-        self.stats["points"] += int(R.size)
-        self.stats["dropped_points"] += int(dropped)
-        self.stats["max_range"] += int(maxed)
-        out = self._integrate(P[0], P[1], ends, kinds)
-        out.update(dropped=int(dropped), max_range=int(maxed))
-        return out
+        return self._insert(P[0], P[1], ends, kinds, dropped, maxed)
 
-    def integrate_points(self, points_world, sensor_origin, stamp, z_min: float, z_max: float) -> dict:
-        """Integrate a 3D cloud: ``points_world`` (N, 3) in the world frame, seen from
-        ``sensor_origin`` (2 or 3 numbers; z unused) at ``stamp`` seconds.
+    def insert_point_cloud(self, points, origin, stamp, z_min: float, z_max: float) -> dict:
+        """Insert a 3D cloud: ``points`` (N, 3) in the world frame, seen from the sensor at
+        ``origin`` (2 or 3 numbers; z unused) at ``stamp`` seconds.
 
         Points with ``z_min ≤ z ≤ z_max`` mark their cell as an obstacle and clear the cells
         before it; the others (ground below the band, overhangs above it) mark nothing and clear
@@ -322,28 +322,23 @@ class LocalMap:
         inf are dropped and counted; a non-finite sensor origin drops the cloud (counted as a
         dropped pose). Returns this cloud's counts.
         """
-        pts = np.ascontiguousarray(points_world, dtype=np.float64)
+        pts = np.ascontiguousarray(points, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] != 3:
-            raise ShapeError(f"points_world must have shape (N, 3), got {pts.shape}")
-        o = np.asarray(sensor_origin, dtype=np.float64).reshape(-1)
+            raise ShapeError(f"points must have shape (N, 3), got {pts.shape}")
+        o = np.asarray(origin, dtype=np.float64).reshape(-1)
         if o.shape not in ((2,), (3,)):
-            raise ShapeError(f"sensor_origin must have 2 or 3 coordinates, got shape {o.shape}")
-        z_min = _finite_number("z_min", z_min)
-        z_max = _finite_number("z_max", z_max)
+            raise ShapeError(f"origin must have 2 or 3 coordinates, got shape {o.shape}")
+        z_min = checks.finite("z_min", z_min)
+        z_max = checks.finite("z_max", z_max)
         if not z_min <= z_max:
             raise InvalidArgumentError(f"z_min ({z_min}) must not exceed z_max ({z_max})")
         self._advance(stamp)
         if not np.isfinite(o[:2]).all():
-            self.stats["dropped_poses"] += 1
-            return {"dropped_pose": True, "dropped": len(pts)}
+            return self._dropped_pose(len(pts))
         ends = np.empty((len(pts), 2))
         kinds = np.empty(len(pts), dtype=np.int8)
         dropped = K.cloud_ends(pts, z_min, z_max, ends, kinds)
-        self.stats["points"] += len(pts)
-        self.stats["dropped_points"] += int(dropped)
-        out = self._integrate(o[0], o[1], ends, kinds)
-        out["dropped"] = int(dropped)
-        return out
+        return self._insert(o[0], o[1], ends, kinds, dropped, 0)
 
     # ------------------------------------------------------------------ read-outs
 
@@ -358,12 +353,36 @@ class LocalMap:
         """True for window cells observed since they entered the window (window order)."""
         return ~np.isnan(self.log_odds())
 
-    def to_occupancy_grid(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(data, origin)``: nav_msgs/OccupancyGrid values (int8 (H, W), row 0 at the origin;
-        −1 unknown, else round(100·p)) and the window origin (x, y)."""
+    def occupancy(self) -> np.ndarray:
+        """nav_msgs/OccupancyGrid values (int8 (H, W), row 0 at :attr:`origin`): −1 unknown, else
+        round(100·p)."""
         out = np.empty(self.shape, dtype=np.int8)
         K.occupancy(self._cells, self._stamps, self._sr, self._sc, self._g, self.l_prior, out)
-        return out, self.origin
+        return out
+
+    def log_odds_at(self, points) -> np.ndarray:
+        """Log-odds (float64, shape (...)) of the cells under world points (..., 2), the value
+        :meth:`log_odds` holds there; NaN outside the window or where unknown (NaN points too)."""
+        p = np.asarray(points, dtype=np.float64)
+        if p.shape[-1:] != (2,):
+            raise ShapeError(f"points must have shape (..., 2), got {p.shape}")
+        H, W = self.shape
+        out = np.full(p.shape[:-1], np.nan)
+        good = np.isfinite(p).all(axis=-1)
+        cells = self.world_to_cell(np.where(good[..., None], p, 0.0))
+        wy, wx = cells[..., 0], cells[..., 1]
+        inside = good & (wy >= 0) & (wy < H) & (wx >= 0) & (wx < W)
+        r = (wy[inside] + self._sr) % H
+        c = (wx[inside] + self._sc) % W
+        seen = self._stamps[r, c, 1] != UNSEEN
+        l = (self.l_prior + self._g * self._cells[r, c, 0].astype(np.float64)).astype(np.float32)
+        out[inside] = np.where(seen, l, np.nan)
+        return out
+
+    def occupancy_at(self, points) -> np.ndarray:
+        """Per world point (..., 2), int8: −1 unknown or outside the window, 1 occupied
+        (``p ≥ occupied_threshold``), else 0 free."""
+        return occupancy_classes(self.log_odds_at(points), self.l_occupied)
 
     def costmap(self) -> tuple[np.ndarray, np.ndarray]:
         """``(cost, origin)``: Nav2 costs (uint8 (H, W), row 0 at the origin; see
@@ -399,7 +418,7 @@ class LocalMap:
     def cost_at(self, points, frame: str = "world", robot_pose=None) -> np.ndarray:
         """Costs (uint8, shape (...)) of the cells under points (..., 2): world coordinates, or
         ``frame="body"`` coordinates in the frame of ``robot_pose`` (x, y, θ). Points outside
-        the window or with NaN get 255 (the NaN ones are counted in ``stats["dropped_points"]``)."""
+        the window or with NaN get 255 (the NaN ones are counted in ``stats["dropped"]``)."""
         p = np.asarray(points, dtype=np.float64)
         if p.shape[-1:] != (2,):
             raise ShapeError(f"points must have shape (..., 2), got {p.shape}")
@@ -417,7 +436,7 @@ class LocalMap:
         flat = np.ascontiguousarray(p.reshape(-1, 2))
         out = np.empty(len(flat), dtype=np.uint8)
         bad = K.cost_at(cost, self._gx0, self._gy0, 1.0 / self.resolution, flat, out)
-        self.stats["dropped_points"] += int(bad)
+        self.stats["dropped"] += int(bad)
         return out.reshape(p.shape[:-1])
 
     def check_path(self, poses, footprint=None, unknown_is_collision: bool = False) -> PathCheck:

@@ -4,34 +4,33 @@ Conventions (OctoMap's, so maps compare voxel by voxel): depth 16; the key of a 
 ``floor(x / resolution) + 32768`` per axis; child index ``x-bit + 2·y-bit + 4·z-bit``; each node
 holds a float32 log-odds ``l = log(p / (1 − p))``; a hit adds ``logit(prob_hit)``, a miss
 ``logit(prob_miss)``, and values are clamped to ``logit(clamp)``; a node is occupied when
-``l ≥ logit(occupancy_threshold)``; an inner node holds the maximum of its children; eight leaf
+``l ≥ logit(occupied_threshold)``; an inner node holds the maximum of its children; eight leaf
 children with equal values are pruned into their parent. Space no node covers is *unknown*.
 Points are metres in the map frame; rays start at the sensor origin.
 """
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
 
+from .. import checks
 from .._threads import thread_count
 from ..errors import InvalidArgumentError, ShapeError
+from ..logodds import logit32, occupancy_classes
+from ..png import write_png
 from . import insertion, pool, query, views
 from .keys import CENTER, MAX_KEY, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
 from .marking import prepare_rays, ray_voxels
 
 
-def _logodds32(p: float) -> np.float32:
-    """OctoMap's ``logodds``: computed in float64, stored as float32."""
-    return np.float32(math.log(p / (1.0 - p)))
-
-
-def _probability(name: str, p) -> float:
-    if not (isinstance(p, (int, float, np.floating)) and 0.0 < p < 1.0):
-        raise InvalidArgumentError(f"{name} must be a probability strictly between 0 and 1, got {p!r}")
-    return float(p)
+def _depth(depth) -> int:
+    """A node depth: an integer 0 (the root) .. 16 (a voxel)."""
+    d = checks.count("depth", depth, 0)
+    if d > 16:
+        raise InvalidArgumentError(f"depth must be an integer 0 .. 16, got {depth!r}")
+    return d
 
 
 def _points(name: str, points) -> np.ndarray:
@@ -84,6 +83,9 @@ class Nodes(NamedTuple):
 class OcTree:
     """A probabilistic 3D occupancy octree with OctoMap's update rules (its files: :mod:`occmap.io.octomap`).
 
+    Method and parameter names follow the vocabulary shared by the three maps
+    (``docs/vocabulary.md``).
+
     Parameters
     ----------
     resolution : float
@@ -92,26 +94,24 @@ class OcTree:
         Sensor model: occupancy probability after a hit / a pass-through (OctoMap: 0.7 / 0.4).
     clamp : (p_min, p_max)
         Clamping bounds in probability (OctoMap: 0.1192 / 0.971).
-    occupancy_threshold : float
+    occupied_threshold : float
         Probability at or above which a node counts as occupied (OctoMap: 0.5).
     """
 
     def __init__(self, resolution: float, prob_hit: float = 0.7, prob_miss: float = 0.4,
-                 clamp=(0.1192, 0.971), occupancy_threshold: float = 0.5):
-        if not (isinstance(resolution, (int, float, np.floating)) and math.isfinite(resolution) and resolution > 0):
-            raise InvalidArgumentError(f"resolution must be a positive number of metres, got {resolution!r}")
-        self.resolution = float(resolution)
-        self.prob_hit = _probability("prob_hit", prob_hit)
-        self.prob_miss = _probability("prob_miss", prob_miss)
-        self.clamp = (_probability("clamp[0]", clamp[0]), _probability("clamp[1]", clamp[1]))
-        self.occupancy_threshold = _probability("occupancy_threshold", occupancy_threshold)
+                 clamp=(0.1192, 0.971), occupied_threshold: float = 0.5):
+        self.resolution = checks.resolution(resolution)
+        self.prob_hit = checks.probability("prob_hit", prob_hit)
+        self.prob_miss = checks.probability("prob_miss", prob_miss)
+        self.clamp = (checks.probability("clamp[0]", clamp[0]), checks.probability("clamp[1]", clamp[1]))
+        self.occupied_threshold = checks.probability("occupied_threshold", occupied_threshold)
         if not self.clamp[0] < self.clamp[1]:
             raise InvalidArgumentError(f"clamp must be (p_min, p_max) with p_min < p_max, got {clamp!r}")
-        self._l_hit = _logodds32(self.prob_hit)
-        self._l_miss = _logodds32(self.prob_miss)
-        self._l_min = _logodds32(self.clamp[0])
-        self._l_max = _logodds32(self.clamp[1])
-        self._l_occ = _logodds32(self.occupancy_threshold)
+        self._l_hit = logit32(self.prob_hit)
+        self._l_miss = logit32(self.prob_miss)
+        self._l_min = logit32(self.clamp[0])
+        self._l_max = logit32(self.clamp[1])
+        self._l_occ = logit32(self.occupied_threshold)
         self._rule = (self._l_hit, self._l_miss, self._l_min, self._l_max)  # what insertion.apply takes
         self.stats = {"scans": 0, "points": 0, "dropped": 0}
         self._bbx = None
@@ -136,7 +136,7 @@ class OcTree:
         return float(self._l_min), float(self._l_max)
 
     @property
-    def occupancy_log_odds(self) -> float:
+    def occupied_log_odds(self) -> float:
         """Log-odds at or above which a node is occupied."""
         return float(self._l_occ)
 
@@ -203,11 +203,12 @@ class OcTree:
         (< 0: no limit) clears free space up to ``max_range`` and marks nothing. ``discretize``
         merges points that fall in one voxel first (one ray per voxel, from the voxel centre).
         ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
-        :meth:`prune` when done). NaN/inf points are dropped and counted. Returns a summary dict.
+        :meth:`prune` when done). NaN/inf points are dropped and counted. Returns this scan's counts:
+        ``scans``, ``points``, ``dropped``, ``beyond_max_range`` (``docs/vocabulary.md``).
         """
         keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
         insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=True)
-        return self._count(summary)
+        return {"scans": 1, **self._count(summary)}
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
                             lazy: bool = False) -> dict:
@@ -336,8 +337,7 @@ class OcTree:
     # ------------------------------------------------------------------ queries
 
     def _search(self, points, depth: int) -> np.ndarray:
-        if not 0 <= depth <= 16:
-            raise InvalidArgumentError(f"depth must be 0..16, got {depth!r}")
+        depth = _depth(depth)
         P = _points("points", points)
         keys = coord_to_keys(P, self.resolution)
         inside = keys_in_range(keys) & np.all(np.isfinite(P), axis=1)
@@ -356,11 +356,8 @@ class OcTree:
         return out
 
     def occupancy_at(self, points, depth: int = 16) -> np.ndarray:
-        """Per point: −1 unknown, 0 free, 1 occupied (log-odds ≥ the occupancy threshold)."""
-        l = self.log_odds_at(points, depth)
-        out = np.where(l >= self._l_occ, 1, 0).astype(np.int8)
-        out[np.isnan(l)] = -1
-        return out
+        """Per point: −1 unknown, 0 free, 1 occupied (log-odds ≥ that of ``occupied_threshold``)."""
+        return occupancy_classes(self.log_odds_at(points, depth), self._l_occ)
 
     def cast_ray(self, origins, directions, max_range: float = -1.0, ignore_unknown: bool = False):
         """OctoMap's ``castRay`` for each ray: from the voxel of ``origins`` (N, 3) (or one (3,))
@@ -383,8 +380,7 @@ class OcTree:
         return self._nodes(bbx_min, bbx_max, 16 if depth is None else depth, True)
 
     def _nodes(self, bbx_min, bbx_max, depth: int, leaves_only: bool) -> Leaves:
-        if not 0 <= depth <= 16:
-            raise InvalidArgumentError(f"depth must be 0..16, got {depth!r}")
+        depth = _depth(depth)
         kmin = np.zeros(3, np.int64) if bbx_min is None else np.clip(self._bbx_key(bbx_min), 0, MAX_KEY)
         kmax = np.full(3, MAX_KEY, np.int64) if bbx_max is None else np.clip(self._bbx_key(bbx_max), 0, MAX_KEY)
         args = (self._pool.value, self._pool.child, depth, kmin, kmax, leaves_only)
@@ -475,11 +471,11 @@ class OcTree:
     def save_height_png(self, path, pixel: float | None = None) -> None:
         """Top-down picture: occupied columns coloured by their highest occupied z, known empty
         columns white, unknown grey (see :mod:`occmap.octree.views`)."""
-        views.save_image(views.height_image(self, pixel), path)
+        write_png(path, views.height_image(self, pixel))
 
     def save_slice_png(self, path, z: float, pixel: float | None = None) -> None:
         """Horizontal slice at height ``z``: occupied black, free white, unknown grey."""
-        views.save_image(views.slice_image(self, z, pixel), path)
+        write_png(path, views.slice_image(self, z, pixel))
 
     def export_ply(self, path, binary: bool = True) -> int:
         """Occupied leaf centres as a PLY point cloud coloured by height; returns the point count."""

@@ -7,12 +7,10 @@ voxel (``tree.resolution``) unless a coarser ``pixel`` size is asked for.
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 from PIL import Image
 
-from .._files import write_atomic
+from .. import checks
 from ..errors import InvalidArgumentError
 from ..io.pointclouds import write_ply
 
@@ -33,9 +31,7 @@ def height_colors(t) -> np.ndarray:
 
 def _frame(tree, pixel):
     """Pixel size and the (xmin, ymin, xmax, ymax) box of the known leaves, snapped to pixels."""
-    pixel = tree.resolution if pixel is None else float(pixel)
-    if not pixel > 0:
-        raise InvalidArgumentError(f"pixel must be a positive size in metres, got {pixel!r}")
+    pixel = tree.resolution if pixel is None else checks.positive("pixel", pixel, "metres")
     lo, hi = tree.metric_bounds()
     x0, y0 = np.floor(lo[:2] / pixel) * pixel
     x1, y1 = np.ceil(hi[:2] / pixel) * pixel
@@ -51,7 +47,7 @@ def height_map(tree, pixel: float | None = None):
         raise InvalidArgumentError("the octree is empty: nothing to draw")
     pixel, x0, y0, w, h = _frame(tree, pixel)
     lv = tree.leaves()
-    occupied = lv.log_odds >= tree.occupancy_log_odds
+    occupied = lv.log_odds >= tree.occupied_log_odds
     top = np.full(h * w, -np.inf)
     known = np.zeros(h * w, bool)
     # a leaf covers a square of columns: rasterise each leaf over the pixels its footprint spans
@@ -102,13 +98,6 @@ def slice_image(tree, z: float, pixel: float | None = None) -> Image.Image:
     rgb[occ == 0] = FREE
     rgb[occ == 1] = OCCUPIED
     return Image.fromarray(rgb[::-1])
-
-
-def save_image(image: Image.Image, path) -> None:
-    """Write a PNG atomically."""
-    buf = io.BytesIO()
-    image.save(buf, format="PNG")
-    write_atomic(path, buf.getvalue())
 
 
 def export_ply(tree, path, binary: bool = True) -> int:

@@ -18,14 +18,13 @@ nearest zero), squared or scaled, without its int32 index arrays.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import get_num_threads, prange
 
+from .. import checks
 from .._jit import kernel, kernel_parallel
 from .._threads import ThreadChoice
-from ..errors import InvalidArgumentError, ShapeError
+from ..errors import ShapeError
 
 __all__ = ["squared_distance_cells", "distance_transform", "row_envelope"]
 
@@ -172,9 +171,7 @@ def distance_transform(obstacle_mask, resolution: float = 1.0, parallel: bool | 
     where the mask has no obstacle at all. Equals
     ``scipy.ndimage.distance_transform_edt(~mask) * resolution`` wherever the mask has an obstacle.
     """
-    if not (isinstance(resolution, (int, float, np.floating, np.integer)) and math.isfinite(resolution)
-            and resolution > 0):
-        raise InvalidArgumentError(f"resolution must be a positive number of metres, got {resolution!r}")
+    resolution = checks.resolution(resolution)
     d = _squared(_check_mask(obstacle_mask), parallel)
     np.sqrt(d, out=d)
     if resolution != 1.0:

@@ -18,8 +18,9 @@ import math
 
 import numpy as np
 
+from .. import checks
 from .._jit import inline_kernel, kernel
-from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
+from ..errors import NonFiniteError, ShapeError
 from .update import clamp_add, miss_stamp
 
 
@@ -271,8 +272,7 @@ def traverse_2d(starts, ends, resolution: float, origin=(0.0, 0.0)):
     b = np.ascontiguousarray(b.reshape(-1, 2))
     if not (np.isfinite(a).all() and np.isfinite(b).all()):
         raise NonFiniteError("segment end points must be finite")
-    if not resolution > 0:
-        raise InvalidArgumentError(f"resolution must be > 0, got {resolution!r}")
-    ox, oy = (float(v) for v in origin)
-    cells, offsets = _traverse_many(a, b, ox, oy, 1.0 / float(resolution))
+    resolution = checks.resolution(resolution)
+    ox, oy = (checks.finite("origin", v) for v in origin)
+    cells, offsets = _traverse_many(a, b, ox, oy, 1.0 / resolution)
     return cells[:, 1], cells[:, 0], offsets

@@ -19,7 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import checks
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
+from ..png import write_png
 from ..raster.walk2d import cell_of
 from ..scan import LaserScan
 from . import _kernels
@@ -211,9 +213,8 @@ class World2D:
         least 0.2 m (in fact about 0.45 m, at the door jambs) from every wall and obstacle."""
         if self.waypoints is None or len(self.waypoints) < 2:
             raise InvalidArgumentError("this world has no waypoints to build a trajectory from")
-        if n < 2:
-            raise InvalidArgumentError(f"n must be at least 2, got {n}")
-        return _resample_path(_chaikin(self.waypoints, smoothing), int(n))
+        n = checks.count("n", n, 2)
+        return _resample_path(_chaikin(self.waypoints, smoothing), n)
 
     # ------------------------------------------------------------------ ray casting
 
@@ -255,8 +256,7 @@ class World2D:
     # ------------------------------------------------------------------ ground truth
 
     def _grid(self, resolution, origin, shape):
-        if not (resolution > 0.0 and math.isfinite(resolution)):
-            raise InvalidArgumentError(f"resolution must be positive and finite, got {resolution}")
+        resolution = checks.resolution(resolution)
         xmin, ymin, xmax, ymax = self.bounds
         if origin is None:
             origin = (xmin, ymin)
@@ -362,7 +362,7 @@ class World2D:
             draw.line(list(zip(px.tolist(), py.tolist())), fill=(220, 0, 0), width=max(1, scale))
             r = 3 * scale
             draw.ellipse([px[0] - r, py[0] - r, px[0] + r, py[0] + r], fill=(0, 170, 0))
-        im.save(path)
+        write_png(path, im)
 
 
 def default_path(world: World2D, n: int = 1000) -> np.ndarray:
@@ -380,9 +380,9 @@ def _rng(rng):
 def _beam_angles(n_beams, fov):
     """``n_beams`` angles across ``fov`` centred on the heading; a full circle has no duplicate
     beam at ±π."""
-    if n_beams < 1:
-        raise InvalidArgumentError(f"n_beams must be at least 1, got {n_beams}")
-    if not (0.0 < fov <= 2.0 * np.pi + 1e-12):
+    n_beams = checks.count("n_beams", n_beams)
+    fov = checks.positive("fov", fov, "radians")
+    if not fov <= 2.0 * np.pi + 1e-12:
         raise InvalidArgumentError(f"fov must be in (0, 2π], got {fov}")
     if n_beams == 1:
         return np.zeros(1)
@@ -407,13 +407,10 @@ def _corrupt(true, max_range, sigma, p_outlier, p_dropout, rng):
 
 
 def _check_probs(sigma, p_outlier, p_dropout, max_range):
-    if not (sigma >= 0.0):
-        raise InvalidArgumentError(f"sigma must be non-negative, got {sigma}")
-    for name, p in (("p_outlier", p_outlier), ("p_dropout", p_dropout)):
-        if not (0.0 <= p <= 1.0):
-            raise InvalidArgumentError(f"{name} must be in [0, 1], got {p}")
-    if not (max_range > 0.0 and math.isfinite(max_range)):
-        raise InvalidArgumentError(f"max_range must be positive and finite, got {max_range}")
+    checks.non_negative("sigma", sigma, "metres")
+    checks.fraction("p_outlier", p_outlier)
+    checks.fraction("p_dropout", p_dropout)
+    checks.positive("max_range", max_range, "metres")
 
 
 def simulate_scans(world: World2D, poses, n_beams: int = 360, fov: float = 2.0 * np.pi,
@@ -431,7 +428,7 @@ def simulate_scans(world: World2D, poses, n_beams: int = 360, fov: float = 2.0 *
     poses = _as_rows("poses", poses, 3)
     _check_probs(sigma, p_outlier, p_dropout, max_range)
     rng = _rng(rng)
-    rel = _beam_angles(int(n_beams), float(fov))
+    rel = _beam_angles(n_beams, fov)
     N, n = poses.shape[0], rel.shape[0]
     angles = (poses[:, 2:3] + rel[None, :]).reshape(-1)
     origins = np.repeat(poses[:, :2], n, axis=0)
@@ -473,11 +470,8 @@ def simulate_sonar(world: World2D, pose, bearings, beam_width: float = np.radian
         raise ShapeError(f"pose must have shape (3,), got {pose.shape}")
     _check_probs(sigma, 0.0, 0.0, max_range)
     bearings = np.ascontiguousarray(bearings, dtype=np.float64).reshape(-1)
-    if not (beam_width >= 0.0):
-        raise InvalidArgumentError(f"beam_width must be non-negative, got {beam_width}")
-    m = int(rays_per_beam)
-    if m < 1:
-        raise InvalidArgumentError(f"rays_per_beam must be at least 1, got {m}")
+    beam_width = checks.non_negative("beam_width", beam_width, "radians")
+    m = checks.count("rays_per_beam", rays_per_beam)
     offs = np.linspace(-beam_width / 2.0, beam_width / 2.0, m) if m > 1 else np.zeros(1)
     angles = (pose[2] + bearings[:, None] + offs[None, :]).reshape(-1)
     true = world.cast(pose[:2], angles, max_range).reshape(bearings.shape[0], m).min(axis=1)

@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import checks
 from ..cloud import PointCloud
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..geometry.se3 import SE3
@@ -254,9 +255,7 @@ class World3D:
         skywalk."""
         if self.waypoints is None or len(self.waypoints) < 2:
             raise InvalidArgumentError("this world has no waypoints to build a trajectory from")
-        n = int(n_scans)
-        if n < 2:
-            raise InvalidArgumentError(f"n_scans must be at least 2, got {n_scans}")
+        n = checks.count("n_scans", n_scans, 2)
         if not math.isfinite(height):
             raise NonFiniteError(f"height must be finite, got {height}")
         p = _resample_path(self.waypoints, n)
@@ -350,9 +349,7 @@ class World3D:
         occupied. (Centre truth misses about half the voxels that hold a face: a face at x = 10.03
         puts its hits in voxel [10.0, 10.1), whose centre 10.05 lies outside a box ending there.)
         """
-        res = float(resolution)
-        if not (res > 0.0 and math.isfinite(res)):
-            raise InvalidArgumentError(f"resolution must be positive and finite, got {resolution}")
+        res = checks.resolution(resolution)
         if mode not in ("centre", "overlap"):
             raise InvalidArgumentError(f"mode must be 'centre' or 'overlap', got {mode!r}")
         lo = np.asarray(self.bounds[:3] if bbx_min is None else bbx_min, dtype=np.float64)
@@ -418,15 +415,18 @@ class LidarModel:
         if not all(-math.pi / 2 <= e <= math.pi / 2 for e in el):
             raise InvalidArgumentError("elevations must lie in [-π/2, π/2] radians")
         object.__setattr__(self, "elevations", el)
-        if not (0.0 < self.azimuth_step <= 2.0 * math.pi):
+        step = checks.positive("azimuth_step", self.azimuth_step, "radians")
+        if not step <= 2.0 * math.pi:
             raise InvalidArgumentError(f"azimuth_step must be in (0, 2π], got {self.azimuth_step}")
-        if not (0.0 <= self.min_range < self.max_range and math.isfinite(self.max_range)):
+        min_range = checks.non_negative("min_range", self.min_range, "metres")
+        max_range = checks.positive("max_range", self.max_range, "metres")
+        if not min_range < max_range:
             raise InvalidArgumentError(
                 f"need 0 <= min_range < max_range < inf, got {self.min_range}, {self.max_range}")
-        if not (self.rate > 0.0 and math.isfinite(self.rate)):
-            raise InvalidArgumentError(f"rate must be positive and finite, got {self.rate}")
-        for name in ("azimuth_step", "max_range", "min_range", "rate"):
-            object.__setattr__(self, name, float(getattr(self, name)))
+        values = {"azimuth_step": step, "max_range": max_range, "min_range": min_range,
+                  "rate": checks.positive("rate", self.rate, "scans per second")}
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
 
     @classmethod
     def from_degrees(cls, name: str, elevations_deg, azimuth_step_deg: float, max_range: float,
@@ -535,10 +535,8 @@ def simulate_lidar(world: World3D, pose, model: LidarModel = VELODYNE_HDL32, *, 
     T = _pose_matrix(pose)
     if azimuth_step is not None:
         model = model.with_azimuth_step(azimuth_step)
-    if not (noise_std >= 0.0 and math.isfinite(noise_std)):
-        raise InvalidArgumentError(f"noise_std must be non-negative and finite, got {noise_std}")
-    if not (0.0 <= dropout <= 1.0):
-        raise InvalidArgumentError(f"dropout must be in [0, 1], got {dropout}")
+    checks.non_negative("noise_std", noise_std, "metres")
+    checks.fraction("dropout", dropout)
     rng = _rng(rng)
     dirs = model.directions().reshape(-1, 3)
     m = T.matrix
