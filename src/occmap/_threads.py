@@ -14,6 +14,12 @@ for the cores: there a second thread waits for a core and a parallel call takes 
 thread would; on an idle machine it takes less. :class:`ThreadChoice` measures both paths of a
 kernel as the calls come and runs the cheaper one, trying the other now and then.
 
+**One map, several threads.** Every map and the localizer derive from :class:`OneCallAtATime`:
+each public method runs holding the object's lock, so calls from several threads on one object
+take turns, each seeing the object as the previous call left it (insertions in some order, never
+a mix). Different objects run side by side. The lock is per process: a child made by ``fork``
+while another thread is inside a call must not use that object.
+
 **Python worker threads** (for kernels that release the GIL and share work that Numba's
 ``prange`` cannot): :func:`share` runs a task on the calling thread and on pool threads at once,
 and never waits for a pool thread that has not started. As many threads as Numba has
@@ -24,9 +30,12 @@ and never waits for a pool thread that has not started. As many threads as Numba
 from __future__ import annotations
 
 import ctypes
+import functools
+import inspect
 import math
 import os
 import sys
+import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
@@ -196,4 +205,39 @@ def _max_threads() -> int:
     from numba import config
 
     return config.NUMBA_NUM_THREADS
+
+
+class OneCallAtATime:
+    """Base class: each public method (a plain function defined by a subclass) runs holding the
+    object's re-entrant lock (see the module's docstring). Pickling leaves the lock out and an
+    unpickled object gets its own."""
+
+    def __new__(cls, *args, **kwargs):
+        self = super().__new__(cls)
+        self._lock = threading.RLock()
+        return self
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        for name, value in list(vars(cls).items()):
+            if not name.startswith("_") and inspect.isfunction(value):
+                setattr(cls, name, _holding_lock(value))
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.RLock()
+
+
+def _holding_lock(method):
+    @functools.wraps(method)
+    def locked(self, *args, **kwargs):
+        with self._lock:
+            return method(self, *args, **kwargs)
+
+    return locked
 

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from .. import checks
+from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..logodds import logit, occupancy_classes, probability
 from ..raster.update import SEEN, UNSEEN, ScanCodes
@@ -40,7 +41,7 @@ def _beam_bounds(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) 
     return float(np.nanmin(x)), float(np.nanmin(y)), float(np.nanmax(x)), float(np.nanmax(y))
 
 
-class OccupancyGrid2D:
+class OccupancyGrid2D(OneCallAtATime):
     """A 2D occupancy grid in log-odds.
 
     Method and parameter names follow the vocabulary shared by the three maps

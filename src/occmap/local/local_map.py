@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import checks
+from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..grid2d.sensor_models import LidarModel
 from ..logodds import logit, occupancy_classes
@@ -62,7 +63,7 @@ class PathCheck(NamedTuple):
     dropped: int
 
 
-class LocalMap:
+class LocalMap(OneCallAtATime):
     """A rolling, forgetting occupancy window centred on the robot, with a Nav2 costmap.
 
     Method and parameter names follow the vocabulary shared by the three maps

@@ -67,6 +67,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import checks
+from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..geometry.motion import apply_odometry, odometry_delta
 from ..geometry.so2 import wrap_angle, wrap_angle_one
@@ -135,7 +136,7 @@ class _Stats:
     extra: dict = field(default_factory=dict)
 
 
-class MonteCarloLocalizer:
+class MonteCarloLocalizer(OneCallAtATime):
     """A particle filter that localizes a range sensor in a fixed occupancy grid (ROS AMCL).
 
     Parameters

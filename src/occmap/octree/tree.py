@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import checks
-from .._threads import thread_count
+from .._threads import OneCallAtATime, thread_count
 from ..errors import InvalidArgumentError, ShapeError
 from ..logodds import logit32, occupancy_classes
 from ..png import write_png
@@ -80,7 +80,7 @@ class Nodes(NamedTuple):
     count: int
 
 
-class OcTree:
+class OcTree(OneCallAtATime):
     """A probabilistic 3D occupancy octree with OctoMap's update rules (its files: :mod:`occmap.io.octomap`).
 
     Method and parameter names follow the vocabulary shared by the three maps
