@@ -1,4 +1,4 @@
-"""The three maps name the same things the same way (docs/vocabulary.md): insertion counts and
+"""The three maps name the same things the same way (docs/architecture.md): insertion counts and
 stats keys, log-odds and occupancy read-outs."""
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ class OccupancyGrid2D(OneCallAtATime):
     """A 2D occupancy grid in log-odds.
 
     Method and parameter names follow the vocabulary shared by the three maps
-    (``docs/vocabulary.md``).
+    (``docs/architecture.md``).
 
     Parameters
     ----------

@@ -33,7 +33,7 @@ class LidarModel:
     """Beam-end model of a laser: the end cell of a return is hit, the cells before it are free.
 
     ``prob_hit`` is P(occupied | return ends in the cell), ``prob_miss`` is P(occupied | beam
-    passes through the cell); both must lie on their side of 0.5 (names: ``docs/vocabulary.md``).
+    passes through the cell); both must lie on their side of 0.5 (names: ``docs/architecture.md``).
     """
 
     prob_hit: float = 0.7
@@ -68,7 +68,7 @@ class SonarModel:
         up to ``math.inf`` (no limit beyond the transducer's sector).
     prob_hit, prob_miss : float
         P(occupied) for a cell on the arc / inside the cone before it (names:
-        ``docs/vocabulary.md``).
+        ``docs/architecture.md``).
     arc : float or None
         Thickness of the occupied arc in metres (Thrun's α); ``None``: one cell.
     weighting : ``"quadratic"`` (default) or ``"uniform"``

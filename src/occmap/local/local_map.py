@@ -67,7 +67,7 @@ class LocalMap(OneCallAtATime):
     """A rolling, forgetting occupancy window centred on the robot, with a Nav2 costmap.
 
     Method and parameter names follow the vocabulary shared by the three maps
-    (``docs/vocabulary.md``).
+    (``docs/architecture.md``).
 
     Parameters
     ----------
@@ -260,7 +260,7 @@ class LocalMap(OneCallAtATime):
 
     def _insert(self, px, py, ends, kinds, dropped: int, maxed: int) -> dict:
         """Insert one scan's ray ends from the sensor at (px, py); record and return its counts
-        (the keys of :attr:`stats`, ``docs/vocabulary.md``)."""
+        (the keys of :attr:`stats`, ``docs/architecture.md``)."""
         g = self._g
         lp = self.l_prior
         hits, rays, updated, visited = K.integrate(

@@ -84,7 +84,7 @@ class OcTree(OneCallAtATime):
     """A probabilistic 3D occupancy octree with OctoMap's update rules (its files: :mod:`occmap.io.octomap`).
 
     Method and parameter names follow the vocabulary shared by the three maps
-    (``docs/vocabulary.md``).
+    (``docs/architecture.md``).
 
     Parameters
     ----------
@@ -204,7 +204,7 @@ class OcTree(OneCallAtATime):
         merges points that fall in one voxel first (one ray per voxel, from the voxel centre).
         ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
         :meth:`prune` when done). NaN/inf points are dropped and counted. Returns this scan's counts:
-        ``scans``, ``points``, ``dropped``, ``beyond_max_range`` (``docs/vocabulary.md``).
+        ``scans``, ``points``, ``dropped``, ``beyond_max_range`` (``docs/architecture.md``).
         """
         keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
         insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=True)
