@@ -6,6 +6,7 @@ from __future__ import annotations
 import pickle
 import threading
 
+import numba
 import numpy as np
 import pytest
 
@@ -104,3 +105,22 @@ def test_maps_pickle_without_their_lock():
     copy = pickle.loads(pickle.dumps(tree))
     assert copy.num_nodes() == tree.num_nodes() and copy._lock is not tree._lock
     copy.insert_point_cloud(np.array([[0.0, 1.0, 0.0]]), np.zeros(3))  # its own lock works
+
+
+@pytest.mark.skipif(numba.get_num_threads() < 2, reason="tracing ahead needs two threads")
+def test_tracing_ahead_does_not_wait_for_the_lock_its_call_holds():
+    """insert_point_clouds traces the next scan on another thread while the call holds the
+    tree's lock: what that thread uses must not take the lock (a deadlock before)."""
+    clouds = _clouds()
+    tree, done = OcTree(0.2), threading.Event()
+
+    def insert():
+        tree.insert_point_clouds([p for p, _ in clouds], np.array([o for _, o in clouds]))
+        done.set()
+
+    threading.Thread(target=insert, daemon=True).start()
+    assert done.wait(180), "insert_point_clouds deadlocked"
+    alone = OcTree(0.2)
+    for points, origin in clouds:
+        alone.insert_point_cloud(points, origin)
+    assert tree.num_nodes() == alone.num_nodes()

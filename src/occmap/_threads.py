@@ -209,8 +209,8 @@ def _max_threads() -> int:
 
 class OneCallAtATime:
     """Base class: each public method (a plain function defined by a subclass) runs holding the
-    object's re-entrant lock (see the module's docstring). Pickling leaves the lock out and an
-    unpickled object gets its own."""
+    object's re-entrant lock (see the module's docstring), except those marked :func:`no_lock`.
+    Pickling leaves the lock out and an unpickled object gets its own."""
 
     def __new__(cls, *args, **kwargs):
         self = super().__new__(cls)
@@ -220,7 +220,7 @@ class OneCallAtATime:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         for name, value in list(vars(cls).items()):
-            if not name.startswith("_") and inspect.isfunction(value):
+            if not name.startswith("_") and inspect.isfunction(value) and not getattr(value, "_no_lock", False):
                 setattr(cls, name, _holding_lock(value))
 
     def __getstate__(self):
@@ -231,6 +231,14 @@ class OneCallAtATime:
     def __setstate__(self, state):
         self.__dict__.update(state)
         self._lock = threading.RLock()
+
+
+def no_lock(method):
+    """Mark a method of a :class:`OneCallAtATime` class that reads nothing a call can change
+    (arithmetic on constants fixed at construction): it runs without the lock, so the worker
+    threads of a call holding it may use it."""
+    method._no_lock = True
+    return method
 
 
 def _holding_lock(method):

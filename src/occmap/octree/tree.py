@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import checks
-from .._threads import OneCallAtATime, thread_count
+from .._threads import OneCallAtATime, no_lock, thread_count
 from ..errors import InvalidArgumentError, ShapeError
 from ..logodds import logit32, occupancy_classes
 from ..png import write_png
@@ -168,6 +168,7 @@ class OcTree(OneCallAtATime):
 
     # ------------------------------------------------------------------ keys
 
+    @no_lock
     def coord_to_key(self, points) -> np.ndarray:
         """Depth-16 keys (N, 3) int64 of points (N, 3) in metres, OctoMap's ``coordToKey``
         (``floor(x / res) + 32768`` on the float64 coordinate). Raises on keys outside 0..65535."""
@@ -184,6 +185,7 @@ class OcTree(OneCallAtATime):
             f"{what} {i} {np.asarray(p).tolist()} lies outside the octree's key range "
             f"(±{CENTER * self.resolution:g} m at resolution {self.resolution:g} m){also}")
 
+    @no_lock
     def key_to_coord(self, keys, depth: int = 16) -> np.ndarray:
         """Centres (N, 3) of the nodes at ``depth`` that hold the given keys, computed as OctoMap's
         ``keyToCoord(key, depth)`` (bit for bit)."""
