@@ -77,8 +77,9 @@ def test_so3_conversions_match_scipy(rots):
 @given(unit_quats, unit_quats, translations)
 def test_so3_composition_order_and_inverse(qa, qb, p):
     A, B = SO3.from_quat(qa), SO3.from_quat(qb)
-    # the product, renormalised onto SO(3) (a few ulp from the bare matrix product)
-    np.testing.assert_allclose((A @ B).matrix, A.matrix @ B.matrix, rtol=0, atol=4 * EPS)
+    # the product, renormalised onto SO(3): the step moves an entry by about the product's own
+    # distance from SO(3), a few ulp (4.5 found by hypothesis)
+    np.testing.assert_allclose((A @ B).matrix, A.matrix @ B.matrix, rtol=0, atol=8 * EPS)
     # A @ B applies B first
     e = 16 * EPS * (1 + np.abs(p).max())
     np.testing.assert_allclose((A @ B).apply(p), A.apply(B.apply(p)), rtol=0, atol=e)
