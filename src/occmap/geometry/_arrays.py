@@ -122,7 +122,7 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
     Euler angles, planar poses: scalars that are usually floats) Python floats go to the kernel
     as they are, which costs less than a 0-d array each; three floats (NumPy's float64 too, a
     subclass) go to ``floats(x, y, z, out)`` when given, a kernel for scalars that skips the array
-    handling altogether. Anything else — batches, rejected input — goes to ``otherwise`` (by
+    handling altogether (and takes no ``args``). Anything else — batches, rejected input — goes to ``otherwise`` (by
     default :func:`run`, which names what is wrong).
     """
 
@@ -162,7 +162,7 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
 
     else:
         t1, t2, t3 = trailing
-        scalars = floats if floats is not None and not (t1 or t2 or t3) else None
+        scalars = floats if not (t1 or t2 or t3) else None
 
         def call(x, y, z):
             if scalars is not None and isinstance(x, float) and isinstance(y, float) and isinstance(z, float):

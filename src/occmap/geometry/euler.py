@@ -17,8 +17,8 @@ from . import _kernels as K
 from ._arrays import entry, unstack
 
 _to_matrix = entry(
-    K.euler_zyx_to_matrix, (3, 3), ((), "yaw", "finite"), ((), "pitch", "finite"), ((), "roll", "finite"),
-    floats=K.euler_zyx_to_matrix_one,
+    K.matrix_of_three, (3, 3), ((), "yaw", "finite"), ((), "pitch", "finite"), ((), "roll", "finite"),
+    args=(K.EULER_ZYX,), floats=K.euler_zyx_to_matrix_one,
 )
 _to_euler = entry(K.matrix_to_euler_zyx, (3,), ((3, 3), "R", "rotation"))
 
