@@ -165,25 +165,24 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
         scalars = floats if not (t1 or t2 or t3) else None
 
         def call(x, y, z):
-            if scalars is not None and isinstance(x, float) and isinstance(y, float) and isinstance(z, float):
-                f, a, b, c = scalars, x, y, z
-            else:
+            f = scalars
+            if f is None or not (isinstance(x, float) and isinstance(y, float) and isinstance(z, float)):
                 f = bound
-                a = x if type(x) is float else _asarray(x, _F64, "C")
-                b = y if type(y) is float else _asarray(y, _F64, "C")
-                c = z if type(z) is float else _asarray(z, _F64, "C")
+                x = x if type(x) is float else _asarray(x, _F64, "C")
+                y = y if type(y) is float else _asarray(y, _F64, "C")
+                z = z if type(z) is float else _asarray(z, _F64, "C")
                 if not (
-                    (a.shape == t1 if type(a) is _ndarray else not t1)
-                    and (b.shape == t2 if type(b) is _ndarray else not t2)
-                    and (c.shape == t3 if type(c) is _ndarray else not t3)
+                    (x.shape == t1 if type(x) is _ndarray else not t1)
+                    and (y.shape == t2 if type(y) is _ndarray else not t2)
+                    and (z.shape == t3 if type(z) is _ndarray else not t3)
                 ):
                     return otherwise(x, y, z)
             out = _empty(out_trailing)
             try:
-                f(a, b, c, out)
+                f(x, y, z, out)
                 return out
             except Rejected:
-                return otherwise(x, y, z)
+                return otherwise(x, y, z)  # converted values name the same element
 
     return call
 
