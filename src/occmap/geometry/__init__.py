@@ -11,6 +11,7 @@ Conventions (shared by every function; each module's docstring gives the details
 - Bad input raises a subclass of :class:`occmap.errors.OccmapError` naming the element.
 """
 
+from . import motion, so3
 from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
 from .frames import FrameTree
 from .motion import (
@@ -54,34 +55,22 @@ from .so3 import (
     vee,
 )
 
-__all__ = [
+__all__ = sorted([
+    *motion.__all__,
+    *so3.__all__,
     "FrameTree",
-    "OdometryMotionModel",
-    "apply_odometry",
-    "bicycle_step",
-    "diff_drive_step",
-    "odometry_delta",
-    "unicycle_step",
     "SE2",
     "SE3",
     "SO2",
-    "SO3",
-    "axis_angle_to_matrix",
     "axis_angle_to_quat",
     "compose_transforms",
     "euler_zyx_to_matrix",
     "exp_se3",
-    "exp_so3",
-    "hat",
     "invert_transform",
-    "is_rotation",
     "log_se3",
-    "log_so3",
     "make_transform",
-    "matrix_to_axis_angle",
     "matrix_to_euler_zyx",
     "matrix_to_quat",
-    "nearest_rotation",
     "quat_conjugate",
     "quat_from_xyzw",
     "quat_inverse",
@@ -92,16 +81,11 @@ __all__ = [
     "quat_to_axis_angle",
     "quat_to_matrix",
     "quat_to_xyzw",
-    "random_rotations",
     "rot2",
-    "rot_x",
-    "rot_y",
-    "rot_z",
     "se2_from_matrix",
     "se2_matrix",
     "so2_angle",
     "transform_points",
-    "vee",
     "wrap_angle",
     "wrap_angle_one",
-]
+])

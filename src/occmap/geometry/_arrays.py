@@ -112,7 +112,7 @@ def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (
     return out
 
 
-def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (), otherwise=None):
+def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (), otherwise=None, floats=None):
     """The Python face of ``kernel``: a function of the operand values, each operand described by
     ``(trailing, name, kind)`` as in :func:`run`.
 
@@ -120,8 +120,10 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
     two or three operands: a conversion and a comparison each, the output allocated, the kernel
     called — half the overhead of the loops in :func:`run`. With three operands (slerp's ``t``,
     Euler angles, planar poses: scalars that are usually floats) Python floats go to the kernel
-    as they are, which costs less than a 0-d array each. Anything else — batches, rejected
-    input — goes to ``otherwise`` (by default :func:`run`, which names what is wrong).
+    as they are, which costs less than a 0-d array each; three floats (NumPy's float64 too, a
+    subclass) go to ``floats(x, y, z, out)`` when given, a kernel for scalars that skips the array
+    handling altogether (and takes no ``args``). Anything else — batches, rejected input — goes to ``otherwise`` (by
+    default :func:`run`, which names what is wrong).
     """
 
     def general(*values):
@@ -160,23 +162,27 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
 
     else:
         t1, t2, t3 = trailing
+        scalars = floats if not (t1 or t2 or t3) else None
 
         def call(x, y, z):
-            a = x if type(x) is float else _asarray(x, _F64, "C")
-            b = y if type(y) is float else _asarray(y, _F64, "C")
-            c = z if type(z) is float else _asarray(z, _F64, "C")
-            if (
-                (a.shape == t1 if type(a) is _ndarray else not t1)
-                and (b.shape == t2 if type(b) is _ndarray else not t2)
-                and (c.shape == t3 if type(c) is _ndarray else not t3)
-            ):
-                out = _empty(out_trailing)
-                try:
-                    bound(a, b, c, out)
-                    return out
-                except Rejected:
-                    pass
-            return otherwise(x, y, z)
+            f = scalars
+            if f is None or not (isinstance(x, float) and isinstance(y, float) and isinstance(z, float)):
+                f = bound
+                x = x if type(x) is float else _asarray(x, _F64, "C")
+                y = y if type(y) is float else _asarray(y, _F64, "C")
+                z = z if type(z) is float else _asarray(z, _F64, "C")
+                if not (
+                    (x.shape == t1 if type(x) is _ndarray else not t1)
+                    and (y.shape == t2 if type(y) is _ndarray else not t2)
+                    and (z.shape == t3 if type(z) is _ndarray else not t3)
+                ):
+                    return otherwise(x, y, z)
+            out = _empty(out_trailing)
+            try:
+                f(x, y, z, out)
+                return out
+            except Rejected:
+                return otherwise(x, y, z)  # converted values name the same element
 
     return call
 

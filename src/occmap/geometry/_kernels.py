@@ -166,6 +166,35 @@ def _flat(x):
     return np.atleast_1d(np.asarray(x))
 
 
+def _by_rows(row):
+    """The loop of every kernel whose rows are independent, written once: an inline kernel
+    ``rows(operands, o)`` that runs ``row(operands, o, i)`` (False: element i is rejected) for each
+    row ``i`` of ``o``. From :data:`PARALLEL_MIN` rows one pass runs on all cores counting the
+    rejected rows; a serial pass (for shorter inputs, or to find the first rejected row after a
+    parallel pass) raises :class:`Rejected` with its index. Call ``rows`` from module-level
+    kernels only: Numba caches those with ``rows`` and ``parallel`` compiled in, but not kernels
+    made here on their own (their cache key would hold the random id of each kernel they call)."""
+
+    @kernel_parallel
+    def parallel(operands, o):
+        bad = 0
+        for i in prange(o.shape[0]):
+            # prange indices are unsigned: cast, or a broadcast select ``i if ... else 0`` types as float
+            if not row(operands, o, np.int64(i)):
+                bad += 1
+        return bad
+
+    @inline_kernel
+    def rows(operands, o):
+        if o.shape[0] >= PARALLEL_MIN and parallel(operands, o) == 0:
+            return
+        for i in range(o.shape[0]):
+            if not row(operands, o, i):
+                raise Rejected(i)
+
+    return rows
+
+
 # ---------------------------------------------------------------- SO(3) basics
 
 
@@ -182,16 +211,23 @@ def hat(w, out):
         o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = -y, x, 0.0
 
 
+@inline_kernel
+def _vee_row(operands, o, i):
+    (f,) = operands
+    if not _finite_row(f, i):
+        return False
+    o[i, 0] = 0.5 * (f[i, 7] - f[i, 5])
+    o[i, 1] = 0.5 * (f[i, 2] - f[i, 6])
+    o[i, 2] = 0.5 * (f[i, 3] - f[i, 1])
+    return True
+
+
+_vee_rows = _by_rows(_vee_row)
+
+
 @kernel
 def vee(W, out):
-    f = W.reshape((-1, 9))
-    o = out.reshape((-1, 3))
-    for i in range(f.shape[0]):
-        if not _finite_row(f, i):
-            raise Rejected(i)
-        o[i, 0] = 0.5 * (f[i, 7] - f[i, 5])
-        o[i, 1] = 0.5 * (f[i, 2] - f[i, 6])
-        o[i, 2] = 0.5 * (f[i, 3] - f[i, 1])
+    _vee_rows((W.reshape((-1, 9)),), out.reshape((-1, 3)))
 
 
 @kernel
@@ -240,32 +276,21 @@ def _quat_to_rot(w, x, y, z, o, i):
 
 
 @inline_kernel
-def _quat_to_matrix_row(f, o, i):
+def _quat_to_matrix_row(operands, o, i):
     """Row i of quat_to_matrix; False for a quaternion that is not of unit norm."""
+    (f,) = operands
     if not _unit_ok(f, i):
         return False
     _quat_to_rot(f[i, 0], f[i, 1], f[i, 2], f[i, 3], o, i)
     return True
 
 
-@kernel_parallel
-def _quat_to_matrix_parallel(f, o):
-    bad = 0
-    for i in prange(f.shape[0]):
-        if not _quat_to_matrix_row(f, o, i):
-            bad += 1
-    return bad
+_quat_to_matrix_rows = _by_rows(_quat_to_matrix_row)
 
 
 @kernel
 def quat_to_matrix(q, out):
-    f = q.reshape((-1, 4))
-    o = out.reshape((-1, 3, 3))
-    if f.shape[0] >= PARALLEL_MIN and _quat_to_matrix_parallel(f, o) == 0:
-        return
-    for i in range(f.shape[0]):  # serial, or finding the first bad row after a parallel pass
-        if not _quat_to_matrix_row(f, o, i):
-            raise Rejected(i)
+    _quat_to_matrix_rows((q.reshape((-1, 4)),), out.reshape((-1, 3, 3)))
 
 
 @inline_kernel
@@ -309,32 +334,21 @@ def _rot_to_quat(R, i, o, j):
 
 
 @inline_kernel
-def _matrix_to_quat_row(f, o, i):
+def _matrix_to_quat_row(operands, o, i):
     """Row i of matrix_to_quat; False for a matrix that is not a rotation."""
+    (f,) = operands
     if not (_rotation_error_sq(f, i) <= ROT_TOL_SQ):
         return False
     _rot_to_quat(f, i, o, i)
     return True
 
 
-@kernel_parallel
-def _matrix_to_quat_parallel(f, o):
-    bad = 0
-    for i in prange(f.shape[0]):
-        if not _matrix_to_quat_row(f, o, i):
-            bad += 1
-    return bad
+_matrix_to_quat_rows = _by_rows(_matrix_to_quat_row)
 
 
 @kernel
 def matrix_to_quat(R, out):
-    f = R.reshape((-1, 3, 3))
-    o = out.reshape((-1, 4))
-    if f.shape[0] >= PARALLEL_MIN and _matrix_to_quat_parallel(f, o) == 0:
-        return
-    for i in range(f.shape[0]):
-        if not _matrix_to_quat_row(f, o, i):
-            raise Rejected(i)
+    _matrix_to_quat_rows((R.reshape((-1, 3, 3)),), out.reshape((-1, 4)))
 
 
 @kernel
@@ -618,51 +632,6 @@ def _euler_zyx_entries(a, b, g, o, i):
     o[i, 2, 2] = cp * cr
 
 
-@inline_kernel
-def _euler_row(fy, fp, fr, o, i):
-    """Row i of Rz(yaw) Ry(pitch) Rx(roll), single-element operands broadcast; False for NaN/inf."""
-    a = fy[i if fy.shape[0] > 1 else 0]
-    b = fp[i if fp.shape[0] > 1 else 0]
-    g = fr[i if fr.shape[0] > 1 else 0]
-    s = a + b + g
-    if not (s - s == 0.0):
-        return False
-    _euler_zyx_entries(a, b, g, o, i)
-    return True
-
-
-@kernel_parallel
-def _euler_parallel(fy, fp, fr, o):
-    bad = 0
-    for i in prange(o.shape[0]):
-        # prange indices are unsigned: cast, or the broadcast select below types as float
-        if not _euler_row(fy, fp, fr, o, np.int64(i)):
-            bad += 1
-    return bad
-
-
-@kernel
-def euler_zyx_to_matrix(yaw, pitch, roll, out):
-    fy = _flat(yaw)
-    fp = _flat(pitch)
-    fr = _flat(roll)
-    o = out.reshape((-1, 3, 3))
-    if o.shape[0] >= PARALLEL_MIN and _euler_parallel(fy, fp, fr, o) == 0:
-        return
-    for i in range(o.shape[0]):
-        if not _euler_row(fy, fp, fr, o, i):
-            raise Rejected(i)
-
-
-@kernel
-def euler_zyx_to_matrix_one(yaw, pitch, roll, out):
-    """Scalar form of :func:`euler_zyx_to_matrix` (Python floats pass without array conversion)."""
-    s = yaw + pitch + roll
-    if not (s - s == 0.0):
-        raise Rejected(0)
-    _euler_zyx_entries(yaw, pitch, roll, out.reshape((1, 3, 3)), 0)
-
-
 @kernel
 def matrix_to_euler_zyx(R, out):
     """(yaw, pitch, roll) rows with pitch ∈ [−π/2, π/2]. Yaw comes from the first column; roll is
@@ -707,20 +676,28 @@ def make_transform(R, t, out):
         o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
 
 
+@inline_kernel
+def _invert_rigid(T, out, d):
+    """``[[Rᵀ, −Rᵀt], [0, 1]]`` of each rigid transform in ``T``: (d+1)×(d+1) blocks, d = 3 (3D) or
+    2 (planar), each checked first."""
+    f = T.reshape((-1, d + 1, d + 1))
+    o = out.reshape((-1, d + 1, d + 1))
+    for i in range(f.shape[0]):
+        if not (_rigid_ok(f, i) if d == 3 else _rigid2_ok(f, i)):
+            raise Rejected(i)
+        for r in range(d):
+            acc = 0.0
+            for c in range(d):
+                o[i, r, c] = f[i, c, r]
+                acc += f[i, c, r] * f[i, c, d]
+            o[i, r, d] = -acc
+            o[i, d, r] = 0.0
+        o[i, d, d] = 1.0
+
+
 @kernel
 def invert_transform(T, out):
-    f = T.reshape((-1, 4, 4))
-    o = out.reshape((-1, 4, 4))
-    for i in range(f.shape[0]):
-        if not _rigid_ok(f, i):
-            raise Rejected(i)
-        for r in range(3):
-            acc = 0.0
-            for c in range(3):
-                o[i, r, c] = f[i, c, r]
-                acc += f[i, c, r] * f[i, c, 3]
-            o[i, r, 3] = -acc
-        o[i, 3, 0], o[i, 3, 1], o[i, 3, 2], o[i, 3, 3] = 0.0, 0.0, 0.0, 1.0
+    _invert_rigid(T, out, 3)
 
 
 @inline_kernel
@@ -783,52 +760,27 @@ def compose_rotations(A, B, out):
     _compose(A, B, out, 3, True)
 
 
-@kernel
-def transform_points(T, p, out):
-    """Apply rigid transforms (4×4) to points (3); a shared transform is validated once and goes
-    through :func:`_map_points`."""
-    ft = T.reshape((-1, 4, 4))
+@inline_kernel
+def _apply_matrices(A, p, out, size):
+    """Apply rigid transforms (``size`` 4: 4×4) or rotations (3: 3×3) to points (3); a shared
+    matrix is validated once and goes through :func:`_map_points`."""
+    fa = A.reshape((-1, size, size))
     fp = p.reshape((-1, 3))
     o = out.reshape((-1, 3))
     if o.shape[0] == 0:
         return
-    if ft.shape[0] == 1:
-        if not _rigid_ok(ft, 0):
+    if fa.shape[0] == 1:
+        if not (_rigid_ok(fa, 0) if size == 4 else _rotation_error_sq(fa, 0) <= ROT_TOL_SQ):
             raise Rejected(0)
-        _map_points(ft[0], fp, o)
-        return
-    sp = 1 if fp.shape[0] > 1 else 0
-    for i in range(o.shape[0]):
-        if not _rigid_ok(ft, i):
-            raise Rejected(i)
-        j = i * sp
-        x, y, z = fp[j, 0], fp[j, 1], fp[j, 2]
-        s = x + y + z
-        if not (s - s == 0.0):
-            raise Rejected(i)
-        for r in range(3):
-            o[i, r] = ft[i, r, 0] * x + ft[i, r, 1] * y + ft[i, r, 2] * z + ft[i, r, 3]
-
-
-@kernel
-def rotate_points(R, p, out):
-    """Apply rotations (3×3) to points (3); a shared rotation is validated once and goes through
-    :func:`_map_points`."""
-    fr = R.reshape((-1, 3, 3))
-    fp = p.reshape((-1, 3))
-    o = out.reshape((-1, 3))
-    if o.shape[0] == 0:
-        return
-    if fr.shape[0] == 1:
-        if not (_rotation_error_sq(fr, 0) <= ROT_TOL_SQ):
-            raise Rejected(0)
-        M = np.zeros((3, 4))
-        M[:, :3] = fr[0]
+        M = fa[0]
+        if size == 3:  # as a 3×4 map without translation
+            M = np.zeros((3, 4))
+            M[:, :3] = fa[0]
         _map_points(M, fp, o)
         return
     sp = 1 if fp.shape[0] > 1 else 0
     for i in range(o.shape[0]):
-        if not (_rotation_error_sq(fr, i) <= ROT_TOL_SQ):
+        if not (_rigid_ok(fa, i) if size == 4 else _rotation_error_sq(fa, i) <= ROT_TOL_SQ):
             raise Rejected(i)
         j = i * sp
         x, y, z = fp[j, 0], fp[j, 1], fp[j, 2]
@@ -836,7 +788,21 @@ def rotate_points(R, p, out):
         if not (s - s == 0.0):
             raise Rejected(i)
         for r in range(3):
-            o[i, r] = fr[i, r, 0] * x + fr[i, r, 1] * y + fr[i, r, 2] * z
+            o[i, r] = fa[i, r, 0] * x + fa[i, r, 1] * y + fa[i, r, 2] * z
+            if size == 4:
+                o[i, r] += fa[i, r, 3]
+
+
+@kernel
+def transform_points(T, p, out):
+    """Apply rigid transforms (4×4) to points (3), see :func:`_apply_matrices`."""
+    _apply_matrices(T, p, out, 4)
+
+
+@kernel
+def rotate_points(R, p, out):
+    """Apply rotations (3×3) to points (3), see :func:`_apply_matrices`."""
+    _apply_matrices(R, p, out, 3)
 
 
 @kernel
@@ -908,38 +874,65 @@ def log_se3(T, out):
 # ---------------------------------------------------------------- SE(2)
 
 
-@kernel
+@inline_kernel
 def _se2_entries(x, y, t, o, i):
+    """Write the pose (x, y, t) as a 3×3 homogeneous matrix into ``o[i]``."""
     c, s = math.cos(t), math.sin(t)
     o[i, 0, 0], o[i, 0, 1], o[i, 0, 2] = c, -s, x
     o[i, 1, 0], o[i, 1, 1], o[i, 1, 2] = s, c, y
     o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = 0.0, 0.0, 1.0
 
 
+# ---------------------------------------------------------------- 3×3 matrices of three scalars
+
+#: kinds of :func:`matrix_of_three`: Rz(x) Ry(y) Rx(z) (Euler Z-Y-X), and the planar pose (x, y, θ = z)
+EULER_ZYX = 0
+SE2_POSE = 1
+
+
+@inline_kernel
+def _three_entries(kind, x, y, z, o, i):
+    """Write the matrix of ``kind`` into ``o[i]``; False (nothing written) for NaN/inf."""
+    s = x + y + z
+    if not (s - s == 0.0):
+        return False
+    if kind == EULER_ZYX:
+        _euler_zyx_entries(x, y, z, o, i)
+    else:
+        _se2_entries(x, y, z, o, i)
+    return True
+
+
+@inline_kernel
+def _three_row(operands, o, i):
+    kind, x, y, z = operands
+    return _three_entries(kind, x[i if x.shape[0] > 1 else 0], y[i if y.shape[0] > 1 else 0],
+                          z[i if z.shape[0] > 1 else 0], o, i)
+
+
+_three_rows = _by_rows(_three_row)
+
+
 @kernel
-def se2_matrix(x, y, theta, out):
-    fx = _flat(x)
-    fy = _flat(y)
-    ft = _flat(theta)
-    o = out.reshape((-1, 3, 3))
-    sx = 1 if fx.shape[0] > 1 else 0
-    sy = 1 if fy.shape[0] > 1 else 0
-    st = 1 if ft.shape[0] > 1 else 0
-    for i in range(o.shape[0]):
-        a, b, t = fx[i * sx], fy[i * sy], ft[i * st]
-        s = a + b + t
-        if not (s - s == 0.0):
-            raise Rejected(i)
-        _se2_entries(a, b, t, o, i)
+def matrix_of_three(kind, x, y, z, out):
+    """3×3 matrices of ``kind`` (:data:`EULER_ZYX` or :data:`SE2_POSE`) from three scalar
+    operands, 1-D (see :func:`_flat`) with single elements broadcast."""
+    _three_rows((kind, _flat(x), _flat(y), _flat(z)), out.reshape((-1, 3, 3)))
+
+
+@kernel
+def euler_zyx_to_matrix_one(yaw, pitch, roll, out):
+    """Scalar form of :func:`matrix_of_three` for :data:`EULER_ZYX`: floats pass without array
+    conversion, and without a kind to pass (each argument costs a single call ~40 ns)."""
+    if not _three_entries(EULER_ZYX, yaw, pitch, roll, out.reshape((1, 3, 3)), 0):
+        raise Rejected(0)
 
 
 @kernel
 def se2_matrix_one(x, y, theta, out):
-    """Scalar form of :func:`se2_matrix`."""
-    s = x + y + theta
-    if not (s - s == 0.0):
+    """Scalar form of :func:`matrix_of_three` for :data:`SE2_POSE`."""
+    if not _three_entries(SE2_POSE, x, y, theta, out.reshape((1, 3, 3)), 0):
         raise Rejected(0)
-    _se2_entries(x, y, theta, out.reshape((1, 3, 3)), 0)
 
 
 @kernel
@@ -981,13 +974,4 @@ def transform_points2(T, p, out):
 
 @kernel
 def invert_transform2(T, out):
-    f = T.reshape((-1, 3, 3))
-    o = out.reshape((-1, 3, 3))
-    for i in range(f.shape[0]):
-        if not _rigid2_ok(f, i):
-            raise Rejected(i)
-        for r in range(2):
-            o[i, r, 0] = f[i, 0, r]
-            o[i, r, 1] = f[i, 1, r]
-            o[i, r, 2] = -(f[i, 0, r] * f[i, 0, 2] + f[i, 1, r] * f[i, 1, 2])
-        o[i, 2, 0], o[i, 2, 1], o[i, 2, 2] = 0.0, 0.0, 1.0
+    _invert_rigid(T, out, 2)

@@ -13,27 +13,18 @@ matrix to rounding error (≤ 2e-15 per entry).
 
 from __future__ import annotations
 
-import numpy as np
-
 from . import _kernels as K
-from ._arrays import Rejected, entry, unstack
+from ._arrays import entry, unstack
 
 _to_matrix = entry(
-    K.euler_zyx_to_matrix, (3, 3), ((), "yaw", "finite"), ((), "pitch", "finite"), ((), "roll", "finite")
+    K.matrix_of_three, (3, 3), ((), "yaw", "finite"), ((), "pitch", "finite"), ((), "roll", "finite"),
+    args=(K.EULER_ZYX,), floats=K.euler_zyx_to_matrix_one,
 )
 _to_euler = entry(K.matrix_to_euler_zyx, (3,), ((3, 3), "R", "rotation"))
 
 
 def euler_zyx_to_matrix(yaw, pitch, roll):
     """Rotation matrices (..., 3, 3) from yaw, pitch, roll (radians; broadcast against each other)."""
-    if isinstance(yaw, float) and isinstance(pitch, float) and isinstance(roll, float):
-        out = np.empty((3, 3))
-        try:
-            K.euler_zyx_to_matrix_one(yaw, pitch, roll, out)
-        except Rejected:
-            pass  # fall through to the array path, which names the bad argument
-        else:
-            return out
     return _to_matrix(yaw, pitch, roll)
 
 

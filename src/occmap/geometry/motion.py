@@ -10,6 +10,10 @@ Conventions
 - Every function broadcasts: poses ``(..., 3)`` against controls of shape ``(...)`` by NumPy's
   rules (one control for N particles, N controls for one pose, or N of each), with no Python loop
   over poses.
+- Errors: :class:`~occmap.errors.ShapeError` when poses are not ``(..., 3)`` or the arguments do
+  not broadcast, :class:`~occmap.errors.NonFiniteError` when an argument holds NaN or infinity,
+  :class:`~occmap.errors.InvalidArgumentError` for a value out of its range (each function lists
+  those).
 
 Motion over a step is integrated exactly for constant controls: the vehicle follows a circular arc
 (a straight line when the yaw rate is zero). The chord of an arc that turns by ``phi`` has length
@@ -71,10 +75,6 @@ def unicycle_step(poses, v, omega, dt) -> np.ndarray:
 
     Raises
     ------
-    ShapeError
-        ``poses`` is not ``(..., 3)`` or the arguments do not broadcast.
-    NonFiniteError
-        Any argument holds NaN or infinity.
     InvalidArgumentError
         ``dt < 0``.
     """
@@ -109,12 +109,10 @@ def diff_drive_step(poses, v_left, v_right, wheel_base, dt) -> np.ndarray:
     Returns
     -------
     ndarray, shape (broadcast leading shape, 3)
-        End poses, headings wrapped.
+        End poses of the point midway between the wheels, headings wrapped.
 
     Raises
     ------
-    ShapeError, NonFiniteError
-        As :func:`unicycle_step`.
     InvalidArgumentError
         ``wheel_base <= 0`` or ``dt < 0``.
     """
@@ -159,12 +157,10 @@ def bicycle_step(poses, v, steering_angle, wheelbase, dt, *, max_steering=None) 
     Returns
     -------
     ndarray, shape (broadcast leading shape, 3)
-        End poses, headings wrapped.
+        End poses of the rear-axle centre, headings wrapped.
 
     Raises
     ------
-    ShapeError, NonFiniteError
-        As :func:`unicycle_step`.
     InvalidArgumentError
         ``|steering_angle| >= pi/2`` (the wheel would be sideways or beyond; checked before any
         saturation), ``wheelbase <= 0``, ``dt < 0`` or a ``max_steering`` outside ``[0, pi/2)``.

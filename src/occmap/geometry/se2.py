@@ -10,24 +10,20 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, entry, index_batch, reject, unstack
+from ._arrays import entry, reject, unstack
+from ._batch import Batch
 from .so2 import SO2, wrap_angle
 
-_matrix = entry(K.se2_matrix, (3, 3), ((), "x", "finite"), ((), "y", "finite"), ((), "theta", "finite"))
+_matrix = entry(
+    K.matrix_of_three, (3, 3), ((), "x", "finite"), ((), "y", "finite"), ((), "theta", "finite"),
+    args=(K.SE2_POSE,), floats=K.se2_matrix_one,
+)
 _from_matrix = entry(K.se2_from_matrix, (3,), ((3, 3), "T", "rigid2"))
 _apply = entry(K.transform_points2, (2,), ((3, 3), "pose", "rigid2"), ((2,), "points", "finite"))
 
 
 def se2_matrix(x, y, theta):
     """Homogeneous matrices (..., 3, 3) of poses; ``x``, ``y``, ``theta`` broadcast."""
-    if isinstance(x, float) and isinstance(y, float) and isinstance(theta, float):
-        out = np.empty((3, 3))
-        try:
-            K.se2_matrix_one(x, y, theta, out)
-        except Rejected:
-            pass  # fall through to the array path, which names the bad argument
-        else:
-            return out
     return _matrix(x, y, theta)
 
 
@@ -36,16 +32,17 @@ def se2_from_matrix(T):
     return unstack(_from_matrix(T))
 
 
-class SE2:
+class SE2(Batch):
     """Batched planar poses of shape ``self.shape``, held as a read-only (..., 3) ``(x, y, θ)`` array.
 
     Immutable. ``a @ b`` composes (``T_a_c = T_a_b @ T_b_c``), ``.inv()`` inverts,
     ``.apply(points)`` maps (..., 2) points from the body frame to the world frame.
     """
 
-    __slots__ = ("_p",)
+    __slots__ = ()
+    _ELEMENT = (3,)
 
-    def __init__(self, xytheta):
+    def _checked(self, xytheta) -> np.ndarray:
         p = np.array(xytheta, dtype=np.float64)
         if p.shape[-1:] != (3,):
             raise ShapeError(f"xytheta must have shape (..., 3), got {p.shape}")
@@ -53,8 +50,7 @@ class SE2:
         if row >= 0:
             reject(row, p.shape[:-1], (p, (3,), "xytheta", "finite"))
         p[..., 2] = wrap_angle(p[..., 2])
-        p.flags.writeable = False
-        self._p = p
+        return p
 
     @classmethod
     def from_xytheta(cls, x, y, theta) -> SE2:
@@ -81,43 +77,31 @@ class SE2:
 
     @property
     def xytheta(self) -> np.ndarray:
-        return self._p
+        return self._a
 
     @property
     def translation(self) -> np.ndarray:
-        return self._p[..., :2]
+        return self._a[..., :2]
 
     @property
     def rotation(self) -> SO2:
-        return SO2(self._p[..., 2])
+        return SO2(self._a[..., 2])
 
     @property
     def matrix(self) -> np.ndarray:
-        return se2_matrix(self._p[..., 0], self._p[..., 1], self._p[..., 2])
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return self._p.shape[:-1]
-
-    def __len__(self) -> int:
-        if not self.shape:
-            raise TypeError("a single SE2 has no len()")
-        return self.shape[0]
-
-    def __getitem__(self, index) -> SE2:
-        return SE2(index_batch(self._p, 1, index))
+        return se2_matrix(self._a[..., 0], self._a[..., 1], self._a[..., 2])
 
     def __matmul__(self, other: SE2) -> SE2:
         if not isinstance(other, SE2):
             return NotImplemented
-        a, b = self._p, other._p
+        a, b = self._a, other._a
         c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
         x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
         y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
         return SE2(np.stack(np.broadcast_arrays(x, y, a[..., 2] + b[..., 2]), -1))
 
     def inv(self) -> SE2:
-        p = self._p
+        p = self._a
         c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
         return SE2(np.stack([-c * p[..., 0] - s * p[..., 1], s * p[..., 0] - c * p[..., 1], -p[..., 2]], -1))
 
@@ -128,12 +112,12 @@ class SE2:
     def interpolate(self, other: SE2, t) -> SE2:
         """Translation linearly, heading the short way round (``t = 0`` gives ``self``)."""
         t = np.asarray(t, dtype=np.float64)[..., None]
-        d = other._p - self._p
+        d = other._a - self._a
         d[..., 2] = wrap_angle(d[..., 2])
-        return SE2(self._p + t * d)
+        return SE2(self._a + t * d)
 
     def __repr__(self) -> str:
         if not self.shape:
-            x, y, th = self._p
+            x, y, th = self._a
             return f"SE2(x={x:.6g}, y={y:.6g}, theta={th:.6g})"
         return f"SE2(shape={self.shape})"

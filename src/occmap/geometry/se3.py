@@ -14,7 +14,8 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, entry, index_batch, reject, run
+from ._arrays import entry, run
+from ._batch import Batch
 from .euler import euler_zyx_to_matrix
 from .se2 import se2_matrix
 from .so2 import so2_angle
@@ -96,7 +97,7 @@ def log_se3(T):
     return _log(T)
 
 
-class SE3:
+class SE3(Batch):
     """Batched rigid transforms of shape ``self.shape``, held as read-only (..., 4, 4) matrices.
 
     Immutable. ``T_a_b @ T_b_c`` composes (rotation block renormalised, as in ``SO3 @``;
@@ -104,19 +105,9 @@ class SE3:
     points. ``.rotation`` is an :class:`SO3`, ``.translation`` a (..., 3) array.
     """
 
-    __slots__ = ("_m",)
-
-    def __init__(self, matrix, *, _trusted: bool = False):
-        if _trusted:
-            m = np.asarray(matrix)
-        else:
-            m, lead = batch(np.array(matrix, dtype=np.float64), (4, 4), "matrix")
-            try:
-                K.check_rigid(m)
-            except Rejected as e:
-                reject(e.args[0], lead, (m, (4, 4), "matrix", "rigid"))
-        m.flags.writeable = False
-        self._m = m
+    __slots__ = ()
+    _ELEMENT, _CHECK, _KIND = (4, 4), staticmethod(K.check_rigid), "rigid"
+    _COMPOSE = staticmethod(_compose_rigid)
 
     @classmethod
     def from_matrix(cls, matrix, project: bool = False) -> SE3:
@@ -161,43 +152,26 @@ class SE3:
 
     @property
     def matrix(self) -> np.ndarray:
-        return self._m
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return self._m.shape[:-2]
+        return self._a
 
     @property
     def rotation(self) -> SO3:
-        return SO3(self._m[..., :3, :3], _trusted=True)
+        return SO3(self._a[..., :3, :3], _trusted=True)
 
     @property
     def translation(self) -> np.ndarray:
-        return self._m[..., :3, 3]
+        return self._a[..., :3, 3]
 
     def log(self) -> np.ndarray:
         """Twists ``(ρ, φ)`` (..., 6), see :func:`log_se3`."""
-        return log_se3(self._m)
-
-    def __len__(self) -> int:
-        if not self.shape:
-            raise TypeError("a single SE3 has no len()")
-        return self.shape[0]
-
-    def __getitem__(self, index) -> SE3:
-        return SE3(index_batch(self._m, 2, index), _trusted=True)
-
-    def __matmul__(self, other: SE3) -> SE3:
-        if not isinstance(other, SE3):
-            return NotImplemented
-        return SE3(_compose_rigid(self._m, other._m), _trusted=True)
+        return log_se3(self._a)
 
     def inv(self) -> SE3:
-        return SE3(invert_transform(self._m), _trusted=True)
+        return SE3(invert_transform(self._a), _trusted=True)
 
     def apply(self, points) -> np.ndarray:
         """Map (..., 3) points through the transforms (leading shapes broadcast)."""
-        return transform_points(self._m, points)
+        return transform_points(self._a, points)
 
     def interpolate(self, other: SE3, t) -> SE3:
         """Interpolate as tf2 does: translation linearly, rotation by slerp (``t = 0`` gives ``self``)."""

@@ -13,6 +13,7 @@ import numpy as np
 from . import _kernels as K
 from ._kernels import wrap_angle_one
 from ._arrays import ROTATION_TOL, batch, reject
+from ._batch import Batch
 
 _TWO_PI = 2.0 * np.pi
 
@@ -48,17 +49,17 @@ def _check_so2(a: np.ndarray, lead: tuple[int, ...], name: str) -> None:
         reject(int(np.argmax(bad.reshape(-1))), lead, (a, (2, 2), name, "rotation2"))
 
 
-class SO2:
+class SO2(Batch):
     """Batched planar rotations, stored as angles in (−π, π] (shape ``self.shape``).
 
     Immutable; ``a @ b`` composes (apply ``b`` first), ``.apply(points)`` rotates (..., 2) points.
     """
 
-    __slots__ = ("_angle",)
+    __slots__ = ()
+    _ELEMENT = ()
 
-    def __init__(self, angle):
-        self._angle = np.array(wrap_angle(angle))
-        self._angle.flags.writeable = False
+    def _checked(self, angle) -> np.ndarray:
+        return np.array(wrap_angle(angle))
 
     @classmethod
     def from_angle(cls, theta) -> SO2:
@@ -85,31 +86,19 @@ class SO2:
 
     @property
     def angle(self) -> np.ndarray:
-        return self._angle
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return self._angle.shape
+        return self._a
 
     @property
     def matrix(self) -> np.ndarray:
-        return rot2(self._angle)
-
-    def __len__(self) -> int:
-        if not self.shape:
-            raise TypeError("a single SO2 has no len()")
-        return self.shape[0]
-
-    def __getitem__(self, index) -> SO2:
-        return SO2(self._angle[index])
+        return rot2(self._a)
 
     def __matmul__(self, other: SO2) -> SO2:
         if not isinstance(other, SO2):
             return NotImplemented
-        return SO2(self._angle + other._angle)
+        return SO2(self._a + other._a)
 
     def inv(self) -> SO2:
-        return SO2(-self._angle)
+        return SO2(-self._a)
 
     def apply(self, points) -> np.ndarray:
         """Rotate (..., 2) points; leading shapes broadcast with ``self.shape``."""
@@ -117,14 +106,14 @@ class SO2:
         row = K.first_nonfinite(p.reshape(-1, 2))
         if row >= 0:
             reject(row, lead, (p, (2,), "points", "finite"))
-        c, s = np.cos(self._angle)[..., None], np.sin(self._angle)[..., None]
+        c, s = np.cos(self._a)[..., None], np.sin(self._a)[..., None]
         x, y = p[..., :1], p[..., 1:]
         return np.concatenate([c * x - s * y, s * x + c * y], -1)
 
     def interpolate(self, other: SO2, t) -> SO2:
         """Geodesic interpolation: ``t = 0`` gives ``self``, ``t = 1`` gives ``other``, shortest way round."""
         t = np.asarray(t, dtype=np.float64)
-        return SO2(self._angle + t * wrap_angle(other._angle - self._angle))
+        return SO2(self._a + t * wrap_angle(other._a - self._a))
 
     def __repr__(self) -> str:
-        return f"SO2(angle={np.array2string(self._angle, precision=6)})"
+        return f"SO2(angle={np.array2string(self._a, precision=6)})"

@@ -13,7 +13,8 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import Rejected, batch, entry, index_batch, reject
+from ._arrays import batch, entry, reject
+from ._batch import Batch
 from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
 from .quaternion import axis_angle_to_quat, matrix_to_quat, quat_slerp, quat_to_matrix
 
@@ -125,7 +126,7 @@ def random_rotations(n: int | None = None, rng=None):
     return R[0] if n is None else R
 
 
-class SO3:
+class SO3(Batch):
     """Batched 3D rotations of shape ``self.shape``, held as read-only (..., 3, 3) matrices.
 
     Immutable. ``a @ b`` composes (apply ``b`` first) and renormalises the product (one
@@ -135,19 +136,9 @@ class SO3:
     ``from_euler_zyx`` or ``identity``. Indexing and ``len`` act on the batch.
     """
 
-    __slots__ = ("_m",)
-
-    def __init__(self, matrix, *, _trusted: bool = False):
-        if _trusted:
-            m = np.asarray(matrix)
-        else:
-            m, lead = batch(np.array(matrix, dtype=np.float64), (3, 3), "matrix")
-            try:
-                K.check_rotation(m)
-            except Rejected as e:
-                reject(e.args[0], lead, (m, (3, 3), "matrix", "rotation"))
-        m.flags.writeable = False
-        self._m = m
+    __slots__ = ()
+    _ELEMENT, _CHECK, _KIND = (3, 3), staticmethod(K.check_rotation), "rotation"
+    _COMPOSE = staticmethod(_compose)
 
     @classmethod
     def from_matrix(cls, matrix, project: bool = False) -> SO3:
@@ -189,46 +180,29 @@ class SO3:
 
     @property
     def matrix(self) -> np.ndarray:
-        return self._m
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return self._m.shape[:-2]
+        return self._a
 
     def as_quat(self) -> np.ndarray:
         """Unit quaternions (..., 4), (w, x, y, z) with w ≥ 0."""
-        return matrix_to_quat(self._m)
+        return matrix_to_quat(self._a)
 
     def as_rotvec(self) -> np.ndarray:
-        return log_so3(self._m)
+        return log_so3(self._a)
 
     def as_euler_zyx(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(yaw, pitch, roll); roll = 0 at gimbal lock."""
-        return matrix_to_euler_zyx(self._m)
-
-    def __len__(self) -> int:
-        if not self.shape:
-            raise TypeError("a single SO3 has no len()")
-        return self.shape[0]
-
-    def __getitem__(self, index) -> SO3:
-        return SO3(index_batch(self._m, 2, index), _trusted=True)
-
-    def __matmul__(self, other: SO3) -> SO3:
-        if not isinstance(other, SO3):
-            return NotImplemented
-        return SO3(_compose(self._m, other._m), _trusted=True)
+        return matrix_to_euler_zyx(self._a)
 
     def inv(self) -> SO3:
-        return SO3(np.swapaxes(self._m, -1, -2), _trusted=True)
+        return SO3(np.swapaxes(self._a, -1, -2), _trusted=True)
 
     def apply(self, points) -> np.ndarray:
         """Rotate (..., 3) points; their leading shape broadcasts with ``self.shape``."""
-        return _rotate(self._m, points)
+        return _rotate(self._a, points)
 
     def magnitude(self) -> np.ndarray:
         """Rotation angles in [0, π] (radians)."""
-        return matrix_to_axis_angle(self._m)[1]
+        return matrix_to_axis_angle(self._a)[1]
 
     def interpolate(self, other: SO3, t) -> SO3:
         """Geodesic (slerp) interpolation: ``t = 0`` gives ``self``, ``t = 1`` gives ``other``."""

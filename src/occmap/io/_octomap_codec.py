@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from ..octree.keys import DEPTH
 
 # Error codes of the decoders (octomap.py turns them into messages).
@@ -38,6 +38,27 @@ _CTZ = np.array([0] + [(m & -m).bit_length() - 1 for m in range(1, 256)], np.int
 _SPREAD = np.array([sum(((m >> i) & 1) << (2 * i) for i in range(8)) for m in range(256)], np.int64)  # bit i → 2i
 _POPCOUNT = np.array([bin(m).count("1") for m in range(256)], np.int64)
 _FLT_MAX = 3.4028234663852886e38
+
+
+@inline_kernel
+def _take_lowest(rem, sp):
+    """The lowest child index in the mask ``rem[sp]``, taken out of it."""
+    r = rem[sp]
+    rem[sp] = r & (r - 1)
+    return _CTZ[r]
+
+
+@inline_kernel
+def _next_in_preorder(blk, rem, sp):
+    """The step of every pre-order walk here: up from level ``sp`` past the levels whose children
+    are all taken, then the lowest child left at the deepest other level. ``blk[l]`` is the first
+    slot of level l's child block, ``rem[l]`` the mask of its children not yet taken. Returns
+    ``(level, slot)`` of that child; level −1 when the walk is over."""
+    while sp >= 0 and rem[sp] == 0:
+        sp -= 1
+    if sp < 0:
+        return sp, 0
+    return sp, blk[sp] + _take_lowest(rem, sp)
 
 
 @kernel
@@ -102,28 +123,25 @@ def encode_bt(value, child, top, occ, lo, hi):
     pos = np.empty(DEPTH + 1, np.int64)
     n_inner = 1
     sp = 0
-    blk[0] = child[0] >> 3
-    rem[0] = inner[blk[0]]
+    blk[0] = child[0]
+    rem[0] = inner[child[0] >> 3]
     acc[0] = 0
     acc_occ[0] = 0
     while sp >= 0:
-        r = rem[sp]
-        if r != 0:  # descend into the next inner child
-            i = _CTZ[r]
-            rem[sp] = r & (r - 1)
-            k = 8 * blk[sp] + i
+        if rem[sp] != 0:  # descend into the next inner child
+            i = _take_lowest(rem, sp)
             if sp + 1 >= DEPTH:  # a node with children at depth 16: not a valid pool
                 return np.empty(0, np.uint8), -1
+            c = child[blk[sp] + i]
             sp += 1
-            b = child[k] >> 3
-            blk[sp] = b
-            rem[sp] = inner[b]
+            blk[sp] = c
+            rem[sp] = inner[c >> 3]
             acc[sp] = 0
             acc_occ[sp] = 0
             pos[sp] = i
             n_inner += 1
             continue
-        b = blk[sp]
+        b = blk[sp] >> 3
         col[b] = acc[sp]
         col_occ[b] = acc_occ[sp]
         if sp >= 1 and sp <= DEPTH - 1 and ex[b] == 255 and (inner[b] & ~acc[sp]) == 0:
@@ -144,10 +162,10 @@ def encode_bt(value, child, top, occ, lo, hi):
     p = 0
     n_nodes = 1
     sp = 0
-    b = child[0] >> 3
-    blk[0] = b
+    blk[0] = child[0]
     while True:
         # emit the node whose child block is blk[sp] (its children lie at depth sp + 1)
+        b = blk[sp] >> 3
         eff = col[b] if sp + 1 > stop else 0
         inn = inner[b] & ~eff
         occ_leaf = occupied[b] | (col_occ[b] & eff)
@@ -158,17 +176,11 @@ def encode_bt(value, child, top, occ, lo, hi):
         p += 2
         n_nodes += _POPCOUNT[ex[b]]
         rem[sp] = inn
-        while sp >= 0 and rem[sp] == 0:
-            sp -= 1
+        sp, k = _next_in_preorder(blk, rem, sp)
         if sp < 0:
             break
-        r = rem[sp]
-        i = _CTZ[r]
-        rem[sp] = r & (r - 1)
-        k = 8 * blk[sp] + i
         sp += 1
-        b = child[k] >> 3
-        blk[sp] = b
+        blk[sp] = child[k]
     return out[:p], n_nodes
 
 
@@ -239,12 +251,9 @@ def decode_bt(data, start, lo, hi):
             sp -= 1
             if sp >= 0:
                 any_hi[sp] |= h
+        sp, k = _next_in_preorder(blk, rem, sp)
         if sp < 0:
             break
-        r = rem[sp]
-        i = _CTZ[r]
-        rem[sp] = r & (r - 1)
-        k = blk[sp] + i
         sp += 1
         slot[sp] = k
     if p != n:
@@ -293,14 +302,9 @@ def encode_ot(value, bits, child, top):
             sp += 1
             blk[sp] = c
             rem[sp] = mask
-        while sp >= 0 and rem[sp] == 0:
-            sp -= 1
+        sp, node = _next_in_preorder(blk, rem, sp)
         if sp < 0:
             break
-        r = rem[sp]
-        i = _CTZ[r]
-        rem[sp] = r & (r - 1)
-        node = blk[sp] + i
     return out[:p], p // 5
 
 
@@ -350,14 +354,9 @@ def decode_ot(values, masks, start, n_bytes):
         else:
             child[node] = -1
         r += 1
-        while sp >= 0 and rem[sp] == 0:
-            sp -= 1
+        sp, node = _next_in_preorder(blk, rem, sp)
         if sp < 0:
             break
-        m = rem[sp]
-        i = _CTZ[m]
-        rem[sp] = m & (m - 1)
-        node = blk[sp] + i
     if start + 5 * r != n_bytes:
         return value, child, top, r, LEFTOVER, start + 5 * r
     return value, child, top, r, OK, start + 5 * r

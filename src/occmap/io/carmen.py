@@ -505,23 +505,11 @@ def _scan_lines(path_str, wanted, lenient, every, parser, stats) -> Iterator[Las
         f.close()
 
 
-def read_carmen(
-    path,
-    kinds: Iterable[str] = DEFAULT_KINDS,
-    lenient: bool = False,
-    every: int = 1,
-    *,
-    max_range: float | None = None,
-    no_return_values: Iterable[float] | None = None,
-) -> CarmenLog:
+def read_carmen(path, *args, **kwargs) -> CarmenLog:
     """Read a whole CARMEN log: :func:`iter_carmen` collected into a :class:`CarmenLog`
     (``.scans``, ``.skipped_malformed``, ``.skipped_other``, ``.skipped_unknown``, ``.params``,
-    ``.stats``, ``.stack()``). Same arguments and errors as :func:`iter_carmen`."""
+    ``.stats``, ``.stack()``). Same arguments (but ``stats``, which the log holds) and errors as
+    :func:`iter_carmen`."""
     stats = CarmenStats()
-    scans = list(
-        iter_carmen(
-            path, kinds, lenient, every,
-            max_range=max_range, no_return_values=no_return_values, stats=stats,
-        )
-    )  # fmt: skip
+    scans = list(iter_carmen(path, *args, stats=stats, **kwargs))
     return CarmenLog(path=os.fspath(path), scans=scans, stats=stats)

@@ -14,7 +14,8 @@ from numba import prange
 
 from .._jit import kernel, kernel_parallel
 
-# Ray batches this long or longer run on all cores.
+# Rays per task of the parallel kernel; batches this long or longer run on all cores.
+CHUNK = 512
 PARALLEL_MIN = 1 << 14
 
 
@@ -74,20 +75,27 @@ def _ray_hit(px, py, dx, dy, segments, circles, max_range):
 
 
 @kernel
-def cast_rays(origins, angles, segments, circles, max_range, out):
-    """``out[i]`` = range of ray i from ``origins[i]`` (N, 2) at world angle ``angles[i]``."""
-    for i in range(angles.shape[0]):
+def cast_span(origins, angles, segments, circles, max_range, start, stop, out):
+    """``out[i]`` for ``start <= i < stop`` = range of ray i from ``origins[i]`` (N, 2) at world
+    angle ``angles[i]``."""
+    for i in range(start, stop):
         out[i] = _ray_hit(origins[i, 0], origins[i, 1], math.cos(angles[i]), math.sin(angles[i]),
                           segments, circles, max_range)
     return out
 
 
+@kernel
+def cast_rays(origins, angles, segments, circles, max_range, out):
+    """:func:`cast_span` over all rays, on one core."""
+    return cast_span(origins, angles, segments, circles, max_range, 0, angles.shape[0], out)
+
+
 @kernel_parallel
 def cast_rays_parallel(origins, angles, segments, circles, max_range, out):
-    """:func:`cast_rays` on all cores."""
-    for i in prange(angles.shape[0]):
-        out[i] = _ray_hit(origins[i, 0], origins[i, 1], math.cos(angles[i]), math.sin(angles[i]),
-                          segments, circles, max_range)
+    """:func:`cast_span` over all rays, in chunks of :data:`CHUNK` rays on all cores."""
+    n = angles.shape[0]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        cast_span(origins, angles, segments, circles, max_range, c * CHUNK, min(n, (c + 1) * CHUNK), out)
     return out
 
 

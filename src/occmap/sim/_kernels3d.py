@@ -19,12 +19,27 @@ import math
 import numpy as np
 from numba import prange
 
-from .._jit import kernel, kernel_parallel
+from .._jit import inline_kernel, kernel, kernel_parallel
 
 
 # Rays per task of the parallel kernel, and batches shorter than this many rays run serially.
 CHUNK = 512
 PARALLEL_MIN = 4096
+
+
+@inline_kernel
+def _slab(near, far, o, d, inv, tn, tf):
+    """The ray's parameter interval ``[tn, tf]`` clipped to the slab between the planes ``near``
+    and ``far`` of one axis (``near`` the face the ray meets first, ``inv = 1/d``). A ray parallel
+    to the axis' planes (``d = 0``) keeps the interval when its origin lies in the slab, else the
+    interval becomes empty (``tn = inf > tf = −inf``)."""
+    if d != 0.0:
+        t1 = (near - o) * inv
+        t2 = (far - o) * inv
+        return (t1 if t1 > tn else tn), (t2 if t2 < tf else tf)
+    if near <= o <= far:
+        return tn, tf
+    return np.inf, -np.inf
 
 
 @kernel
@@ -67,30 +82,11 @@ def cast_span(origins, directions, boxes, cylinders, ground_z, has_ground, max_r
         for j in range(nb):
             if best == 0.0:
                 break
-            if dx != 0.0:
-                tn = (boxes[j, nxc] - ox) * ix
-                tf = (boxes[j, 3 - nxc] - ox) * ix
-            elif boxes[j, 0] <= ox <= boxes[j, 3]:
-                tn = -np.inf
-                tf = np.inf
-            else:
-                continue
-            if dy != 0.0:
-                t1 = (boxes[j, nyc] - oy) * iy
-                t2 = (boxes[j, 5 - nyc] - oy) * iy
-                tn = t1 if t1 > tn else tn
-                tf = t2 if t2 < tf else tf
-            elif not (boxes[j, 1] <= oy <= boxes[j, 4]):
-                continue
+            tn, tf = _slab(boxes[j, nxc], boxes[j, 3 - nxc], ox, dx, ix, -np.inf, np.inf)
+            tn, tf = _slab(boxes[j, nyc], boxes[j, 5 - nyc], oy, dy, iy, tn, tf)
             if tn > tf or tf < 0.0 or tn >= best:
                 continue  # early out: most boxes miss in plan view
-            if dz != 0.0:
-                t1 = (boxes[j, nzc] - oz) * iz
-                t2 = (boxes[j, 7 - nzc] - oz) * iz
-                tn = t1 if t1 > tn else tn
-                tf = t2 if t2 < tf else tf
-            elif not (boxes[j, 2] <= oz <= boxes[j, 5]):
-                continue
+            tn, tf = _slab(boxes[j, nzc], boxes[j, 7 - nzc], oz, dz, iz, tn, tf)
             if tn > tf or tf < 0.0:
                 continue
             tn = tn if tn > 0.0 else 0.0
