@@ -50,6 +50,15 @@ def probability(l):
         return 1.0 / (1.0 + np.exp(-np.asarray(l, dtype=np.float64)))
 
 
+def occupancy_values(l) -> np.ndarray:
+    """nav_msgs/OccupancyGrid values (int8) of log-odds ``l`` (NaN: unknown): −1 unknown, else
+    ``round(100·p)`` in 0 … 100 — what every 2D map's ``occupancy()`` holds."""
+    l = np.asarray(l)
+    out = np.rint(100.0 * probability(l)).astype(np.int8)
+    out[np.isnan(l)] = -1
+    return out
+
+
 def occupancy_classes(l, l_occupied) -> np.ndarray:
     """What every map's ``occupancy_at`` answers, per log-odds ``l`` (NaN: unknown): int8 −1
     unknown, 1 occupied (``l ≥ l_occupied``), else 0 free."""

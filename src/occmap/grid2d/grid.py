@@ -4,6 +4,8 @@ Grid conventions (cells ``(iy, ix)``, the origin at the outer corner of cell (0,
 rule): :mod:`occmap.raster`. Each cell holds ``l = log(p / (1 − p))``, updated
 ``l ← clamp(l + l_sensor − l_prior)`` at most once per scan (:mod:`occmap.raster.update`); a cell
 no reading ever touched is *unknown*.
+
+Method and parameter names follow the vocabulary the three maps share (``docs/architecture.md``).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 from .. import checks
 from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
-from ..logodds import logit, occupancy_classes, probability
+from ..logodds import logit, occupancy_classes, occupancy_values, probability
 from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _kernels as K
 from .sensor_models import LidarModel, SonarModel
@@ -43,9 +45,6 @@ def _beam_bounds(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) 
 
 class OccupancyGrid2D(OneCallAtATime):
     """A 2D occupancy grid in log-odds.
-
-    Method and parameter names follow the vocabulary shared by the three maps
-    (``docs/architecture.md``).
 
     Parameters
     ----------
@@ -132,9 +131,7 @@ class OccupancyGrid2D(OneCallAtATime):
     def occupancy(self) -> np.ndarray:
         """nav_msgs/OccupancyGrid values (int8, (H, W), row 0 at the origin): −1 unknown, else
         round(100·p)."""
-        occ = np.rint(100.0 * self.probability()).astype(np.int8)
-        occ[~self.observed] = -1
-        return occ
+        return occupancy_values(self.log_odds())
 
     def maximum_likelihood(self) -> np.ndarray:
         """int8 map: 1 occupied (l > 0), 0 free (observed, l ≤ 0), −1 never observed."""

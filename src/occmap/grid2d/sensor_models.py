@@ -28,8 +28,20 @@ def _on_side(name: str, p, occupied: bool) -> float:
     return v
 
 
+class _HitMiss:
+    """What a model's ``prob_hit`` / ``prob_miss`` add to a cell: their log-odds."""
+
+    @property
+    def l_hit(self) -> float:
+        return logit(self.prob_hit)
+
+    @property
+    def l_miss(self) -> float:
+        return logit(self.prob_miss)
+
+
 @dataclass(frozen=True)
-class LidarModel:
+class LidarModel(_HitMiss):
     """Beam-end model of a laser: the end cell of a return is hit, the cells before it are free.
 
     ``prob_hit`` is P(occupied | return ends in the cell), ``prob_miss`` is P(occupied | beam
@@ -43,17 +55,9 @@ class LidarModel:
         object.__setattr__(self, "prob_hit", _on_side("prob_hit", self.prob_hit, True))
         object.__setattr__(self, "prob_miss", _on_side("prob_miss", self.prob_miss, False))
 
-    @property
-    def l_hit(self) -> float:
-        return logit(self.prob_hit)
-
-    @property
-    def l_miss(self) -> float:
-        return logit(self.prob_miss)
-
 
 @dataclass(frozen=True)
-class SonarModel:
+class SonarModel(_HitMiss):
     """Cone model of a sonar transducer (after Moravec & Elfes, "High resolution maps from wide
     angle sonar", ICRA 1985, as taught in Thrun et al. §9.2).
 
@@ -124,14 +128,6 @@ class SonarModel:
         if self.arc is not None:
             object.__setattr__(self, "arc", checks.positive("arc", self.arc, "metres"))
         object.__setattr__(self, "min_range", checks.non_negative("min_range", self.min_range, "metres"))
-
-    @property
-    def l_hit(self) -> float:
-        return logit(self.prob_hit)
-
-    @property
-    def l_miss(self) -> float:
-        return logit(self.prob_miss)
 
     @classmethod
     def udacity_exercise(cls) -> "SonarModel":

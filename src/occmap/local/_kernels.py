@@ -311,22 +311,6 @@ def rescale(cells, factor):
 
 
 @kernel
-def occupancy(cells, stamps, sr, sc, g, l_prior, out):
-    """nav_msgs values into ``out`` (int8, (H, W), window order): −1 never observed, else
-    round(100·p) with ``l = l_prior + g·u``."""
-    H, W = out.shape
-    for y in range(H):
-        r = slot(y, sr, H)
-        for x in range(W):
-            c = slot(x, sc, W)
-            if stamps[r, c, 1] == UNSEEN:
-                out[y, x] = -1
-            else:
-                l = l_prior + g * cells[r, c, 0]
-                out[y, x] = np.int8(round(100.0 / (1.0 + math.exp(-l))))
-
-
-@kernel
 def log_odds(cells, stamps, sr, sc, g, l_prior, out):
     """Log-odds (float32, window order) into ``out``; NaN where never observed."""
     H, W = out.shape

@@ -26,6 +26,8 @@ lethal while ``p ≥ occupied_threshold`` (default 0.65) and free while ``p < fr
 cell at the upper clamp ``l_max`` that is no longer seen leaves lethal after exactly
 ``half_life · log2((l_max − l_prior) / (l_occupied − l_prior))`` seconds
 (:meth:`LocalMap.time_to_clear`), and re-observed free space clears faster than that.
+
+Method and parameter names follow the vocabulary the three maps share (``docs/architecture.md``).
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from .. import checks
 from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..grid2d.sensor_models import LidarModel
-from ..logodds import logit, occupancy_classes
+from ..logodds import logit, occupancy_classes, occupancy_values
 from ..raster.ring import slot
 from ..raster.update import UNSEEN, ScanCodes
 from . import _kernels as K
@@ -65,9 +67,6 @@ class PathCheck(NamedTuple):
 
 class LocalMap(OneCallAtATime):
     """A rolling, forgetting occupancy window centred on the robot, with a Nav2 costmap.
-
-    Method and parameter names follow the vocabulary shared by the three maps
-    (``docs/architecture.md``).
 
     Parameters
     ----------
@@ -357,9 +356,7 @@ class LocalMap(OneCallAtATime):
     def occupancy(self) -> np.ndarray:
         """nav_msgs/OccupancyGrid values (int8 (H, W), row 0 at :attr:`origin`): −1 unknown, else
         round(100·p)."""
-        out = np.empty(self.shape, dtype=np.int8)
-        K.occupancy(self._cells, self._stamps, self._sr, self._sc, self._g, self.l_prior, out)
-        return out
+        return occupancy_values(self.log_odds())
 
     def log_odds_at(self, points) -> np.ndarray:
         """Log-odds (float64, shape (...)) of the cells under world points (..., 2), the value

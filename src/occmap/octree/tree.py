@@ -7,6 +7,8 @@ holds a float32 log-odds ``l = log(p / (1 − p))``; a hit adds ``logit(prob_hit
 ``l ≥ logit(occupied_threshold)``; an inner node holds the maximum of its children; eight leaf
 children with equal values are pruned into their parent. Space no node covers is *unknown*.
 Points are metres in the map frame; rays start at the sensor origin.
+
+Method and parameter names follow the vocabulary the three maps share (``docs/architecture.md``).
 """
 
 from __future__ import annotations
@@ -82,9 +84,6 @@ class Nodes(NamedTuple):
 
 class OcTree(OneCallAtATime):
     """A probabilistic 3D occupancy octree with OctoMap's update rules (its files: :mod:`occmap.io.octomap`).
-
-    Method and parameter names follow the vocabulary shared by the three maps
-    (``docs/architecture.md``).
 
     Parameters
     ----------
