@@ -54,8 +54,9 @@ def occupancy_values(l) -> np.ndarray:
     """nav_msgs/OccupancyGrid values (int8) of log-odds ``l`` (NaN: unknown): −1 unknown, else
     ``round(100·p)`` in 0 … 100 — what every 2D map's ``occupancy()`` holds."""
     l = np.asarray(l)
-    out = np.rint(100.0 * probability(l)).astype(np.int8)
-    out[np.isnan(l)] = -1
+    unknown = np.isnan(l)
+    out = np.rint(100.0 * probability(np.where(unknown, 0.0, l))).astype(np.int8)
+    out[unknown] = -1
     return out
 
 
