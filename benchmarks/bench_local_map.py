@@ -149,10 +149,10 @@ def main(argv=None) -> int:
 
     def planar_scan():
         stamp[0] += 0.025
-        planar.integrate_scan((0.0, 0.0, 0.0), ranges, beams, stamp[0])
+        planar.insert_scan((0.0, 0.0, 0.0), ranges, beams, stamp[0])
 
     per_call = per_call_table([("full cycle, 40 m window, HDL-32 cloud", cyc.step),
-                               ("`integrate_scan`, 1,080 beams (1-15 m)", planar_scan)], number=10, repeat=args.repeat)
+                               ("`insert_scan`, 1,080 beams (1-15 m)", planar_scan)], number=10, repeat=args.repeat)
     print(per_call)
     lines += ["", "One scan per call:", "", per_call]
     body = "## Local map (`benchmarks/bench_local_map.py`)\n\n" + "\n".join(lines)
