@@ -174,3 +174,25 @@ def test_local_map_drops_and_counts_non_finite_beam_angles():
     ref.insert_scan((0.0, 0.0, 0.0), np.full(3, 2.0), ANGLES[[0, 2, 4]], stamp=0.0, max_range=4.0)
     assert counts["dropped"] == 2 and counts["rays"] == 3
     assert np.array_equal(m.log_odds(), ref.log_odds(), equal_nan=True)
+
+
+# ---------------------------------------------------------------- 5. the localizer far away
+
+
+def test_localizer_far_away_is_a_clear_error():
+    from occmap.localize import MonteCarloLocalizer
+
+    angles = np.linspace(-3.0, 3.0, 50)
+    g = OccupancyGrid2D(0.1, size=(10.0, 10.0), origin=(-5.0, -5.0))
+    for _ in range(5):
+        g.insert_scan((0.0, 0.0, 0.0), np.full(50, 3.0), angles)
+    m = MonteCarloLocalizer(g, 100, seed=0)
+    with pytest.raises(OccmapError, match="pose"):
+        m.initialize((1e300, 0.0, 0.0))
+    m.initialize((0.0, 0.0, 0.0))
+    with pytest.raises(OccmapError, match="odometry_pose"):
+        m.update((1e300, 0.0, 0.0), np.full(50, 3.0), angles, max_range=4.0)
+    far = OccupancyGrid2D(0.1, size=(10.0, 10.0), origin=(1e300, 0.0))
+    far._L[...], far._stamp[...] = g._L, g._stamp
+    with pytest.raises(OccmapError, match="map"):
+        MonteCarloLocalizer(far, 100, seed=0)
