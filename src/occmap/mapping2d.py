@@ -8,7 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._clock import WorkClock
+from .errors import InvalidArgumentError
 from .grid2d import LidarModel, OccupancyGrid2D
+from .grid2d.grid import DEFAULT_MAX_EXTENT
 from .scan import ScanStack
 
 
@@ -36,15 +38,19 @@ class MappingSummary:
 
 
 def map_scans(stack: ScanStack, resolution: float, max_range: float | None = None, chunk: int = 200,
-              progress: bool = False, model: LidarModel | None = None) -> MappingSummary:
+              progress: bool = False, model: LidarModel | None = None,
+              max_extent: float | None = DEFAULT_MAX_EXTENT) -> MappingSummary:
     """Integrate a stacked log into a new growing grid.
 
     A reading at or beyond its own scan's maximum range means "no return"; it frees the cells up
     to ``max_range`` (default: the largest maximum range of the log) and marks nothing.
     ``seconds`` of the summary is the integration alone (no kernel loading, no progress bar).
+    A scan that would grow the map beyond ``max_extent`` metres per side (see
+    :class:`OccupancyGrid2D`) stops it with an :class:`~occmap.errors.InvalidArgumentError` that
+    names the scan's number in the log.
     """
     poses, ranges, angles, max_ranges, _ = stack
-    grid = OccupancyGrid2D(resolution)
+    grid = OccupancyGrid2D(resolution, max_extent=max_extent)
     n = len(poses)
     limit = float(max_range) if max_range is not None else (float(max_ranges.max()) if n else 1.0)
     no_return = ranges >= max_ranges[:, None]
@@ -54,7 +60,11 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
         stop = min(n, start + chunk)
         a = angles if angles.ndim == 1 else angles[start:stop]
         with clock.running():
-            grid.insert_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
+            try:
+                grid.insert_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
+            except InvalidArgumentError as e:
+                raise InvalidArgumentError(f"scans {start}–{stop - 1} of the log (indices below count from {start}): "
+                                           f"{e}") from None
         if progress:
             done = stop / n
             bar = "#" * int(30 * done)

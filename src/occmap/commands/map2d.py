@@ -20,6 +20,9 @@ def add_parser(subparsers):
                    help="cell size in metres (default: %(default)s)")
     p.add_argument("--png", help="also write a probability picture")
     p.add_argument("--max-range", type=_options.positive, help="ignore the parts of beams beyond this many metres")
+    p.add_argument("--max-extent", type=_options.positive, default=10_000.0,
+                   help="largest side of the map in metres; a pose or beam that would grow it further stops the "
+                   "command, naming the scan (default: %(default)s)")
     p.add_argument("--every", type=_options.count, default=1, help="use every N-th scan (default: %(default)s)")
     p.add_argument("--lenient", action="store_true", help="skip and count malformed lines instead of stopping")
     p.add_argument("--prob-hit", type=_options.probability, default=0.7,
@@ -47,7 +50,8 @@ def run(args) -> int:
           + (f" ({log.skipped_malformed:,} malformed lines skipped)" if log.skipped_malformed else ""))
     if not len(log):
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
-    summary = map_scans(log.stack(), args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model)
+    summary = map_scans(log.stack(), args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model,
+                         max_extent=args.max_extent)
     image = summary.grid.save(args.output)
     for line in summary.lines():
         print(line)

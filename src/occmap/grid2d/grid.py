@@ -22,6 +22,9 @@ from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _kernels as K
 from .sensor_models import LidarModel, SonarModel
 
+#: Default largest side of a growing map, metres (``max_extent``).
+DEFAULT_MAX_EXTENT = 10_000.0
+
 #: Cells added on each side when a growing map must grow, at least (amortises the copies).
 _GROW_MARGIN_CELLS = 64
 
@@ -33,14 +36,23 @@ def _new_cells(shape, l_prior: float) -> tuple[np.ndarray, np.ndarray]:
     return L, np.zeros(shape, dtype=np.uint16)
 
 
-def _beam_bounds(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) -> tuple[float, float, float, float]:
-    """World box (xmin, ymin, xmax, ymax) of the sensor positions and of the beam ends that will
-    be used (ranges capped at ``max_range``, unusable readings left out)."""
+def _beam_points(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
+    """World x and y (N, 1 + n) of each scan's sensor position (column 0) and of the beam ends
+    that will be used (columns 1..n: ranges capped at ``max_range``; NaN for dropped readings)."""
     r = np.where(R > 0, np.minimum(R, max_range), np.nan)  # NaN stays NaN: dropped beams
     a = P[:, 2:3] + A
-    x = np.concatenate([P[:, 0], (P[:, 0:1] + r * np.cos(a)).ravel()])
-    y = np.concatenate([P[:, 1], (P[:, 1:2] + r * np.sin(a)).ravel()])
-    return float(np.nanmin(x)), float(np.nanmin(y)), float(np.nanmax(x)), float(np.nanmax(y))
+    x = np.concatenate([P[:, 0:1], P[:, 0:1] + r * np.cos(a)], axis=1)
+    y = np.concatenate([P[:, 1:2], P[:, 1:2] + r * np.sin(a)], axis=1)
+    return x, y
+
+
+def _farthest(x: np.ndarray, y: np.ndarray, centre: np.ndarray | None) -> tuple[int, ...]:
+    """Index into ``x``/``y`` of the point farthest (Chebyshev) from ``centre`` (``None``: the
+    first point), NaN left out."""
+    if centre is None:
+        centre = (x.flat[0], y.flat[0])
+    d = np.fmax(np.abs(x - centre[0]), np.abs(y - centre[1]))
+    return np.unravel_index(int(np.nanargmax(d)), d.shape)
 
 
 class OccupancyGrid2D(OneCallAtATime):
@@ -63,11 +75,22 @@ class OccupancyGrid2D(OneCallAtATime):
     occupied_threshold : float
         Probability at or above which an observed cell counts as occupied in :meth:`occupancy_at`
         (OctoMap's 0.5).
+    max_extent : float or None
+        Largest side, in metres, a growing map may reach (default 10 km: 40 M cells at 5 cm
+        already take 200 MB). An insertion that would grow it further raises
+        :class:`~occmap.errors.InvalidArgumentError` naming the pose or beam that asked, and
+        changes nothing. ``None``: no limit. Ignored by a fixed map.
     """
 
     def __init__(self, resolution: float, size=None, origin=None, prior: float = 0.5, clamp=(0.1192, 0.971),
-                 occupied_threshold: float = 0.5):
+                 occupied_threshold: float = 0.5, max_extent: float | None = DEFAULT_MAX_EXTENT):
         self.resolution = checks.resolution(resolution)
+        self.max_extent = None if max_extent is None else checks.positive("max_extent", max_extent, "metres")
+        if origin is not None:
+            o = np.asarray(origin, dtype=np.float64)
+            if o.shape != (2,):
+                raise ShapeError(f"origin must be (x, y), got shape {o.shape}")
+            origin = (checks.finite("origin[0]", o[0]), checks.finite("origin[1]", o[1]))
         self.l_prior = logit(prior, "prior")
         self.l_min, self.l_max = logit(clamp[0], "clamp[0]"), logit(clamp[1], "clamp[1]")
         if not self.l_min < self.l_prior < self.l_max:
@@ -173,7 +196,8 @@ class OccupancyGrid2D(OneCallAtATime):
         ``poses`` (N, 3) are sensor poses ``(x, y, theta)``; ``ranges`` (N, n) in metres;
         ``angles`` (n,) or (N, n) beam angles relative to the sensor heading. A reading at or
         beyond ``max_range``, or infinite, frees the cells up to ``max_range`` and marks nothing;
-        NaN, zero and negative readings are dropped and counted. Without ``max_range`` every
+        NaN, zero and negative readings, and readings whose angle is NaN or infinite, are dropped
+        and counted. Without ``max_range`` every
         finite reading is a return and infinite ones are dropped too. Within one scan a cell is
         updated at most once and a hit wins over a miss. Returns the counts of this call:
         ``scans``, ``points`` (readings used), ``dropped``, ``beyond_max_range``.
@@ -191,6 +215,9 @@ class OccupancyGrid2D(OneCallAtATime):
         if A.shape != R.shape:
             raise ShapeError(f"angles must have shape (n,) or (N, n) matching ranges {R.shape}, got {A.shape}")
         A = np.ascontiguousarray(A)
+        bad_angle = ~np.isfinite(A)
+        if bad_angle.any():  # a beam without a direction is a dropped reading
+            R, A = np.where(bad_angle, np.nan, R), np.where(bad_angle, 0.0, A)
         good_pose = np.isfinite(P).all(axis=1)
         if not good_pose.all():
             raise NonFiniteError(f"poses[{int(np.argmin(good_pose))}] = {P[np.argmin(good_pose)].tolist()} is not finite")
@@ -203,7 +230,16 @@ class OccupancyGrid2D(OneCallAtATime):
                 R = np.where(np.isinf(R), np.nan, R)
         max_range = checks.positive("max_range", max_range, "metres")
         if self.growing and len(P):
-            self._grow_to(*_beam_bounds(P, R, A, max_range))
+            x, y = _beam_points(P, R, A, max_range)
+
+            def culprit(centre):
+                i, j = _farthest(x, y, centre)
+                if j == 0:
+                    return f"poses[{i}] = {P[i].tolist()}"
+                return (f"beam {j - 1} of scan {i} (poses[{i}] = {P[i].tolist()}, ranges[{i}, {j - 1}] = "
+                        f"{float(R[i, j - 1])!r}) ending at ({float(x[i, j])!r}, {float(y[i, j])!r})")
+
+            self._grow_to(np.nanmin(x), np.nanmin(y), np.nanmax(x), np.nanmax(y), culprit)
         used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_lidar(
             self._L, self._stamp, code, P[i:j], R[i:j], A[i:j], float(max_range), float(self.origin[0]),
             float(self.origin[1]), 1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior,
@@ -236,7 +272,13 @@ class OccupancyGrid2D(OneCallAtATime):
         arc = self.resolution if model.arc is None else model.arc
         if self.growing and len(P):
             reach = max_range + arc
-            self._grow_to(P[:, 0].min() - reach, P[:, 1].min() - reach, P[:, 0].max() + reach, P[:, 1].max() + reach)
+
+            def culprit(centre):
+                i = _farthest(P[:, 0], P[:, 1], centre)[0]
+                return f"poses[{i}] = {P[i].tolist()} (with its cones reaching {reach!r} m)"
+
+            self._grow_to(P[:, 0].min() - reach, P[:, 1].min() - reach, P[:, 0].max() + reach, P[:, 1].max() + reach,
+                          culprit)
         lo, hi = model.sector_bounds(B)
         P, R = np.ascontiguousarray(P), np.ascontiguousarray(R)
         used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_sonar(
@@ -266,21 +308,35 @@ class OccupancyGrid2D(OneCallAtATime):
             self.stats[key] += value
         return counts
 
-    def _grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float) -> None:
+    def _grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float, culprit) -> None:
         """Grow (never shrink) so the world box is inside, keeping cell alignment; amortised by
-        a margin proportional to the current size."""
+        a margin proportional to the current size, never past ``max_extent``. Beyond it, raise
+        naming ``culprit(centre)``: the point farthest from the map's centre (``None`` for an
+        empty map: from the call's first sensor position)."""
         res = self.resolution
-        if self.origin is None:
-            self.origin = np.array([math.floor(xmin / res) * res, math.floor(ymin / res) * res])
+        origin = self.origin
+        if origin is None:
+            origin = np.array([math.floor(xmin / res) * res, math.floor(ymin / res) * res])
         H, W = self.shape
-        lo_x = math.floor((xmin - self.origin[0]) / res)
-        lo_y = math.floor((ymin - self.origin[1]) / res)
-        hi_x = math.ceil((xmax - self.origin[0]) / res)
-        hi_y = math.ceil((ymax - self.origin[1]) / res)
+        if not math.isfinite(xmin + ymin + xmax + ymax):  # readings so long their ends overflow
+            raise InvalidArgumentError(f"{culprit(None)} lies beyond any map (its coordinates overflow)")
+        lo_x = math.floor((xmin - origin[0]) / res)
+        lo_y = math.floor((ymin - origin[1]) / res)
+        hi_x = math.ceil((xmax - origin[0]) / res)
+        hi_y = math.ceil((ymax - origin[1]) / res)
         if lo_x >= 0 and lo_y >= 0 and hi_x <= W and hi_y <= H:
             return
-        margin_x = max(_GROW_MARGIN_CELLS, W // 2)
-        margin_y = max(_GROW_MARGIN_CELLS, H // 2)
+        need_w, need_h = max(hi_x, W) - min(lo_x, 0), max(hi_y, H) - min(lo_y, 0)
+        limit = math.inf if self.max_extent is None else math.floor(self.max_extent / res + 1e-9)
+        if max(need_w, need_h) > limit:
+            centre = origin + 0.5 * res * np.array([W, H]) if W else None
+            raise InvalidArgumentError(
+                f"{culprit(centre)} would grow the map to {need_w * res:.6g} m × {need_h * res:.6g} m, beyond "
+                f"max_extent = {self.max_extent!r} m per side (an outlier? drop it, or raise max_extent; None: "
+                f"no limit)")
+        spare_x, spare_y = min(limit - need_w, 2**62), min(limit - need_h, 2**62)
+        margin_x = min(max(_GROW_MARGIN_CELLS, W // 2), spare_x // 2)
+        margin_y = min(max(_GROW_MARGIN_CELLS, H // 2), spare_y // 2)
         add_left = margin_x - lo_x if lo_x < 0 else 0
         add_bottom = margin_y - lo_y if lo_y < 0 else 0
         add_right = hi_x - W + margin_x if hi_x > W else 0
@@ -290,7 +346,7 @@ class OccupancyGrid2D(OneCallAtATime):
         L[add_bottom:add_bottom + H, add_left:add_left + W] = self._L
         stamp[add_bottom:add_bottom + H, add_left:add_left + W] = self._stamp
         self._L, self._stamp = L, stamp
-        self.origin = self.origin - np.array([add_left, add_bottom]) * res
+        self.origin = origin - np.array([add_left, add_bottom]) * res
 
     # ------------------------------------------------------------------ files
 

@@ -52,6 +52,11 @@ __all__ = ["LocalMap", "PathCheck"]
 #: The global decay factor is folded into the cells when it falls below this.
 _RESCALE_BELOW = 2.0 ** -30
 
+#: Farthest a window's centre may lie from the world origin, in cells (2⁴⁰: 55 000 km at 5 cm).
+#: Beyond it float64 coordinates lose sub-cell precision and the kernels' int64 cell arithmetic
+#: would overflow, so :meth:`LocalMap.move_to` (and ``center``) refuse such positions.
+MAX_CELL_INDEX = 2.0 ** 40
+
 
 class PathCheck(NamedTuple):
     """Result of :meth:`LocalMap.check_path`.
@@ -90,7 +95,8 @@ class LocalMap(OneCallAtATime):
         The robot's footprint in the body frame (x forward), used by :meth:`check_path` when none
         is given and for the inscribed radius; default a 0.1 m radius (Nav2's ``robot_radius``).
     center : (x, y)
-        Where the window starts, centred (default the world origin).
+        Where the window starts, centred (default the world origin). Like :meth:`move_to`, at
+        most :data:`MAX_CELL_INDEX` cells from the world origin.
     """
 
     def __init__(self, size=(40.0, 40.0), resolution: float = 0.1, half_life: float | None = None, *,
@@ -168,10 +174,16 @@ class LocalMap(OneCallAtATime):
         return self._time
 
     def _corner_for(self, x: float, y: float) -> tuple[int, int]:
-        """Lattice cell of the window's corner when centred on (x, y)."""
+        """Lattice cell of the window's corner when centred on (x, y); a centre more than
+        :data:`MAX_CELL_INDEX` cells from the world origin is refused (InvalidArgumentError)."""
         H, W = self.shape
         inv = 1.0 / self.resolution
-        return int(math.floor(x * inv)) - W // 2, int(math.floor(y * inv)) - H // 2
+        cx, cy = x * inv, y * inv
+        if not (abs(cx) <= MAX_CELL_INDEX and abs(cy) <= MAX_CELL_INDEX):
+            raise InvalidArgumentError(
+                f"position ({x!r}, {y!r}) is {max(abs(cx), abs(cy)):.3g} cells of {self.resolution} m from the world "
+                f"origin, beyond the {MAX_CELL_INDEX:.3g} a local map can index")
+        return int(math.floor(cx)) - W // 2, int(math.floor(cy)) - H // 2
 
     def world_to_cell(self, points) -> np.ndarray:
         """Window cells ``(wy, wx)`` (..., 2) of world points (..., 2); not clipped."""
@@ -193,7 +205,9 @@ class LocalMap(OneCallAtATime):
     def move_to(self, x: float, y: float) -> int:
         """Centre the window on (x, y): the window moves by whole cells, the storage start shifts,
         and only the rows and columns that left are cleared (they re-enter as unknown cells on
-        the other side). Returns the number of cells cleared (0 when the window stays)."""
+        the other side). Returns the number of cells cleared (0 when the window stays).
+        A position more than :data:`MAX_CELL_INDEX` cells from the world origin raises
+        :class:`~occmap.errors.InvalidArgumentError` and leaves the map as it was."""
         if not (math.isfinite(x) and math.isfinite(y)):
             raise NonFiniteError(f"move_to needs a finite position, got ({x!r}, {y!r})")
         gx0, gy0 = self._corner_for(float(x), float(y))
@@ -285,7 +299,7 @@ class LocalMap(OneCallAtATime):
 
         ``ranges`` (n,) metres; ``angles`` (n,) relative to the sensor heading. Readings at or
         beyond ``max_range`` (or infinite) clear up to it and mark nothing; NaN, zero and negative
-        readings are dropped and counted. Without ``max_range`` every finite reading is a return
+        readings, and readings whose angle is NaN or infinite, are dropped and counted. Without ``max_range`` every finite reading is a return
         and infinite ones are dropped. A pose with NaN drops the whole scan (counted in
         ``stats["dropped_poses"]``; time still advances). Stamps must not go backwards
         (:class:`~occmap.errors.InvalidArgumentError`). Returns this scan's counts.
@@ -300,6 +314,9 @@ class LocalMap(OneCallAtATime):
         self._advance(stamp)
         if not np.isfinite(P).all():
             return self._dropped_pose(int(R.size))
+        bad_angle = ~np.isfinite(A)
+        if bad_angle.any():  # a beam without a direction is a dropped reading
+            R = np.where(bad_angle, np.nan, R)
         if max_range is None:
             finite = R[np.isfinite(R) & (R > 0)]
             mr = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0

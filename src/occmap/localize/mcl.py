@@ -78,6 +78,17 @@ from .params import LocalizationParams
 from .resample import kld_count, roughen, systematic
 from .scan_match import match
 
+#: Largest |x| or |y| (metres) of a pose, odometry pose or map corner the filter accepts: beyond
+#: it the particle arithmetic (binning, differences, weights) overflows or loses all precision.
+MAX_COORDINATE = 1e9
+
+
+def _within_reach(name: str, xy) -> None:
+    """InvalidArgumentError naming ``name`` when a coordinate exceeds :data:`MAX_COORDINATE`."""
+    if not np.all(np.abs(np.asarray(xy, dtype=np.float64)) <= MAX_COORDINATE):
+        raise InvalidArgumentError(f"{name} {np.asarray(xy).tolist()} lies beyond ±{MAX_COORDINATE:g} m, farther "
+                                   "than the localizer's arithmetic can follow")
+
 __all__ = ["LocalizationWarning", "MonteCarloLocalizer", "PoseEstimate"]
 
 
@@ -177,6 +188,9 @@ class MonteCarloLocalizer(OneCallAtATime):
             settings["n_particles"] = n_particles
         self.params = params.replace(**settings) if settings else params
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        if grid.origin is not None:
+            H, W = grid.shape
+            _within_reach("the map's corners", [grid.origin, grid.origin + grid.resolution * np.array([W, H])])
         self.field = LikelihoodField(grid, self.params)
         self.grid = grid
         self.particles = np.zeros((0, 3))
@@ -202,6 +216,7 @@ class MonteCarloLocalizer(OneCallAtATime):
             raise ShapeError(f"pose must be (x, y, theta), got shape {p.shape}")
         if not np.isfinite(p).all():
             raise NonFiniteError(f"pose {p.tolist()} is not finite")
+        _within_reach("pose", p[:2])
         c = np.diag([0.25, 0.25, (np.pi / 12) ** 2]) if cov is None else np.asarray(cov, dtype=np.float64)
         if c.shape == (3,):
             c = np.diag(c)
@@ -265,6 +280,7 @@ class MonteCarloLocalizer(OneCallAtATime):
             raise ShapeError(f"odometry_pose must be (x, y, theta), got shape {odom.shape}")
         if not np.isfinite(odom).all():
             raise NonFiniteError(f"odometry_pose {odom.tolist()} is not finite")
+        _within_reach("odometry_pose", odom[:2])
         r = np.asarray(ranges, dtype=np.float64).reshape(-1)
         a = np.asarray(angles, dtype=np.float64).reshape(-1)
         if r.shape != a.shape:

@@ -145,7 +145,9 @@ class OcTree(OneCallAtATime):
     def bbx(self):
         """Insertion limit (OctoMap's ``useBBXLimit``): ``None``, or ``(min, max)`` corners in metres.
         While set, scans update only voxels inside the box: a point outside it is no hit, and a ray
-        frees the voxels it crosses until it leaves the box (none when the sensor is outside)."""
+        frees the voxels it crosses until it leaves the box (none when the sensor is outside).
+        Corners beyond the tree's reach (keys 0 … 65535) are stored clipped to just outside it,
+        as OctoMap clips the box's keys: the same voxels, and no overflow in float32."""
         return self._bbx
 
     @bbx.setter
@@ -158,7 +160,14 @@ class OcTree(OneCallAtATime):
             raise InvalidArgumentError(f"bbx must be two finite corners (min, max) of 3 values each, got {box!r}")
         if np.any(lo > hi):
             raise InvalidArgumentError(f"bbx min {lo.tolist()} exceeds max {hi.tolist()}")
+        lo, hi = self._within_reach(lo), self._within_reach(hi)
         self._bbx = (lo.astype(np.float32).astype(np.float64), hi.astype(np.float32).astype(np.float64))
+
+    def _within_reach(self, p: np.ndarray) -> np.ndarray:
+        """Coordinates (metres) clipped to one voxel beyond the tree on each side: their keys,
+        clipped to 0 … MAX_KEY, are those of the unclipped corner."""
+        reach = (CENTER + 1) * self.resolution
+        return np.clip(p, -reach, reach)
 
     def _bbx_keys(self) -> np.ndarray:
         if self._bbx is None:
@@ -397,7 +406,9 @@ class OcTree(OneCallAtATime):
         p = np.asarray(p, dtype=np.float64)
         if p.shape != (3,):
             raise ShapeError(f"bounding-box corners must have shape (3,), got {p.shape}")
-        return coord_to_keys(p, self.resolution)
+        if np.isnan(p).any():
+            raise InvalidArgumentError(f"bounding-box corners must not be NaN, got {p.tolist()}")
+        return coord_to_keys(self._within_reach(p), self.resolution)
 
     def occupied_centers(self) -> np.ndarray:
         """Centres (M, 3) of the occupied leaves (at their own depth)."""
