@@ -89,6 +89,18 @@ def _within_reach(name: str, xy) -> None:
         raise InvalidArgumentError(f"{name} {np.asarray(xy).tolist()} lies beyond ±{MAX_COORDINATE:g} m, farther "
                                    "than the localizer's arithmetic can follow")
 
+
+def _pose(name: str, value) -> np.ndarray:
+    """``value`` as a finite pose ``(x, y, theta)`` within reach, or an error naming ``name``."""
+    p = np.asarray(value, dtype=np.float64)
+    if p.shape != (3,):
+        raise ShapeError(f"{name} must be (x, y, theta), got shape {p.shape}")
+    if not np.isfinite(p).all():
+        raise NonFiniteError(f"{name} {p.tolist()} is not finite")
+    _within_reach(name, p[:2])
+    return p
+
+
 __all__ = ["LocalizationWarning", "MonteCarloLocalizer", "PoseEstimate"]
 
 
@@ -211,12 +223,7 @@ class MonteCarloLocalizer(OneCallAtATime):
         """Start tracking: ``n`` (default ``n_particles``) particles drawn from a Gaussian around
         ``pose`` ``(x, y, theta)`` with covariance ``cov`` (3×3, or 3 variances; default AMCL's
         0.5² m², 0.5² m², (π/12)² rad²)."""
-        p = np.asarray(pose, dtype=np.float64)
-        if p.shape != (3,):
-            raise ShapeError(f"pose must be (x, y, theta), got shape {p.shape}")
-        if not np.isfinite(p).all():
-            raise NonFiniteError(f"pose {p.tolist()} is not finite")
-        _within_reach("pose", p[:2])
+        p = _pose("pose", pose)
         c = np.diag([0.25, 0.25, (np.pi / 12) ** 2]) if cov is None else np.asarray(cov, dtype=np.float64)
         if c.shape == (3,):
             c = np.diag(c)
@@ -275,12 +282,7 @@ class MonteCarloLocalizer(OneCallAtATime):
         """
         if self.particles.shape[0] == 0:
             raise InvalidArgumentError("initialize() or initialize_global() the filter before update()")
-        odom = np.asarray(odometry_pose, dtype=np.float64)
-        if odom.shape != (3,):
-            raise ShapeError(f"odometry_pose must be (x, y, theta), got shape {odom.shape}")
-        if not np.isfinite(odom).all():
-            raise NonFiniteError(f"odometry_pose {odom.tolist()} is not finite")
-        _within_reach("odometry_pose", odom[:2])
+        odom = _pose("odometry_pose", odometry_pose)
         r = np.asarray(ranges, dtype=np.float64).reshape(-1)
         a = np.asarray(angles, dtype=np.float64).reshape(-1)
         if r.shape != a.shape:
