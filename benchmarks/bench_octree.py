@@ -48,7 +48,8 @@ def datasets(data: Path | None, quick: bool) -> dict[str, list[tuple[np.ndarray,
         c = read_xyz(data / "octomap" / "scan.dat.bz2")
         sets["scan.dat (1 scan, 88k points)"] = [(c.world_points(), c.origin)]
         uos = [read_uos(data / "scans3d" / "uos_3dtk" / f"scan00{i}.3d") for i in range(3)]
-        sets["Osnabrück 3DTK (3 scans, 244k points)"] = [(c.world_points(), c.origin) for c in uos]
+        sets[f"Osnabrück 3DTK (3 scans, {sum(len(c) for c in uos) // 1000}k points)"] = [(c.world_points(), c.origin)
+                                                                                     for c in uos]
         d = data / "scans3d" / "hdl32_pair"
         first, second = (read_pcd(p) for p in sorted(d.glob("*.pcd")))
         relative = SE3(np.loadtxt(d / "relative.txt"))

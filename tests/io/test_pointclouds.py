@@ -100,7 +100,7 @@ def test_pcd_ascii_equals_binary(data_dir, tmp_path):
 @pytest.fixture(scope="module")
 def uos(data_dir):
     d = data_dir / "scans3d" / "uos_3dtk"
-    return {mode: [read_uos(d / f"scan{i:03d}.3d", pose=mode) for i in range(3)] for mode in ("frames", "pose", None)}
+    return {mode: [read_uos(d / f"scan{i:03d}.3d", pose=mode, no_return=None) for i in range(3)] for mode in ("frames", "pose", None)}
 
 
 def _cm_rows(path):
@@ -608,3 +608,18 @@ def test_pcd_integer_field_must_hold_integers(tmp_path):
     assert e.value.line == 13
     (tmp_path / "i.pcd").write_bytes(_pcd("x y z", "4 4 2", "F F I", "1 1 1", 2, "ascii", b"1 2 3\n4 5 6\n"))
     np.testing.assert_array_equal(read_pcd(tmp_path / "i.pcd").points, [[1, 2, 3], [4, 5, 6]])
+
+
+def test_uos_no_return_readings_are_dropped_and_counted(data_dir):
+    """The UOS scanner writes a beam that saw nothing at 32.767 m (its 16-bit millimetre maximum):
+    those points are no hits (15 % of map3d's occupied voxels were such phantom arcs)."""
+    path = data_dir / "scans3d" / "uos_3dtk" / "scan000.3d"
+    kept = read_uos(path, pose=None, no_return=None)
+    cloud = read_uos(path, pose=None)
+    r_all = np.linalg.norm(kept.points, axis=1)
+    saturated = int(np.count_nonzero(r_all >= 32.747))
+    assert saturated > 1000  # 1,481 in this scan, at 32.755-32.770 m; no real return beyond 32.4 m
+    assert len(cloud) == len(kept) - saturated and cloud.dropped == kept.dropped + saturated
+    assert np.linalg.norm(cloud.points, axis=1).max() < 32.5
+    with pytest.raises(InvalidArgumentError, match="no_return"):
+        read_uos(path, pose=None, no_return=-1.0)

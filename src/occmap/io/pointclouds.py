@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import checks
 from .._files import write_atomic
 from ..cloud import PointCloud
 from ..errors import FormatError, InvalidArgumentError, MissingFileError, ShapeError
@@ -583,7 +584,13 @@ def _uos_pose_file(path) -> np.ndarray:
     return uos_euler_to_matrix(v[:3], v[3:])
 
 
-def read_uos(scan_path, pose="frames") -> PointCloud:
+#: Range (m) at which the Osnabrück scanner of the 3DTK samples writes a beam that saw nothing: its
+#: 16-bit maximum, 32,767 mm (see ../shared/data/README.md: "a range at or above the sensor's
+#: maximum means no return").
+UOS_NO_RETURN = 32.767
+
+
+def read_uos(scan_path, pose="frames", no_return: float | None = UOS_NO_RETURN) -> PointCloud:
     """Read a 3DTK / UOS ``scanNNN.3d`` scan with its pose.
 
     Frames and units
@@ -611,9 +618,22 @@ def read_uos(scan_path, pose="frames") -> PointCloud:
           (:func:`uos_euler_to_matrix`).
         * ``None``: identity (the sensor frame).
         * an :class:`SE3` (or 4×4 array): used as ``T_world_sensor`` as given (metres, right-handed).
+    no_return : float or None
+        Range in metres at which the scanner reports "no return" (default :data:`UOS_NO_RETURN`):
+        points within 2 cm of it or beyond are dropped and counted in ``cloud.dropped`` (in the
+        samples these lie at 32.755-32.770 m, the file's rounded coordinates, and no real return
+        beyond 32.4 m; inserted, they would be hits on an arc that is not there); ``None`` keeps
+        every point.
     """
     scan_path = Path(scan_path)
     pts_cm = _read_xyz(scan_path, _RAW, first_line_header=_UOS_HEADER)
+    saturated = 0
+    if no_return is not None:
+        reach = 100.0 * (checks.positive("no_return", no_return, "metres") - 0.02)
+        beyond = np.einsum("ij,ij->i", pts_cm, pts_cm) >= reach * reach  # (NaN rows compare False)
+        saturated = int(np.count_nonzero(beyond))
+        if saturated:
+            pts_cm = pts_cm[~beyond]
     if isinstance(pose, str):
         if pose == "frames":
             T = uos_matrix_to_se3(_uos_frames(_uos_sidecar(scan_path, (".frames", ".frames_slam6d_2009"))))
@@ -623,7 +643,7 @@ def read_uos(scan_path, pose="frames") -> PointCloud:
             raise InvalidArgumentError(f"pose must be 'frames', 'pose', None or an SE3, got {pose!r}")
     else:
         T = _parse_pose(pose)
-    return _finite_cloud(uos_points_to_rh(pts_cm), pose=T)
+    return _finite_cloud(uos_points_to_rh(pts_cm), pose=T, dropped=saturated)
 
 
 # --------------------------------------------------------------------------------------------
