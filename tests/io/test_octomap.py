@@ -100,15 +100,20 @@ def small_ot(scan_tree):
 
 # ------------------------------------------------------------------------------ real maps
 
+def _occupied_and_free(tree) -> tuple[int, int]:
+    """Leaves at or above the occupied threshold, and the others."""
+    log_odds = tree.leaves().log_odds
+    occupied = int(np.count_nonzero(log_odds >= np.float32(tree.occupied_log_odds)))
+    return occupied, len(log_odds) - occupied
+
+
 def test_geb079_counts_and_byte_identical_rewrite(data_dir, tmp_path):
     path = data_dir / "octomap" / "geb079.bt"
     tree = F.read_bt(path)
     assert tree.resolution == 0.08
     assert tree.num_nodes() == 532_566
-    lv = tree.leaves()
-    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupied_log_odds)))
-    assert (occupied, len(lv.log_odds) - occupied) == (143_729, 284_415)
-    assert set(np.unique(lv.log_odds)) == set(np.float32(tree.clamping_log_odds))
+    assert _occupied_and_free(tree) == (143_729, 284_415)
+    assert set(np.unique(tree.leaves().log_odds)) == set(np.float32(tree.clamping_log_odds))
     before = _arrays(tree)
     F.write_bt(tree, tmp_path / "geb.bt")
     assert (tmp_path / "geb.bt").read_bytes() == path.read_bytes()
@@ -126,9 +131,7 @@ def test_fr079_counts_and_speed(data_dir, tmp_path):
     tree = F.read_bt(path)
     assert tree.resolution == 0.05
     assert tree.num_nodes() == 1_829_134
-    lv = tree.leaves()
-    occupied = int(np.count_nonzero(lv.log_odds >= np.float32(tree.occupied_log_odds)))
-    assert (occupied, len(lv.log_odds) - occupied) == (372_904, 1_103_266)
+    assert _occupied_and_free(tree) == (372_904, 1_103_266)
     assert F.encode_bt(tree) == path.read_bytes()
 
     # timings, printed (pytest -s) and not asserted: best of 3, each side in this process
