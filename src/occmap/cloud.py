@@ -9,7 +9,7 @@ Units are metres; arrays are float64.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,6 +34,9 @@ class PointCloud:
     pose : SE3
         ``T_world_sensor``, a single transform (shape ``()``); a (4, 4) array is accepted and
         checked. ``None`` (the default) means identity: the sensor frame is the world frame.
+    has_pose : bool
+        Whether a pose was given (read from the file, or passed); False when ``pose`` is the
+        identity only because none was known.
     stamp : float or None
         Time of the scan in seconds when the source has one.
     dropped : int
@@ -45,6 +48,7 @@ class PointCloud:
     pose: SE3 | None = None
     stamp: float | None = None
     dropped: int = 0
+    has_pose: bool = field(init=False)
 
     def __post_init__(self):
         pts = np.asarray(self.points, dtype=np.float64)
@@ -52,6 +56,7 @@ class PointCloud:
             raise ShapeError(f"points must have shape (N, 3), got {pts.shape}")
         object.__setattr__(self, "points", pts)
         pose = self.pose
+        object.__setattr__(self, "has_pose", pose is not None)
         if pose is None:
             pose = SE3.identity()
         elif not isinstance(pose, SE3):

@@ -97,3 +97,14 @@ def test_bad_input_is_one_line_without_a_traceback(tmp_path):
         assert run.returncode == 2
         assert "Traceback" not in run.stderr and run.stderr.startswith(f"occmap {argv[0]}: error: ")
         assert len(run.stderr.strip().splitlines()) == 1
+
+
+def test_map2d_and_local_say_what_they_assumed_of_the_log(tmp_path, log, capsys):
+    """The log has no PARAM for its laser's maximum range and 3 beams (no known angular step)."""
+    for argv in (["map2d", log, "-o", tmp_path / "m.yaml"], ["local", log, "-o", tmp_path / "l.gif"]):
+        assert main([str(a) for a in argv]) == 0
+        err = capsys.readouterr().err
+        assert "note: 1 FLASER/RLASER scans have no maximum range in the log" in err and "81 m assumed" in err
+        assert "note: 1 FLASER/RLASER scans have a beam count" in err
+    assert main(["map2d", str(log), "-o", str(tmp_path / "n.yaml"), "--max-range", "20"]) == 0
+    assert "maximum range" not in capsys.readouterr().err

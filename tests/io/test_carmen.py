@@ -282,6 +282,18 @@ def test_max_range_from_param_and_override_and_no_return_values(tmp_path):
     np.testing.assert_array_equal(read_carmen(p).scans[0].ranges, [1.0, 32.767, 50.0, 81.91])
 
 
+def test_the_log_says_what_the_reader_assumed(tmp_path):
+    """Scans that took DEFAULT_MAX_RANGE or a guessed fan are counted, for the CLI to say so."""
+    lines = [_flaser(n=180), _flaser(n=4), "PARAM robot_front_laser_max 40 0 h 0", _flaser(n=181), _flaser(n=7),
+             _flaser(n=360, kind="RLASER")]
+    log = read_carmen(_write(tmp_path, lines))
+    assert [s.max_range for s in log] == [DEFAULT_MAX_RANGE, DEFAULT_MAX_RANGE, 40.0, 40.0, DEFAULT_MAX_RANGE]
+    assert log.stats.assumed_max_range == 3  # the two before the PARAM and the rear laser's
+    assert log.stats.guessed_angles == 2  # n = 4 and n = 7
+    given = read_carmen(_write(tmp_path, lines), max_range=30.0)
+    assert given.stats.assumed_max_range == 0 and given.stats.guessed_angles == 2
+
+
 def test_every_and_kinds(tmp_path):
     lines = [_flaser(logger=float(k)) for k in range(10)]
     stats = CarmenStats()

@@ -3,7 +3,7 @@ old file or the new one — for a map_server pair, a pair that loads as one save
 saying so — and the next successful write leaves no temporary file behind.
 
 Each writer runs in a forked child that saves two versions in turn until it is killed after a
-random 0–12 ms. ``OCCMAP_KILL_RUNS`` sets the kills per writer (default 30; e.g. 300 for a long
+random time of up to about four saves (at least 12 ms). ``OCCMAP_KILL_RUNS`` sets the kills per writer (default 30; e.g. 300 for a long
 run)."""
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ from occmap.errors import FormatError
 from occmap.geometry.se3 import SE3
 from occmap.io import read_pcd, read_ply, write_pcd, write_ply
 from occmap.io.mapserver import load_map, save_map
+from occmap.io.octomap import read_bt, read_ot, write_bt, write_ot
+from occmap.octree import OcTree
 
 KILLS = int(os.environ.get("OCCMAP_KILL_RUNS", "30"))
 
@@ -60,10 +62,37 @@ def _read_ply(path):
     return (read_ply(path).points,)
 
 
+def _trees():
+    """Two trees of different sizes and resolutions (about 0.4 and 1.2 MB as .ot)."""
+    rng = np.random.default_rng(11)
+    trees = []
+    for res, n in ((0.1, 4000), (0.05, 9000)):
+        tree = OcTree(res)
+        tree.insert_point_cloud(rng.uniform(-4, 4, size=(n, 3)), (0.0, 0.0, 0.0))
+        trees.append(tree)
+    return tuple(trees)
+
+
+def _write_tree(writer):
+    return lambda path, tree: writer(tree, path)
+
+
+def _read_tree(reader):
+    def read(path):
+        """The tree's resolution and leaf count as read, and the file's bytes: one of the two
+        saves whole, byte for byte."""
+        tree = reader(path)
+        return np.float64(tree.resolution), np.int64(tree.num_leaves()), np.fromfile(path, np.uint8)
+
+    return read
+
+
 WRITERS = {
     "map_server pair": ("m.yaml", _maps, _save_map, _read_map),
     "PCD": ("c.pcd", _clouds, _write_pcd, _read_pcd),
     "PLY": ("c.ply", _clouds, write_ply, _read_ply),
+    "OctoMap .bt": ("m.bt", _trees, _write_tree(write_bt), _read_tree(read_bt)),
+    "OctoMap .ot": ("m.ot", _trees, _write_tree(write_ot), _read_tree(read_ot)),
 }
 
 
@@ -92,7 +121,10 @@ def test_kill_at_random_moments(tmp_path, writer):
     folder = tmp_path / "target"
     folder.mkdir()
     target = folder / name
+    t0 = time.perf_counter()
+    write(target, b)
     write(target, a)
+    window = max(0.012, 2.0 * (time.perf_counter() - t0))  # about four saves: kills land in every phase
     rng = random.Random(15)
     seen = {"old or new": 0, "refused pair": 0, "temp files left by the kill": 0}
     for _ in range(KILLS):
@@ -107,7 +139,7 @@ def test_kill_at_random_moments(tmp_path, writer):
                     k ^= 1
             finally:
                 os._exit(1)
-        time.sleep(rng.uniform(0.0, 0.012))
+        time.sleep(rng.uniform(0.0, window))
         os.kill(pid, signal.SIGKILL)
         os.waitpid(pid, 0)
         try:

@@ -623,3 +623,14 @@ def test_uos_no_return_readings_are_dropped_and_counted(data_dir):
     assert np.linalg.norm(cloud.points, axis=1).max() < 32.5
     with pytest.raises(InvalidArgumentError, match="no_return"):
         read_uos(path, pose=None, no_return=-1.0)
+
+
+def test_has_pose_says_whether_the_file_gave_one(tmp_path):
+    pts = np.random.default_rng(3).normal(size=(50, 3))
+    placed = SE3.from_euler_zyx(0.2, 0.0, 0.0, translation=[1.0, 2.0, 0.5])
+    write_pcd(tmp_path / "a.pcd", pts, viewpoint=placed)
+    write_pcd(tmp_path / "b.pcd", pts)  # PCL's default VIEWPOINT: the pose was not known
+    write_ply(tmp_path / "c.ply", pts)
+    assert read_pcd(tmp_path / "a.pcd").has_pose
+    assert not read_pcd(tmp_path / "b.pcd").has_pose and not read_ply(tmp_path / "c.ply").has_pose
+    assert PointCloud(pts, SE3.identity()).has_pose and not PointCloud(pts).has_pose

@@ -262,6 +262,7 @@ def test_insert_point_cloud_height_band(data_dir):
     out = lm.insert_point_cloud(bad, cloud.origin, stamp=0.0, z_min=-1.5, z_max=0.5)
     assert out["dropped"] == len(pts[::1000])
     assert lm.stats["dropped"] == out["dropped"]
+    assert out["points"] == len(pts) - out["dropped"]
     band = (pts[:, 2] >= -1.5) & (pts[:, 2] <= 0.5) & np.isfinite(bad).all(1)
     wc = lm.world_to_cell(pts[:, :2])
     inside = ((wc >= 0) & (wc < np.array(lm.shape))).all(1)
@@ -384,6 +385,7 @@ def test_bad_input():
     angles = np.linspace(-1, 1, 5)
     out = lm.insert_scan([0, 0, 0], [1.0, np.nan, 2.0, -1.0, 0.5], angles, stamp=1.0, max_range=3.0)
     assert out["dropped"] == 2 and lm.stats["dropped"] == 2
+    assert out["points"] == 3 and lm.stats["points"] == 3  # the grid's and octree's rule: dropped are not used
     out = lm.insert_scan([np.nan, 0, 0], [1.0] * 5, angles, stamp=1.5, max_range=3.0)
     assert out["dropped_pose"] and lm.stats["dropped_poses"] == 1
     with pytest.raises(InvalidArgumentError, match="backwards"):

@@ -87,3 +87,22 @@ def test_pose_moves_the_map(tmp_path, clouds):
     lo_s, hi_s = read_bt(tmp_path / "s.bt").metric_bounds()
     np.testing.assert_allclose(lo_s - lo_a, [100, 0, 0], atol=0.5)
     np.testing.assert_allclose(hi_s - hi_a, [100, 0, 0], atol=0.5)
+
+
+def test_map3d_says_when_it_assumes_the_identity_pose(tmp_path, capsys, clouds):
+    posed = _write_inputs(tmp_path, clouds[:1])
+    bare = []
+    for i, c in enumerate(clouds[1:]):
+        bare.append(str(tmp_path / f"bare{i}.xyz"))
+        write_xyz(bare[-1], c.points)  # no pose in an XYZ file
+    assert main(["map3d", *posed, *bare, "-o", str(tmp_path / "m.bt"), "--resolution", "0.5"]) == 0
+    err = capsys.readouterr().err
+    assert "note: 2 of 3 point clouds carry no sensor pose" in err and "bare0.xyz" in err and "scan0" not in err
+    assert main(["map3d", *posed, "-o", str(tmp_path / "n.bt"), "--resolution", "0.5"]) == 0
+    assert "note" not in capsys.readouterr().err
+    pcl = []  # PCD files written without a pose: PCL's default VIEWPOINT, the identity
+    for i, c in enumerate(clouds[:2]):
+        pcl.append(str(tmp_path / f"pcl{i}.pcd"))
+        write_pcd(pcl[-1], c.points)
+    assert main(["map3d", *pcl, "-o", str(tmp_path / "p.bt"), "--resolution", "0.5"]) == 0
+    assert "note: 2 of 2 point clouds carry no sensor pose" in capsys.readouterr().err

@@ -7,7 +7,7 @@ every ``--frame-every`` scans a frame is drawn (:func:`occmap.local.replay.frame
 
 from __future__ import annotations
 
-from . import _options
+from . import _notes, _options
 from ._outputs import check_outputs
 
 
@@ -78,6 +78,7 @@ def run(args) -> int:
             break
     if not frames:
         raise InvalidArgumentError(f"{args.log}: no laser scans to replay")
+    _notes.carmen_assumptions("local", stats)
     buf = io.BytesIO()
     frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], loop=0,
                    duration=max(20, int(round(1000.0 / args.fps))), optimize=False)

@@ -3,7 +3,7 @@ through Monte Carlo localization in a map_server map (:mod:`occmap.localize.repl
 
 from __future__ import annotations
 
-from . import _options
+from . import _notes, _options
 from ._outputs import check_outputs
 
 
@@ -51,6 +51,7 @@ def run(args) -> int:
     log = read_carmen(args.log, every=args.every)
     if not len(log):
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
+    _notes.carmen_assumptions("localize", log.stats, max_range_option=False)
     print(f"read {len(log):,} scans from {args.log} and a {grid.shape[1]} × {grid.shape[0]} map in "
           f"{time.perf_counter() - t0:.2f} s")
     glob = args.init is None

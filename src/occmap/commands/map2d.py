@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from . import _options
+from . import _notes, _options
 from ._outputs import check_outputs, check_suffix
 
 
@@ -19,7 +19,8 @@ def add_parser(subparsers):
     p.add_argument("--resolution", type=_options.positive, default=0.05,
                    help="cell size in metres (default: %(default)s)")
     p.add_argument("--png", help="also write a probability picture")
-    p.add_argument("--max-range", type=_options.positive, help="ignore the parts of beams beyond this many metres")
+    p.add_argument("--max-range", type=_options.positive, help="the laser's maximum range in metres: readings at or beyond it are no "
+                   "return, and beams clear space up to it (default: the log's own, else 81)")
     p.add_argument("--max-extent", type=_options.positive, default=10_000.0,
                    help="largest side of the map in metres; a pose or beam that would grow it further stops the "
                    "command, naming the scan (default: %(default)s)")
@@ -45,11 +46,12 @@ def run(args) -> int:
     model = LidarModel(args.prob_hit, args.prob_miss)  # checks the pair before the log is read
 
     t0 = time.perf_counter()
-    log = read_carmen(args.log, lenient=args.lenient, every=args.every)
+    log = read_carmen(args.log, lenient=args.lenient, every=args.every, max_range=args.max_range)
     print(f"read {len(log):,} scans from {args.log} in {time.perf_counter() - t0:.2f} s"
           + (f" ({log.skipped_malformed:,} malformed lines skipped)" if log.skipped_malformed else ""))
     if not len(log):
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
+    _notes.carmen_assumptions("map2d", log.stats)
     summary = map_scans(log.stack(), args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model,
                          max_extent=args.max_extent)
     image = summary.grid.save(args.output)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 import time
 
-from . import _options
+from . import _notes, _options
 from ._octree_files import check_octree_output, save_octree
 from ._outputs import check_outputs
 
@@ -26,15 +26,16 @@ def add_parser(subparsers):
 
 
 def _clouds(paths):
-    """Point clouds from files, in order: ScanGraphs give one cloud per node."""
+    """``(file, cloud)`` in order: ScanGraphs give one cloud per node."""
     from ..io.pointclouds import read_cloud
     from ..io.scangraph import read_scangraph
 
     for path in paths:
         if str(path).endswith(".graph"):
-            yield from read_scangraph(path).nodes
+            for node in read_scangraph(path).nodes:
+                yield path, node
         else:
-            yield read_cloud(path)
+            yield path, read_cloud(path)
 
 
 def run(args) -> int:
@@ -49,8 +50,11 @@ def run(args) -> int:
     tree = OcTree(args.resolution)
     show = sys.stderr.isatty()
     points = dropped = scans = 0
+    no_pose = []
     clock = WorkClock()
-    for cloud in _clouds(args.inputs):
+    for path, cloud in _clouds(args.inputs):
+        if not cloud.has_pose:
+            no_pose.append(str(path))
         with clock.running():
             s = tree.insert_point_cloud(cloud.world_points(), cloud.origin, max_range, args.discretize)
         scans += 1
@@ -62,6 +66,7 @@ def run(args) -> int:
         print(file=sys.stderr)
     if not scans:
         raise InvalidArgumentError("no point clouds given")
+    _notes.identity_poses("map3d", no_pose, scans)
     save_octree(tree, args.output)
     rate = points / clock.seconds if clock.seconds > 0 else float("inf")
     print(f"{scans} scans, {points:,} points ({dropped:,} dropped: no return or not finite) at {args.resolution:g} m")

@@ -141,6 +141,12 @@ class CarmenStats:
         Scans of the selected kinds passed over by ``every`` (not parsed, so not validated).
     params : dict[str, str]
         ``PARAM name value``: the value as written (the last one wins when a name repeats).
+    assumed_max_range : int
+        FLASER / RLASER scans given :data:`DEFAULT_MAX_RANGE` because neither the caller nor a
+        ``PARAM`` of the log said what their laser's maximum range is.
+    guessed_angles : int
+        FLASER / RLASER scans whose beam count (not 180, 181, 360 or 361) does not say their
+        angular step, given the closed 180° fan CARMEN guesses.
     errors : list[FormatError]
         The first 100 malformed-line errors met in lenient mode, for reporting.
     """
@@ -153,6 +159,8 @@ class CarmenStats:
     skipped_decimated: int = 0
     unknown_types: dict[str, int] = field(default_factory=dict)
     params: dict[str, str] = field(default_factory=dict)
+    assumed_max_range: int = 0
+    guessed_angles: int = 0
     errors: list[FormatError] = field(default_factory=list)
 
 
@@ -250,11 +258,11 @@ def _split_tail(rest: str):
 class _Parser:
     """Per-file state: angle caches and PARAM-derived max ranges."""
 
-    def __init__(self, path, max_range, no_return_values, params):
+    def __init__(self, path, max_range, no_return_values, stats):
         self.path = path
         self.max_range = None if max_range is None else float(max_range)
         self.no_return = tuple(float(v) for v in (no_return_values or ()))
-        self.params = params
+        self.stats = stats
         self._angle_cache: dict = {}
         self._param_max: dict[str, float] = {}
 
@@ -268,7 +276,7 @@ class _Parser:
         return a
 
     def param(self, name: str, value: str) -> None:
-        self.params[name] = value
+        self.stats.params[name] = value
         for kind, names in _MAX_RANGE_PARAMS.items():
             if name in names:
                 try:
@@ -331,11 +339,16 @@ class _Parser:
         if self.max_range is not None:
             mr = self.max_range
         else:
-            mr = self._param_max.get(kind, DEFAULT_MAX_RANGE)
+            mr = self._param_max.get(kind)
+            if mr is None:
+                mr = DEFAULT_MAX_RANGE
+                self.stats.assumed_max_range += 1
         ranges = vals[1 : n + 1]
         if self.no_return:
             self._finish_ranges(ranges, mr)
         angles = self._angles(n, lambda: flaser_angles(n))
+        if n not in (180, 181, 360, 361):
+            self.stats.guessed_angles += 1
         return LaserScan(pose=pose, ranges=ranges, angles=angles, max_range=mr, stamp=stamp, odom=odom)
 
     def robotlaser(self, kind: str, rest: str, lineno: int) -> LaserScan:
@@ -448,7 +461,7 @@ def iter_carmen(
     if stats is None:
         stats = CarmenStats()
     path_str = os.fspath(path)
-    parser = _Parser(path_str, max_range, no_return_values, stats.params)
+    parser = _Parser(path_str, max_range, no_return_values, stats)
     # arguments are checked now; the file is opened on the first next()
     return _scan_lines(path_str, wanted, lenient, every, parser, stats)
 

@@ -224,8 +224,10 @@ def read_pcd(path, drop_origin: bool = True) -> PointCloud:
         points. Pass ``False`` to keep the file's points as they are (non-finite ones are
         still dropped).
 
-    ``pose`` comes from ``VIEWPOINT tx ty tz qw qx qy qz`` (identity when absent); its
-    quaternion is normalised (a norm off by more than 1e-3 is an error). ``stamp`` is None.
+    ``pose`` comes from ``VIEWPOINT tx ty tz qw qx qy qz``; its quaternion is normalised (a
+    norm off by more than 1e-3 is an error). An absent ``VIEWPOINT`` or PCL's default
+    ``0 0 0 1 0 0 0`` (written when the pose is not known) gives the identity with
+    ``has_pose`` false. ``stamp`` is None.
     """
     data = read_bytes(path)
     hdr: dict[str, tuple[int, list[str]]] = {}

@@ -281,7 +281,7 @@ class LocalMap(OneCallAtATime):
             1.0 / self.resolution, float(px), float(py), ends, kinds, self._next_scan(),
             (self.model.l_hit - lp) / g, (self.model.l_miss - lp) / g, (self.l_min - lp) / g, (self.l_max - lp) / g,
             self.parallel)
-        counts = {"scans": 1, "points": len(kinds), "dropped": int(dropped), "beyond_max_range": int(maxed),
+        counts = {"scans": 1, "points": len(kinds) - int(dropped), "dropped": int(dropped), "beyond_max_range": int(maxed),
                   "rays": int(rays)}
         for key, value in counts.items():
             self.stats[key] += value
