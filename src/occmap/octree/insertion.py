@@ -108,14 +108,15 @@ def voxels(blocks, kbox, threads: bool):
 
 
 def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: float, box, kbox, shift,
-                 threads: bool):
+                 threads: bool, keep=None):
     """A scan's voxels as OctoMap's ``insertPointCloud`` finds them, the tree left alone (so the
     next scan can be traced while a tree takes this one).
 
     ``points`` float64 (N, 3) and ``origin32`` float32 (3,) in metres; ``max_range`` (< 0: none);
     ``discretize``: one ray per voxel holding points, to its centre; ``box`` float32 (2, 3), points
-    outside it are no hits ((0, 3): none); ``kbox`` (2, 3) the local keys to keep ((0, 3): all); keys
-    local to ``shift`` (:mod:`.marking`). Returns ``(keys, is_hit, summary, bad)``: packed keys in
+    outside it are no hits ((0, 3): none); ``kbox`` (2, 3) the bounding box in local keys ((0, 3):
+    none; rays from outside it free nothing); keys local to ``shift`` (:mod:`.marking`); ``keep``
+    (2, 3) the local keys to list (default ``kbox``). Returns ``(keys, is_hit, summary, bad)``: packed keys in
     Morton order, each once, with hit flags, the counts ``points``, ``dropped``,
     ``beyond_max_range``, and ``bad`` = None or ``(i, point)``, the first point whose ray leaves the
     key range (then nothing else is returned)."""
@@ -133,7 +134,8 @@ def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: floa
     origin_key = coord_to_keys(origin32.astype(np.float64), res) - shift
     # with a box, a ray's free voxels are those before it first leaves the box: none from outside
     rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
-    keys, is_hit = voxels(mark(origin32, ends, hit, res, shift, rays, threads), kbox, threads)
+    keys, is_hit = voxels(mark(origin32, ends, hit, res, shift, rays, threads), kbox if keep is None else keep,
+                          threads)
     summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
     return keys, is_hit, summary, None
 

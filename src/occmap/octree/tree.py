@@ -307,6 +307,14 @@ class OcTree(OneCallAtATime):
         k = self.coord_to_key(P.astype(np.float32).astype(np.float64))
         insertion.apply(self._pool, pack_keys(k), np.ascontiguousarray(occ), self._rule, lazy)
 
+    def update_voxels(self, keys, is_hit, threads: bool = False) -> None:
+        """Update voxels given as packed keys (int64, :func:`occmap.octree.keys.pack` of depth-16
+        keys), each with one hit (``is_hit``) or miss, as one scan updates them: each key once, in
+        Morton order when ``threads`` (then many voxels go on two threads). The path by which tiled
+        maps (:mod:`occmap.world`) apply a scan's voxels to their tiles."""
+        insertion.apply(self._pool, np.ascontiguousarray(keys, np.int64), np.ascontiguousarray(is_hit, np.bool_),
+                        self._rule, False, threads)
+
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
         pool.settle_tree(self._pool.value, self._pool.child, self._pool.meta, -1, True, False)
@@ -417,6 +425,10 @@ class OcTree(OneCallAtATime):
         value, int32 child index), plus the root. Compare with OctoMap's ``memoryUsage()``."""
         inner = self.num_nodes() - self.num_leaves()
         return (8 * inner + 1) * 8 if self.num_nodes() else 0
+
+    def memory_allocated(self) -> int:
+        """Bytes the node pool holds in memory (its slot arrays, free room included)."""
+        return self._pool.value.nbytes + self._pool.child.nbytes + self._pool.meta.nbytes
 
     def metric_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min, max) corners in metres of the box around every known leaf."""
