@@ -84,9 +84,11 @@ class TiledOcTree(OneCallAtATime):
         self.memory_limit = None if memory_limit is None else checks.count("memory_limit", memory_limit, minimum=1)
         self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         self._tiles: OrderedDict[tuple[int, int, int], OcTree] = OrderedDict()  # in memory, least recent first
-        self._dirty: set[tuple[int, int, int]] = set()
+        self._dirty: set[tuple[int, int, int]] = set()  # changed since last written
+        self._written: set[tuple[int, int, int]] = set()
         self._store: TileStore | None = None
-        self._writer = None
+        self._writable = True  # False for a stored map opened to read
+        self._writer = None  # the store's writer lock while this map holds it
         self._l_occ = logit32(self._template.occupied_threshold)
 
     @property
@@ -238,6 +240,7 @@ class TiledOcTree(OneCallAtATime):
         self._store.tiles[index] = {"file": str(path.relative_to(self._store.path)), "min": lo.tolist(),
                                     "max": hi.tolist(), "nodes": tree.num_nodes(), "bytes": len(data)}
         self._dirty.discard(index)
+        self._written.add(index)
 
     def tiles(self) -> list[tuple[int, int, int]]:
         """Indices of the tiles that hold nodes (in memory or in the store), sorted."""
@@ -337,22 +340,41 @@ class TiledOcTree(OneCallAtATime):
         tiled._attach(store, writable)
         return tiled
 
+    @classmethod
+    def build_part(cls, path, region, memory_limit: int | None = None) -> TiledOcTree:
+        """The map of one worker of a parallel build (:mod:`occmap.world.build`): the store at
+        ``path``, which the build's driver holds, open to write the tiles of ``region`` only;
+        :meth:`write_tiles` hands the driver what it wrote."""
+        store = TileStore.open(path, kind="octree", incomplete_ok=True)
+        p = store.params
+        part = cls(store.resolution, store.tile_size, p["prob_hit"], p["prob_miss"], tuple(p["clamp"]),
+                   p["occupied_threshold"], region=region, memory_limit=memory_limit)
+        part._store = store
+        return part
+
     def _attach(self, store: TileStore, writable: bool) -> None:
         self._store = store
+        self._writable = writable
         if writable:
             self._writer = store.writer()
             self._writer.__enter__()
 
     def _check_writable(self) -> None:
-        if self._store is not None and self._writer is None:
+        if not self._writable:
             raise InvalidArgumentError(f"{self._store.path}: the map was opened to read; open it with writable=True")
+
+    def write_tiles(self) -> dict:
+        """Write the tiles changed since they were last written to the store; returns the index
+        entries (tile index → entry) of every tile this map has written."""
+        for index, tree in self._tiles.items():
+            self._write_tile(index, tree)
+        return {index: self._store.tiles[index] for index in self._written}
 
     def flush(self) -> None:
         """Write the changed tiles and the index to the store (the map stays open)."""
         if self._store is None:
             return
-        for index, tree in self._tiles.items():
-            self._write_tile(index, tree)
+        self.write_tiles()
         self._store.scans = self.stats["scans"]
         self._store.save_index()
 
