@@ -36,7 +36,8 @@ def scans(tmp_path_factory):
 def _one_tree(source, **kw):
     tree = OcTree(0.2)
     for k in range(len(source)):
-        tree.insert_point_cloud(*source.scan(k), **kw)
+        cloud = source.cloud(k)
+        tree.insert_point_cloud(cloud.world_points(), cloud.origin, **kw)
     return tree
 
 

@@ -39,10 +39,12 @@ UNBOUNDED = 1 << 40
 
 @dataclass
 class BuildSummary:
-    """What a build did: the scans' counts (``stats``), the regions, and per region the scans it
-    read, its points inserted, seconds, peak memory (bytes) and tiles written."""
+    """What a build did: the scans' counts (``stats``), the scans that had no pose (``no_pose``,
+    their numbers), the regions, and per region the scans it read, its points inserted, seconds,
+    peak memory (bytes) and tiles written."""
 
     stats: dict
+    no_pose: list
     regions: list
     parts: list = field(default_factory=list)
     seconds: float = 0.0
@@ -52,9 +54,9 @@ class BuildSummary:
 def footprint(source, k: int, max_range: float):
     """Scan ``k``'s sensor (3,), the corners (3,), (3,) of the box its rays can reach (within
     ``max_range`` of the sensor when ≥ 0) and its number of finite points."""
-    points, origin = source.scan(k)
-    origin = np.asarray(origin, np.float64)
-    finite = np.asarray(points, np.float64)
+    cloud = source.cloud(k)
+    origin = cloud.origin
+    finite = cloud.world_points()
     finite = finite[np.all(np.isfinite(finite), axis=1)]
     lo = np.minimum(finite.min(axis=0), origin) if len(finite) else origin.copy()
     hi = np.maximum(finite.max(axis=0), origin) if len(finite) else origin.copy()
@@ -114,15 +116,18 @@ def build_part(path, source, scans, region, max_range: float, discretize: bool, 
     t0 = time.perf_counter()
     part = TiledOcTree.build_part(path, region, memory_limit)
     summaries = {}
+    no_pose = []
     inserted = 0
     for k in scans:
-        points, origin = source.scan(int(k))
-        s = part.insert_point_cloud(points, origin, max_range, discretize)
+        cloud = source.cloud(int(k))
+        s = part.insert_point_cloud(cloud.world_points(), cloud.origin, max_range, discretize)
         if s["scans"]:
             summaries[int(k)] = s
             inserted += s["points"]
+        if not cloud.has_pose:
+            no_pose.append(int(k))
     tiles = part.write_tiles()
-    return {"tiles": tiles, "summaries": summaries, "scans": len(scans), "points": inserted,
+    return {"tiles": tiles, "summaries": summaries, "no_pose": no_pose, "scans": len(scans), "points": inserted,
             "seconds": time.perf_counter() - t0, "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
 
 
@@ -153,14 +158,16 @@ def build_octree(path, source, resolution: float | None = None, tile_size: int =
                                       progress)
         stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         summaries = {}
+        no_pose = set()
         for part in parts:
             store.tiles.update(part["tiles"])
             summaries.update(part["summaries"])
+            no_pose.update(part["no_pose"])
         for s in summaries.values():
             for key in stats:
                 stats[key] += s[key]
         store.scans += n
-    return BuildSummary(stats, regions, parts, time.perf_counter() - t0, len(store.tiles))
+    return BuildSummary(stats, sorted(no_pose), regions, parts, time.perf_counter() - t0, len(store.tiles))
 
 
 def _store(path, resolution, tile_size, params) -> TileStore:

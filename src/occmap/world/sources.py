@@ -2,8 +2,9 @@
 that any process can open by number, so Dask workers (local or remote, sharing the files) each read
 just the scans their region needs, in the same order.
 
-A source has ``len(source)`` and ``source.scan(k) -> (points, origin)``: the points (N, 3) in the
-world frame and the sensor position (3,), metres, float64.
+A source has ``len(source)``, ``source.cloud(k)``: scan ``k`` as a
+:class:`~occmap.cloud.PointCloud` (its ``world_points()`` and ``origin`` are what a map inserts;
+``has_pose`` false where the data gave no pose), and ``source.name(k)`` to name it in messages.
 """
 
 from __future__ import annotations
@@ -38,10 +39,6 @@ class CloudFiles:
         from ..io.pointclouds import read_cloud
 
         return read_cloud(path, **self.read_options)
-
-    def scan(self, k: int):
-        cloud = self.cloud(k)
-        return cloud.world_points(), cloud.origin
 
     def name(self, k: int) -> str:
         path, node = self._scans[k]
