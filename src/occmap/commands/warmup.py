@@ -248,7 +248,26 @@ def octree(folder: Path) -> None:
     world.truth_voxels(0.5)
 
 
-JOBS = (geometry, grids, local_map, localization, octree)
+def world(folder: Path) -> None:
+    """Tiled octrees: insertion (small and large scans, a region), queries, joining, a store."""
+    from ..sim.world3d import VELODYNE_HDL32, simulate_drive
+    from ..world.octree_tiles import TiledOcTree
+
+    clouds = simulate_drive(2, VELODYNE_HDL32.with_azimuth_step(np.radians(0.32)), rng=3)  # 36,000 rays each
+    with TiledOcTree.create(folder / "tiles", 0.2, 64, memory_limit=1) as tiled:
+        for c in clouds:
+            tiled.insert_point_cloud(c.world_points(), c.origin, max_range=40.0)
+        small = clouds[0].world_points()[::40]
+        tiled.insert_point_cloud(small, clouds[0].origin, 10.0, discretize=True)
+    part = TiledOcTree(0.2, 64, region=((0, 0, -1), (3, 3, 1)))
+    part.insert_point_cloud(small, clouds[0].origin)
+    tiled = TiledOcTree.open(folder / "tiles")
+    tiled.occupancy_at(small)
+    tiled.export(folder / "tiles.bt")
+    tiled.export(folder / "tiles.ot", box=([-5.0, -5.0, -1.0], [5.0, 5.0, 3.0]))
+
+
+JOBS = (geometry, grids, local_map, localization, octree, world)
 
 
 def run(args) -> int:
