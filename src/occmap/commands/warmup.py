@@ -263,6 +263,9 @@ def world(folder: Path) -> None:
     part.insert_point_cloud(small, clouds[0].origin)
     tiled = TiledOcTree.open(folder / "tiles")
     tiled.occupancy_at(small)
+    tiled.cast_ray(clouds[0].origin, small[:50] - clouds[0].origin, max_range=30.0)
+    tiled.cast_ray(clouds[0].origin, small[:50] - clouds[0].origin, ignore_unknown=True)
+    tiled.leaves(bbx_min=[-5.0, -5.0, -1.0], bbx_max=[5.0, 5.0, 3.0])
     tiled.export(folder / "tiles.bt")
     tiled.export(folder / "tiles.ot", box=([-5.0, -5.0, -1.0], [5.0, 5.0, 3.0]))
 
