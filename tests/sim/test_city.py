@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import pickle
 import subprocess
 import sys
 
@@ -119,6 +120,14 @@ def test_scan_k_alone_equals_the_kth_of_the_stream():
     assert len(list(city_drive(DRIVE))) == DRIVE.n_scans
 
 
+def test_a_drive_travels_as_a_few_bytes():
+    blob = pickle.dumps(DRIVE)
+    assert len(blob) < 2000
+    back = pickle.loads(blob)
+    assert back == DRIVE and hash(back) == hash(DRIVE)
+    assert back.city is DRIVE.city  # the process's town, not a copy
+
+
 def test_another_process_makes_the_same_scan():
     code = (
         "import hashlib, math, numpy as np\n"
@@ -189,7 +198,8 @@ def test_route_runs_on_the_roads_clear_of_every_solid(small):
     poses = DRIVE.poses2d()
     assert poses.shape == (DRIVE.n_scans, 3) and DRIVE.n_scans == 61
     steps = np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)
-    assert np.all(steps <= DRIVE.spacing + 1e-9) and np.all(steps > 0.7 * DRIVE.spacing)  # shorter chords across turns
+    # chords across turns are shorter than the arc length between the poses
+    assert np.all(steps <= DRIVE.spacing + 1e-9) and np.all(steps > 0.7 * DRIVE.spacing)
     route = small.route
     assert np.linalg.norm(np.diff(route, axis=0), axis=1).sum() == pytest.approx(1500.0)
     # the route runs on the streets' centre lines, cutting the corners by arcs (whose middle is
@@ -242,3 +252,15 @@ def test_bad_arguments_are_refused():
         next(city_drive(DRIVE, stop=DRIVE.n_scans + 1))
     with pytest.raises(OccmapError):
         city_laser_scan(-1, DRIVE)
+
+
+def test_plan_picture(small, tmp_path):
+    from PIL import Image
+
+    small.render_png(tmp_path / "town.png", resolution=2.0)
+    px = np.asarray(Image.open(tmp_path / "town.png").convert("RGB"))
+    assert px.shape == (165, 210, 3)
+    red = np.all(px == (220, 0, 0), axis=2)
+    assert red.sum() > 300  # the route
+    grey = px[..., 0] == px[..., 1]
+    assert (px[grey][:, 0] < 200).mean() > 0.2 and (px[grey][:, 0] == 255).mean() > 0.2  # buildings, ground

@@ -90,15 +90,16 @@ def test_cells_list_exactly_the_solids_whose_grown_footprint_meets_them(rng):
         for c in range(grid.nx * grid.ny):
             cx, cy = c % grid.nx, c // grid.nx
             x0, y0 = grid.x0 + cx * grid.cell, grid.y0 + cy * grid.cell
-            meets = ((rows[:, 0] - MARGIN <= x0 + grid.cell) & (rows[:, 2] + MARGIN >= x0)
-                     & (rows[:, 1] - MARGIN <= y0 + grid.cell) & (rows[:, 3] + MARGIN >= y0))
+            def meet(r, eps=0.0):
+                return ((r[:, 0] - MARGIN <= x0 + grid.cell + eps) & (r[:, 2] + MARGIN >= x0 - eps)
+                        & (r[:, 1] - MARGIN <= y0 + grid.cell + eps) & (r[:, 3] + MARGIN >= y0 - eps))
+
             listed = items[start[c]:start[c + 1]]
             assert np.all(np.diff(listed) > 0)
             # every solid that meets the cell is listed; a listed one meets it or just touches
             # its border (floor of a coordinate on a cell line)
-            assert set(np.flatnonzero(meets)) <= set(listed)
-            near = ((rows[listed, 0] - MARGIN <= x0 + grid.cell + 1e-9) & (rows[listed, 2] + MARGIN >= x0 - 1e-9)
-                    & (rows[listed, 1] - MARGIN <= y0 + grid.cell + 1e-9) & (rows[listed, 3] + MARGIN >= y0 - 1e-9))
+            assert set(np.flatnonzero(meet(rows))) <= set(listed)
+            near = meet(rows[listed], 1e-9)
             assert near.all()
 
 

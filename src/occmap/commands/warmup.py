@@ -248,7 +248,17 @@ def octree(folder: Path) -> None:
     world.truth_voxels(0.5)
 
 
-JOBS = (geometry, grids, local_map, localization, octree)
+def city(folder: Path) -> None:
+    """The procedural town's scans and truth: casts and point tests through its grid of solids."""
+    from ..sim.city import CityDrive, CityPlan, city_laser_scan, city_scan
+
+    drive = CityDrive(CityPlan(size=(300.0, 300.0), route_length=300.0))
+    cloud = city_scan(1, drive)  # 14,400 rays: the parallel kernel
+    city_laser_scan(1, drive)  # 720 rays: the serial one
+    drive.city.occupied(cloud.world_points())
+
+
+JOBS = (geometry, grids, local_map, localization, octree, city)
 
 
 def run(args) -> int:

@@ -115,6 +115,25 @@ def _cylinder_entry(cylinders, j, ox, oy, oz, dx, dy, dz, iz, a, best):
 
 
 @inline_kernel
+def _ray(origins, directions, i, ostep):
+    """Ray ``i``: its origin (row ``i·ostep``: one per ray, or one for all), its direction and the
+    direction's reciprocals (0 for a zero component)."""
+    k = i * ostep
+    dx = directions[i, 0]
+    dy = directions[i, 1]
+    dz = directions[i, 2]
+    return (origins[k, 0], origins[k, 1], origins[k, 2], dx, dy, dz,
+            1.0 / dx if dx != 0.0 else 0.0, 1.0 / dy if dy != 0.0 else 0.0,
+            1.0 / dz if dz != 0.0 else 0.0)
+
+
+@inline_kernel
+def _near_columns(dx, dy, dz):
+    """The columns of a box row that hold the face a ray of this direction meets first, per axis."""
+    return 0 if dx >= 0.0 else 3, 1 if dy >= 0.0 else 4, 2 if dz >= 0.0 else 5
+
+
+@inline_kernel
 def _ground_entry(oz, dz, iz, ground_z, has_ground):
     """Where the ray meets the ground half-space (0 when it starts on or below it), else inf."""
     if has_ground:
@@ -137,21 +156,9 @@ def cast_span(origins, directions, boxes, cylinders, ground_z, has_ground, max_r
     nb = boxes.shape[0]
     nc = cylinders.shape[0]
     for i in range(start, stop):
-        k = i * ostep
-        ox = origins[k, 0]
-        oy = origins[k, 1]
-        oz = origins[k, 2]
-        dx = directions[i, 0]
-        dy = directions[i, 1]
-        dz = directions[i, 2]
-        ix = 1.0 / dx if dx != 0.0 else 0.0
-        iy = 1.0 / dy if dy != 0.0 else 0.0
-        iz = 1.0 / dz if dz != 0.0 else 0.0
+        ox, oy, oz, dx, dy, dz, ix, iy, iz = _ray(origins, directions, i, ostep)
+        nxc, nyc, nzc = _near_columns(dx, dy, dz)
         best = _ground_entry(oz, dz, iz, ground_z, has_ground)
-        # per ray, the columns of a box row that hold the near face on each axis
-        nxc = 0 if dx >= 0.0 else 3
-        nyc = 1 if dy >= 0.0 else 4
-        nzc = 2 if dz >= 0.0 else 5
         for j in range(nb):
             if best == 0.0:
                 break
@@ -326,20 +333,9 @@ def cast_grid_span(origins, directions, boxes, cylinders, ground_z, has_ground, 
     x1 = x0 + nx * cell
     y1 = y0 + ny * cell
     for i in range(start, stop):
-        k = i * ostep
-        ox = origins[k, 0]
-        oy = origins[k, 1]
-        oz = origins[k, 2]
-        dx = directions[i, 0]
-        dy = directions[i, 1]
-        dz = directions[i, 2]
-        ix = 1.0 / dx if dx != 0.0 else 0.0
-        iy = 1.0 / dy if dy != 0.0 else 0.0
-        iz = 1.0 / dz if dz != 0.0 else 0.0
+        ox, oy, oz, dx, dy, dz, ix, iy, iz = _ray(origins, directions, i, ostep)
+        nxc, nyc, nzc = _near_columns(dx, dy, dz)
         best = _ground_entry(oz, dz, iz, ground_z, has_ground)
-        nxc = 0 if dx >= 0.0 else 3
-        nyc = 1 if dy >= 0.0 else 4
-        nzc = 2 if dz >= 0.0 else 5
         a = dx * dx + dy * dy
         # the stretch [tn, tf] of the ray over the grid and within max_range
         tn, tf = _slab(x0 if dx >= 0.0 else x1, x1 if dx >= 0.0 else x0, ox, dx, ix, 0.0, max_range)

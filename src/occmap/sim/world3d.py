@@ -4,9 +4,11 @@ The world is a set of solid axis-aligned boxes (buildings, walls, car bodies, a 
 vertical cylinders (poles, tree trunks and crowns) and, optionally, the ground: the half-space
 ``z <= ground_z``. Every solid is closed (a point on its surface is inside). Rays are cast
 exactly against them (:meth:`World3D.cast`: the slab test for boxes, the radial quadratic for
-cylinders), :func:`simulate_lidar` turns one sensor pose into an :class:`~occmap.cloud.PointCloud`
-the way a Velodyne would, and :meth:`World3D.truth_voxels` rasterises the truth on the octree's
-voxel grid (voxel ``k`` per axis spans ``[k·res, (k+1)·res)``, key ``k + 32768``).
+cylinders; in a world of more than :data:`GRID_MIN_SOLIDS` solids through a 2D grid of them,
+:mod:`occmap.sim.solid_grid`, with the same results), :func:`simulate_lidar` turns one sensor
+pose into an :class:`~occmap.cloud.PointCloud` the way a Velodyne would, and
+:meth:`World3D.truth_voxels` rasterises the truth on the octree's voxel grid (voxel ``k`` per
+axis spans ``[k·res, (k+1)·res)``, key ``k + 32768``).
 
 >>> world = World3D.default()
 >>> poses = world.default_trajectory(n_scans=60)            # (60, 4, 4) T_world_sensor
