@@ -72,6 +72,12 @@ def test_default_town_is_large_far_and_long(town):
     assert len(town.streets_x) >= 10 and len(town.streets_y) >= 10
     heights = w.boxes[:, 5]
     assert heights.max() > 40.0 and np.median(heights[heights > 5.0]) < 25.0  # a few towers
+    # the whole drive keeps clear of every solid at sensor height
+    sensor = town.route_poses(np.arange(0.0, town.route_length, 2.0))
+    a = np.linspace(-np.pi, np.pi, 16, endpoint=False)
+    o = np.repeat(np.column_stack([sensor[:, :2], np.full(len(sensor), 1.8)]), len(a), axis=0)
+    d = np.tile(np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)]), (len(sensor), 1))
+    assert w.cast(o, d, 5.0).min() >= 1.5
     drive = CityDrive()
     assert drive.n_scans == 4001
     cloud = city_scan(1234, drive)
@@ -249,7 +255,7 @@ def test_bad_arguments_are_refused():
     with pytest.raises(InvalidArgumentError, match="past the drive's end"):
         city_scan(DRIVE.n_scans, DRIVE)
     with pytest.raises(InvalidArgumentError, match="past the drive's end"):
-        next(city_drive(DRIVE, stop=DRIVE.n_scans + 1))
+        city_drive(DRIVE, stop=DRIVE.n_scans + 1)
     with pytest.raises(OccmapError):
         city_laser_scan(-1, DRIVE)
 

@@ -26,7 +26,8 @@ roads: the sensor, on the centre line, keeps at least 1.5 m from every parked ve
 Scans are made one at a time (:func:`city_drive`, :func:`city_laser_drive`) or singly by number
 (:func:`city_scan`, :func:`city_laser_scan`), with the same bits either way: scan ``k`` depends on
 the :class:`CityDrive` and ``k`` only, so processes that each make some of the scans (Dask workers)
-agree without making the others. Each process builds the town once per plan (a cache; 0.25 s for
+agree without making the others. (Across machines, bits may differ where NumPy's sin, cos and
+arctan2 pick other SIMD code for another CPU: the beam directions and the sensor's heading.) Each process builds the town once per plan (a cache; 0.25 s for
 the default town, plus its solid grid on the first scan).
 
 Speed: rays are cast through a 2D grid of the solids (:mod:`occmap.sim.solid_grid`), so a scan
@@ -35,10 +36,14 @@ costs what the solids near the sensor cost. Measured on one core (``NUMBA_NUM_TH
 :data:`CITY_LIDAR` (14,400 beams, ~13,000 points per scan), 280–450 scans/s at the VLP-16's own
 0.2° step (28,800 beams), ~5,000 planar scans/s of 720 beams.
 
+The default plan: 2 km × 2 km centred at (10 km, 10 km), 15 × 15 blocks (205 of buildings, 15
+parks, 5 squares), 18,561 boxes and 16,142 cylinders; a 20 km drive passing 96% of the blocks,
+4,001 scans 5 m apart.
+
 >>> drive = CityDrive(CityPlan(size=(400.0, 300.0), route_length=2_000.0))
->>> cloud = city_scan(10, drive)                 # a PointCloud, points in the sensor frame
->>> for cloud in city_drive(drive, stop=20): ... # streamed
->>> drive.city.occupied(cloud.world_points())    # the truth
+>>> cloud = city_scan(10, drive)                  # a PointCloud, points in the sensor frame
+>>> clouds = city_drive(drive, start=0, stop=20)  # streamed, one at a time
+>>> drive.city.occupied(cloud.world_points())     # the truth
 """
 
 from __future__ import annotations
@@ -259,10 +264,10 @@ def city_scan(k: int, drive: CityDrive | None = None) -> PointCloud:
 
 def city_drive(drive: CityDrive | None = None, start: int = 0, stop: int | None = None
                ) -> Iterator[PointCloud]:
-    """The drive's 3D scans ``start .. stop − 1`` (default: all), made and yielded one at a time."""
+    """The drive's 3D scans ``start .. stop − 1`` (default: all), made one at a time as the
+    iterator is advanced (the arguments are checked at once)."""
     drive = CityDrive() if drive is None else drive
-    for k in _scan_range(drive, start, stop):
-        yield city_scan(k, drive)
+    return (city_scan(k, drive) for k in _scan_range(drive, start, stop))
 
 
 def city_laser_scan(k: int, drive: CityDrive | None = None) -> LaserScan:
@@ -284,10 +289,9 @@ def city_laser_scan(k: int, drive: CityDrive | None = None) -> LaserScan:
 
 def city_laser_drive(drive: CityDrive | None = None, start: int = 0, stop: int | None = None
                      ) -> Iterator[LaserScan]:
-    """The drive's planar scans ``start .. stop − 1`` (default: all), one at a time."""
+    """The drive's planar scans ``start .. stop − 1`` (default: all), made one at a time."""
     drive = CityDrive() if drive is None else drive
-    for k in _scan_range(drive, start, stop):
-        yield city_laser_scan(k, drive)
+    return (city_laser_scan(k, drive) for k in _scan_range(drive, start, stop))
 
 
 def _scan_range(drive, start, stop):
@@ -368,7 +372,6 @@ class City:
         return self.world.occupied(np.concatenate([p, np.full(p.shape[:-1] + (1,), float(height))],
                                                   axis=-1))
 
-
     def render_png(self, path, resolution: float = 1.0) -> None:
         """Write a plan of the town seen from above: the height of the top surface in grey (the
         ground white, 60 m and higher black), the route in red from its start in green. North
@@ -384,12 +387,10 @@ class City:
         depth = self.world.cast(origins, down).reshape(X.shape)
         grey = np.clip(255.0 * (1.0 - (top - depth) / 60.0), 0.0, 255.0).astype(np.uint8)
         rgb = np.repeat(grey[:, :, None], 3, axis=2)
-        px = ((self.route[:, 0] - xmin) / res).astype(np.int64).clip(0, len(xs) - 1)
-        py = ((self.route[:, 1] - ymin) / res).astype(np.int64).clip(0, len(ys) - 1)
         dense = self.route_poses(np.arange(0.0, self.route_length, res / 2.0))
-        qx = ((dense[:, 0] - xmin) / res).astype(np.int64).clip(0, len(xs) - 1)
-        qy = ((dense[:, 1] - ymin) / res).astype(np.int64).clip(0, len(ys) - 1)
-        rgb[qy, qx] = (220, 0, 0)
+        px = ((dense[:, 0] - xmin) / res).astype(np.int64).clip(0, len(xs) - 1)
+        py = ((dense[:, 1] - ymin) / res).astype(np.int64).clip(0, len(ys) - 1)
+        rgb[py, px] = (220, 0, 0)
         rgb[max(py[0] - 3, 0):py[0] + 4, max(px[0] - 3, 0):px[0] + 4] = (0, 170, 0)
         write_png(path, rgb[::-1])
 
