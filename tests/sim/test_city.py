@@ -184,6 +184,18 @@ def test_points_lie_on_the_truth_surfaces(small):
         assert np.isfinite(small.world.cast(o, dirs, EXACT.lidar.max_range)).sum() == len(p)
 
 
+def test_voxel_truth_far_from_the_origin_holds_every_hit(small):
+    cloud = city_scan(20, EXACT)
+    o = cloud.origin
+    truth = small.world.truth_voxels(0.2, o - [15.0, 15.0, 3.0], o + [15.0, 15.0, 8.0], mode="overlap")
+    assert truth.index_min[0] * 0.2 > OCTOMAP_REACH
+    p = cloud.world_points()
+    p = p[np.all((p >= o - [14.0, 14.0, 2.0]) & (p <= o + [14.0, 14.0, 7.0]), axis=1)]
+    assert len(p) > 500
+    k = np.floor(p * (1.0 / 0.2)).astype(np.int64) - truth.index_min
+    assert truth.occupied[k[:, 0], k[:, 1], k[:, 2]].all()
+
+
 def test_laser_scan_reads_the_section_at_sensor_height(small):
     for k in (5, 25, 50):
         scan = city_laser_scan(k, EXACT)
