@@ -270,7 +270,17 @@ def world(folder: Path) -> None:
     tiled.export(folder / "tiles.ot", box=([-5.0, -5.0, -1.0], [5.0, 5.0, 3.0]))
 
 
-JOBS = (geometry, grids, local_map, localization, octree, world)
+def city(folder: Path) -> None:
+    """The procedural town's scans and truth: casts and point tests through its grid of solids."""
+    from ..sim.city import CityDrive, CityPlan, city_laser_scan, city_scan
+
+    drive = CityDrive(CityPlan(size=(300.0, 300.0), route_length=300.0))
+    cloud = city_scan(1, drive)  # 14,400 rays: the parallel kernel
+    city_laser_scan(1, drive)  # 720 rays: the serial one
+    drive.city.occupied(cloud.world_points())
+
+
+JOBS = (geometry, grids, local_map, localization, octree, world, city)
 
 
 def run(args) -> int:
