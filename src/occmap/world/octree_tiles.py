@@ -35,13 +35,13 @@ from ..errors import FormatError, InvalidArgumentError, ShapeError
 from ..io.octomap import decode_ot, encode_bt, encode_ot
 from ..logodds import logit32, occupancy_classes
 from ..octree import OcTree, insertion, query
-from ..octree.keys import CENTER, DEPTH, FIELD, MAX_KEY, coord_to_keys, node_cells, node_centers, pack_keys
+from ..octree.keys import CENTER, DEPTH, MAX_KEY, coord_to_keys, node_cells, node_centers
 from ..octree.tree import Leaves
 from ..octree.pool import TOP, settle_tree
 from . import cast, graft
+from .split import split_by_tile
 from .store import TileStore
 
-_MASK = (1 << FIELD) - 1
 _NO_BOX = np.empty((0, 3), np.float32)
 _NO_KEYS = np.empty((0, 3), np.int64)
 #: The ``.ot`` ending of a tile's file in a store.
@@ -111,11 +111,6 @@ class TiledOcTree(OneCallAtATime):
         t = np.asarray(index, np.float64)
         return t * side, (t + 1) * side
 
-    def _split(self, keys, shift):
-        """Scan voxels (packed keys local to ``shift``) → (tile per voxel (n, 3), tile keys packed)."""
-        k = np.stack([(keys >> (FIELD * a)) & _MASK for a in range(3)], axis=1) + (shift - CENTER)
-        return k >> self._bits, pack_keys((k & (self.tile_size - 1)) + CENTER)
-
     # ------------------------------------------------------------------ insertion
 
     def insert_point_cloud(self, points, origin, max_range: float = -1.0, discretize: bool = False) -> dict:
@@ -164,20 +159,10 @@ class TiledOcTree(OneCallAtATime):
 
     def _apply(self, keys, is_hit, shift) -> None:
         """Give each tile its part of a scan's voxels (Morton order kept within a tile)."""
-        if not len(keys):
-            return
-        tiles, local = self._split(keys, shift)
-        base = tiles.min(axis=0)
-        rel = tiles - base
-        code = rel[:, 0] | (rel[:, 1] << 21) | (rel[:, 2] << 42)
-        order = np.argsort(code, kind="stable")
-        code = code[order]
-        starts = np.flatnonzero(np.r_[True, code[1:] != code[:-1]])
-        ends = np.r_[starts[1:], len(code)]
-        for a, b in zip(starts.tolist(), ends.tolist()):
-            index = tuple(int(v) for v in tiles[order[a]])
-            sel = order[a:b]
-            self._tile(index, create=True).update_voxels(local[sel], is_hit[sel], threads=True)
+        tiles, starts, local, hits = split_by_tile(keys, is_hit, shift, self._bits)
+        for i, index in enumerate(map(tuple, tiles.tolist())):
+            a, b = starts[i], starts[i + 1]
+            self._tile(index, create=True).update_voxels(local[a:b], hits[a:b], threads=True)
             self._dirty.add(index)
         self._evict()
 
