@@ -28,8 +28,8 @@ demo: $(STAMP) $(KERNELS)
 test: $(STAMP) $(KERNELS)
 	$(BIN)/python -m pytest -q
 
-# every benchmark, the octree's last (about a quarter of an hour); each rewrites its section of
-# BENCHMARKS.md
+# every benchmark (about half an hour; the whole-town out-of-core build is separate: bench_world.py
+# --city); each rewrites its section of BENCHMARKS.md
 bench: $(STAMP) $(KERNELS)
 	$(BIN)/python benchmarks/bench_geometry.py
 	$(BIN)/python benchmarks/bench_grid2d.py
@@ -37,6 +37,7 @@ bench: $(STAMP) $(KERNELS)
 	$(BIN)/python benchmarks/bench_localize.py
 	$(BIN)/python benchmarks/bench_startup.py
 	$(BIN)/python benchmarks/bench_octree.py
+	$(BIN)/python benchmarks/bench_world.py
 
 clean: clean-cache
 	rm -rf $(VENV) demo_output
