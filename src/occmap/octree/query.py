@@ -205,14 +205,8 @@ def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown
             tx, ty, tz = tx2, ty2, tz2
             # OctoMap's range test (float32 voxel centre) only near max_range: the centre lies within
             # half a diagonal of the point where the ray leaves the voxel, min(t) from the origin
-            if far and min(tx, ty, tz) >= near:
-                ex = np.float32(key_to_coord(kx, res))
-                ey = np.float32(key_to_coord(ky, res))
-                ez = np.float32(key_to_coord(kz, res))
-                dist_sq = (np.float64((ex - ox) * (ex - ox)) + np.float64((ey - oy) * (ey - oy))
-                           + np.float64((ez - oz) * (ez - oz)))
-                if dist_sq > max_range_sq:
-                    break
+            if far and min(tx, ty, tz) >= near and raywalk.centre_beyond(kx, ky, kz, ox, oy, oz, res, max_range_sq):
+                break
         if cast:
             ends[r, 0] = key_to_coord(kx, res)
             ends[r, 1] = key_to_coord(ky, res)

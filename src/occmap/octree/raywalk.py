@@ -77,3 +77,14 @@ def step(tx, ty, tz, gx, gy, gz):
     if ty < tz:
         return 1, tx, ty + gy, tz
     return 2, tx, ty, tz + gz
+
+
+@kernel
+def centre_beyond(kx, ky, kz, ox, oy, oz, res, max_range_sq):
+    """``castRay``'s range test: whether the centre of voxel (kx, ky, kz), as float32, lies farther
+    than ``sqrt(max_range_sq)`` from the float32 origin ``o`` (squares summed in float64)."""
+    ex = np.float32(key_to_coord(kx, res))
+    ey = np.float32(key_to_coord(ky, res))
+    ez = np.float32(key_to_coord(kz, res))
+    return (np.float64((ex - ox) * (ex - ox)) + np.float64((ey - oy) * (ey - oy))
+            + np.float64((ez - oz) * (ez - oz))) > max_range_sq

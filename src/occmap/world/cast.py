@@ -9,7 +9,7 @@ import numpy as np
 
 from .._jit import kernel
 from ..octree import raywalk
-from ..octree.keys import CENTER, DEPTH, child_index, coord_to_key, key_to_coord
+from ..octree.keys import CENTER, DEPTH, child_index, coord_to_key
 
 #: What :func:`walk_tile` says of each ray: still walking (in another tile now), or stopped.
 MOVED, HIT, STOPPED, NOT_CAST = 0, 1, 2, 3
@@ -103,15 +103,9 @@ def walk_tile(value, child, base, tile_size, rays, origins, keys, steps, t, g, f
                     status[r] = STOPPED
                     break
                 kz += sz
-            if max_range > 0.0:
-                ex = np.float32(key_to_coord(kx, res))
-                ey = np.float32(key_to_coord(ky, res))
-                ez = np.float32(key_to_coord(kz, res))
-                dist_sq = (np.float64((ex - ox) * (ex - ox)) + np.float64((ey - oy) * (ey - oy))
-                           + np.float64((ez - oz) * (ez - oz)))
-                if dist_sq > max_range_sq:
-                    status[r] = STOPPED
-                    break
+            if max_range > 0.0 and raywalk.centre_beyond(kx, ky, kz, ox, oy, oz, res, max_range_sq):
+                status[r] = STOPPED
+                break
             if not (base[0] <= kx < base[0] + tile_size and base[1] <= ky < base[1] + tile_size
                     and base[2] <= kz < base[2] + tile_size):
                 break  # on into the next tile
