@@ -252,7 +252,7 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     lies on one side of its sensor (+x, +y, −z), which moves the cube to that side; on one
     thread and on two (taking runs of rays in turn)."""
     from occmap.octree import blocks, insertion, marking
-    from occmap.octree.keys import unpack
+    from occmap.octree.keys import pack_keys, unpack
 
     rng = np.random.default_rng(14)
     d = rng.normal(size=(6000, 3))
@@ -262,8 +262,9 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         d = np.abs(d) * (1.0, 1.0, -1.0)
     pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.2, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
     origin = np.array([0.013, -0.021, 0.034], np.float32)
-    ends, hit, _, _ = marking.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32))
-    corner = marking.cube_corner(origin, ends, res)
+    none = np.zeros(3, np.int64)
+    ends, hit, _, _ = marking.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32), none)
+    corner = marking.cube_corner(origin, ends, res, none)
     sensor_block = (np.floor(origin.astype(np.float64) * (1 / res)).astype(np.int64) + 32768) >> 3
     shift = sensor_block - (np.array(unpack(corner)) >> 3)
     if one_sided and res == 0.05:  # rays out to 180 voxels: the cube goes to their side
@@ -275,11 +276,12 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     unique_hit = np.zeros(len(unique), bool)
     np.logical_or.at(unique_hit, inverse, ref_hit)
     monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
-    for threads in (False, True):
-        keys, is_hit = blocks.block_voxels(*insertion.mark(origin, ends, hit, res, True, threads),
-                                      np.empty((0, 3), np.int64))
+    # keys local to a shift (the tiled maps' 64-bit key space) are the same voxels, less the shift
+    for shift, threads in [(none, False), (none, True), (np.array([8 * 300, -8 * 1000, 8], np.int64), True)]:
+        keys, is_hit = blocks.block_voxels(*insertion.mark(origin, ends, hit, res, shift, True, threads),
+                                           np.empty((0, 3), np.int64))
         order = np.argsort(keys)
-        np.testing.assert_array_equal(keys[order], unique)
+        np.testing.assert_array_equal(keys[order] + pack_keys(shift), unique)
         np.testing.assert_array_equal(is_hit[order], unique_hit)
 
 

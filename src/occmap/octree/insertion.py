@@ -23,7 +23,7 @@ from .._threads import run_jobs, share
 from . import blocks as B
 from . import marking as M
 from . import pool as P
-from .keys import shared_depth
+from .keys import DEPTH, coord_to_keys, node_centers, shared_depth
 from .update import apply_voxels, subtree_split
 
 #: Scans with at least this many rays are marked by several threads, in this many runs of rays.
@@ -48,7 +48,7 @@ def pipeline():
     return _threads.pool("octree-next", 1)
 
 
-def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int):
+def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacity: int):
     """Block masks of the runs ``(start, stop)`` of rays this thread takes from ``runs`` (shared
     by the threads, each run taken once) until none is left, grown until they fit, a block
     possibly listed twice; with a cube (``corner`` ≥ 0) the voxels around the sensor are marked
@@ -63,7 +63,7 @@ def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int)
             storage = B.new_blocks(capacity)
             cube = M.new_cube() if corner >= 0 else (np.zeros(0, np.int64), np.zeros(0, np.uint8))
         while True:
-            start = M.mark_scan(origin, ends, hit, res, rays, start, stop, *storage, *cube, corner)
+            start = M.mark_scan(origin, ends, hit, res, shift, rays, start, stop, *storage, *cube, corner)
             if start == stop:
                 break
             storage = B.grow_blocks(*storage)
@@ -77,19 +77,20 @@ def _mark_runs(origin, ends, hit, res, rays, corner, runs: deque, capacity: int)
     return blocks
 
 
-def mark(origin, ends, hit, res, rays: bool, threads: bool):
-    """The scan's voxels as Morton-sorted blocks of hit and free bits (only hits unless ``rays``);
+def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
+    """The scan's voxels as Morton-sorted blocks of hit and free bits (only hits unless ``rays``),
+    keys local to ``shift`` (:mod:`.marking`);
     with ``threads``, large scans are marked by several threads (the kernels release the GIL),
     which take runs of rays in turn: the work of a run is hard to foresee (a step outside the
     cube costs several inside it), so a thread that is done early takes more."""
     n = len(ends)
-    corner = M.cube_corner(origin, ends, res) if rays and n >= _CUBE_RAYS else -1
+    corner = M.cube_corner(origin, ends, res, shift) if rays and n >= _CUBE_RAYS else -1
     if not threads or n < _PARALLEL_RAYS:
-        parts = [_mark_runs(origin, ends, hit, res, rays, corner, deque([(0, n)]), max(64, n // 8))]
+        parts = [_mark_runs(origin, ends, hit, res, shift, rays, corner, deque([(0, n)]), max(64, n // 8))]
     else:
         bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
         runs = deque(zip(bounds[:-1], bounds[1:]))
-        parts = [p for p in share(lambda: _mark_runs(origin, ends, hit, res, rays, corner, runs, max(64, n // 16)))
+        parts = [p for p in share(lambda: _mark_runs(origin, ends, hit, res, shift, rays, corner, runs, max(64, n // 16)))
                  if p is not None]
     return B.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
 
@@ -106,12 +107,37 @@ def voxels(blocks, kbox, threads: bool):
     return np.concatenate([k for k, _ in parts]), np.concatenate([h for _, h in parts])
 
 
-def scan_voxels(origin32, ends, hit, res: float, rays: bool, kbox, threads: bool):
-    """A scan's voxels (rays from float32 ``origin32`` to ``ends`` from
-    :func:`occmap.octree.marking.prepare_rays`; only the end voxels unless ``rays``): packed keys
-    in Morton order, each once, with hit flags, only those inside the key box ``kbox`` ((0, 3):
-    none)."""
-    return voxels(mark(origin32, ends, hit, res, rays, threads), kbox, threads)
+def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: float, box, kbox, shift,
+                 threads: bool, keep=None):
+    """A scan's voxels as OctoMap's ``insertPointCloud`` finds them, the tree left alone (so the
+    next scan can be traced while a tree takes this one).
+
+    ``points`` float64 (N, 3) and ``origin32`` float32 (3,) in metres; ``max_range`` (< 0: none);
+    ``discretize``: one ray per voxel holding points, to its centre; ``box`` float32 (2, 3), points
+    outside it are no hits ((0, 3): none); ``kbox`` (2, 3) the bounding box in local keys ((0, 3):
+    none; rays from outside it free nothing); keys local to ``shift`` (:mod:`.marking`); ``keep``
+    (2, 3) the local keys to list (default ``kbox``). Returns ``(keys, is_hit, summary, bad)``: packed keys in
+    Morton order, each once, with hit flags, the counts ``points``, ``dropped``,
+    ``beyond_max_range``, and ``bad`` = None or ``(i, point)``, the first point whose ray leaves the
+    key range (then nothing else is returned)."""
+    dropped = 0
+    if discretize and points.shape[0]:
+        finite = np.all(np.isfinite(points), axis=1)
+        dropped, points = int(np.count_nonzero(~finite)), points[finite]
+        keys = coord_to_keys(points.astype(np.float32).astype(np.float64), res)  # OctoMap keys its float32 points
+        _, first = np.unique(keys, axis=0, return_index=True)
+        kept = keys[np.sort(first)]
+        points = node_centers(kept, np.full(len(kept), DEPTH, np.int64), res)
+    ends, hit, more, bad = M.prepare_rays(points, origin32[None, :], float(max_range), res, box, shift)
+    if bad >= 0:
+        return None, None, None, (int(bad), points[bad])
+    origin_key = coord_to_keys(origin32.astype(np.float64), res) - shift
+    # with a box, a ray's free voxels are those before it first leaves the box: none from outside
+    rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
+    keys, is_hit = voxels(mark(origin32, ends, hit, res, shift, rays, threads), kbox if keep is None else keep,
+                          threads)
+    summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
+    return keys, is_hit, summary, None
 
 
 def apply(pool: P.Pool, keys: np.ndarray, is_hit: np.ndarray, rule, lazy: bool, threads: bool = False) -> None:

@@ -38,6 +38,9 @@ DEPTH = 16
 #: OctoMap's ``tree_max_val``: the key of the voxel whose lower corner is the world origin.
 CENTER = 32768
 MAX_KEY = 65535
+#: The ``shift`` of a tree's own keys (none): kernels that take one (:mod:`.marking`) keep keys
+#: *local*, OctoMap's key less the shift, so a tiled map can use them anywhere in a 64-bit key space.
+NO_SHIFT = np.zeros(3, np.int64)
 #: Bits per field of a packed key.
 FIELD = 20
 _FIELD_MASK = (1 << FIELD) - 1

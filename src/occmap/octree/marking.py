@@ -4,6 +4,11 @@ OctoMap collects the scan's free and occupied voxels in two hash sets of keys, t
 voxel once (occupied ones only as hits) with a walk from the root. Here the two sets are the bit
 masks of :mod:`.blocks`:
 
+Keys here are *local*: OctoMap's key less a ``shift`` (int64 (3,), a multiple of 8 per axis; zeros
+for an :class:`~occmap.octree.OcTree`), so that a tiled map (:mod:`occmap.world`) can mark scans
+anywhere in a 64-bit key space with the same 16-bit machinery. The walk itself always computes
+with the unshifted key, so its voxels are OctoMap's to the bit wherever the scan lies.
+
 1. :func:`mark_scan` walks the rays (:mod:`.raywalk`: OctoMap's ``computeRayKeys`` to the bit,
    float32 arithmetic included) and sets the bits through the block accessor (:mod:`.blocks`),
    a few nanoseconds per voxel. Around the sensor, where every voxel is crossed by many rays
@@ -32,14 +37,15 @@ from .keys import MAX_KEY, block_code, coord_to_key, field, in_block, key_in_ran
 
 
 @kernel
-def prepare_rays(points, origins, max_range, res, box):
+def prepare_rays(points, origins, max_range, res, box, shift):
     """The rays of a scan as ``computeUpdate`` takes them, in one pass over float64 ``points``
     (N, 3) from float32 ``origins`` (N, 3), or (1, 3) for all: points with NaN/inf are dropped;
     each end (float32, as OctoMap's ``point3d``) is the point itself when within ``max_range``
     (< 0: unlimited) of its origin, else the point ``max_range`` along the ray; ``hit`` says which
     (the end voxel is then occupied). With a bounding box ``box`` (float32 (2, 3): min, max;
     (0, 3) for none) a point outside it is no hit. Returns (ends, hit, dropped, the first point
-    whose end lies outside the key range or whose ray's float32 length overflows, else −1)."""
+    whose end's local key (OctoMap's less ``shift``) lies outside 0 .. 65535 or whose ray's float32
+    length overflows, else −1)."""
     n = points.shape[0]
     inv_res = 1.0 / res
     ends = np.empty((n, 3), np.float32)
@@ -66,9 +72,9 @@ def prepare_rays(points, origins, max_range, res, box):
         if bad < 0:
             if not norm < np.inf:  # (only where a resolution of 1e34 m or more puts such ends in range)
                 bad = i
-            for c in (px, py, pz):
-                if not key_in_range(coord_to_key(c, inv_res)):
-                    bad = i
+            if not (key_in_range(coord_to_key(px, inv_res) - shift[0]) and key_in_range(coord_to_key(py, inv_res) - shift[1])
+                    and key_in_range(coord_to_key(pz, inv_res) - shift[2])):
+                bad = i
         m += 1
     return ends[:m], hit[:m], n - m, bad
 
@@ -149,18 +155,18 @@ _PLACES = CUBE // 8
 
 
 @kernel
-def cube_corner(origin, ends, res):
+def cube_corner(origin, ends, res, shift):
     """Packed key of the corner of the cube for the rays from ``origin`` to ``ends``, or −1
     where no cube around the sensor's voxel fits the key range. The cube is block-aligned and
     holds the sensor's voxel; of the 16 such placements per axis it takes those that hold the
     most of the rays' steps, estimated from a sample: a walk's steps are spread evenly over its
     length, so points evenly spread along a ray, weighted by its number of steps, stand for them.
     The axes are placed one at a time, the other two held, twice over, from the centred cube (a
-    sensor at one side of its scan gets a cube shifted to that side)."""
+    sensor at one side of its scan gets a cube shifted to that side). Keys local (``shift``)."""
     inv_res = 1.0 / res
     ok = np.empty(3, np.int64)
     for a in range(3):
-        ok[a] = coord_to_key(origin[a], inv_res)
+        ok[a] = coord_to_key(origin[a], inv_res) - shift[a]
     lo = np.empty(3, np.int64)  # allowed shifts k: corner block = sensor's block − k
     hi = np.empty(3, np.int64)
     for a in range(3):
@@ -178,12 +184,12 @@ def cube_corner(origin, ends, res):
     for i in range(0, n, step):
         n_steps = 0
         for a in range(3):
-            n_steps += abs(coord_to_key(ends[i, a], inv_res) - ok[a])
+            n_steps += abs(coord_to_key(ends[i, a], inv_res) - shift[a] - ok[a])
         for p in range(_PLACE_POINTS):
             f = (p + 0.5) / _PLACE_POINTS
             for a in range(3):
                 c = np.float64(origin[a]) + f * (np.float64(ends[i, a]) - np.float64(origin[a]))
-                rel[j, a] = (coord_to_key(c, inv_res) >> 3) - (ok[a] >> 3)
+                rel[j, a] = ((coord_to_key(c, inv_res) - shift[a]) >> 3) - (ok[a] >> 3)
             w[j] = n_steps
             j += 1
     k = np.empty(3, np.int64)
@@ -285,25 +291,27 @@ def _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz,
 
 
 @kernel
-def mark_scan(origin, ends, hit, res, rays, start, stop, table, slots, codes, hits, frees, count,
+def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, codes, hits, frees, count,
               cube_hits, cube_frees, corner):
     """Set the hit bit of each in-range end voxel and the free bits of every ray's voxels, for rays
     ``start..stop-1`` (only the hits when ``rays`` is false). Returns ``stop``, or the ray at which
     the block storage filled up (marking is idempotent, so the caller grows it and resumes there).
     Within a block, bit ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates
     (lx, ly, lz). Voxels in the cube at ``corner`` (from :func:`cube_corner`; −1: none) are
-    marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`)."""
+    marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`). Keys are local:
+    OctoMap's less ``shift``."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
-    okx = coord_to_key(ox, inv_res)
+    okx = coord_to_key(ox, inv_res)  # (the walk starts from the unshifted key)
     oky = coord_to_key(oy, inv_res)
     okz = coord_to_key(oz, inv_res)
-    origin_key = pack(okx, oky, okz)
+    origin_key = pack(okx - shift[0], oky - shift[1], okz - shift[2])
     last_code = 0  # the block accessor's cache: the last block's code and index
     last = -1
     for i in range(start, stop):
         ex, ey, ez = ends[i, 0], ends[i, 1], ends[i, 2]
-        end_key = pack(coord_to_key(ex, inv_res), coord_to_key(ey, inv_res), coord_to_key(ez, inv_res))
+        end_key = pack(coord_to_key(ex, inv_res) - shift[0], coord_to_key(ey, inv_res) - shift[1],
+                       coord_to_key(ez, inv_res) - shift[2])
         ray = rays and end_key != origin_key
         if ray:
             length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)

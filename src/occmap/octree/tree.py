@@ -23,7 +23,7 @@ from ..errors import InvalidArgumentError, ShapeError
 from ..logodds import logit32, occupancy_classes
 from ..png import write_png
 from . import insertion, pool, query, views
-from .keys import CENTER, MAX_KEY, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
+from .keys import CENTER, MAX_KEY, NO_SHIFT, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
 from .marking import prepare_rays, ray_voxels
 
 
@@ -258,23 +258,12 @@ class OcTree(OneCallAtATime):
         to the tree: scans can be traced ahead on another thread)."""
         P = _points("points", points)
         o32 = _origin(origin).astype(np.float32)
-        origin_key = self.coord_to_key(o32.astype(np.float64))[0]
-        dropped = 0
-        if discretize and P.shape[0]:
-            finite = np.all(np.isfinite(P), axis=1)
-            dropped, P = int(np.count_nonzero(~finite)), P[finite]
-            keys = self.coord_to_key(P.astype(np.float32).astype(np.float64))  # OctoMap keys its float32 points
-            _, first = np.unique(keys, axis=0, return_index=True)
-            P = self.key_to_coord(keys[np.sort(first)])
+        self.coord_to_key(o32.astype(np.float64))  # (an origin out of range is refused)
         box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
-        ends, hit, more, bad = prepare_rays(P, o32[None, :], float(max_range), self.resolution, box)
-        if bad >= 0:
-            raise self._out_of_range("point", bad, P[bad], ray=True)
-        kbox = self._bbx_keys()
-        # with a box, a ray's free voxels are those before it first leaves the box: none from outside
-        rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
-        keys, is_hit = insertion.scan_voxels(o32, ends, hit, self.resolution, rays, kbox, threads)
-        summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
+        keys, is_hit, summary, bad = insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, box,
+                                                            self._bbx_keys(), NO_SHIFT, threads)
+        if bad is not None:
+            raise self._out_of_range("point", *bad, ray=True)
         return keys, is_hit, summary
 
     def _count(self, summary: dict) -> dict:
@@ -298,7 +287,7 @@ class OcTree(OneCallAtATime):
         O32 = O.astype(np.float32)
         self.coord_to_key(O32.astype(np.float64))
         E32, with_end, _, bad = prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
-                                               np.empty((0, 3), np.float32))
+                                               np.empty((0, 3), np.float32), NO_SHIFT)
         if bad >= 0:
             raise self._out_of_range("ray end", bad, E[bad], ray=True)
         keys, is_hit = ray_voxels(O32, E32, with_end, self.resolution)
@@ -317,6 +306,14 @@ class OcTree(OneCallAtATime):
         occ = np.broadcast_to(np.asarray(occupied, dtype=bool), P.shape[:1])
         k = self.coord_to_key(P.astype(np.float32).astype(np.float64))
         insertion.apply(self._pool, pack_keys(k), np.ascontiguousarray(occ), self._rule, lazy)
+
+    def update_voxels(self, keys, is_hit, threads: bool = False) -> None:
+        """Update voxels given as packed keys (int64, :func:`occmap.octree.keys.pack` of depth-16
+        keys), each with one hit (``is_hit``) or miss, as one scan updates them: each key once, in
+        Morton order when ``threads`` (then many voxels go on two threads). The path by which tiled
+        maps (:mod:`occmap.world`) apply a scan's voxels to their tiles."""
+        insertion.apply(self._pool, np.ascontiguousarray(keys, np.int64), np.ascontiguousarray(is_hit, np.bool_),
+                        self._rule, False, threads)
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
@@ -428,6 +425,10 @@ class OcTree(OneCallAtATime):
         value, int32 child index), plus the root. Compare with OctoMap's ``memoryUsage()``."""
         inner = self.num_nodes() - self.num_leaves()
         return (8 * inner + 1) * 8 if self.num_nodes() else 0
+
+    def memory_allocated(self) -> int:
+        """Bytes the node pool holds in memory (its slot arrays, free room included)."""
+        return self._pool.value.nbytes + self._pool.child.nbytes + self._pool.meta.nbytes
 
     def metric_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min, max) corners in metres of the box around every known leaf."""

@@ -1,0 +1,405 @@
+"""An octree map cut into tiles, without OctoMap's ±32768-voxel limit: :class:`TiledOcTree`.
+
+Keys. A voxel's *global key* is OctoMap's ``floor(x / resolution) + 32768`` per axis, as an int64
+(so it may lie far outside 0 .. 65535). With ``T`` = ``tile_size`` voxels (a power of two), tile
+``t = (key − 32768) >> log2 T`` holds the voxels ``[t·T, (t + 1)·T)`` of each axis, i.e. the metres
+``[t·T·res, (t + 1)·T·res)``. A tile is the subtree of one node of the global tree (depth
+``16 − log2 T``): within it, a voxel has the *tile key* ``((key − 32768) mod T) + 32768``, so a
+tile is kept as an :class:`~occmap.octree.OcTree` whose voxels lie at ``[0, T·res)`` metres — its
+own valid OctoMap tree, and the same subtree (same nodes, same values) as the global tree's.
+
+Insertion is OctoMap's ``insertPointCloud`` (:func:`occmap.octree.insertion.cloud_voxels`) with
+the scan's keys local to a shift near its sensor (:mod:`occmap.octree.marking`): the walk computes
+with the global keys, so each ray crosses exactly the voxels it crosses in one tree; the scan's
+voxels are then split by tile and each tile takes its part, in scan order, each voxel once with
+its hit or miss. Per voxel that is the sequence of updates one tree applies, and nodes above a
+tile are settled when tiles are joined (:meth:`TiledOcTree.to_octree`), so a tiled map equals the
+one tree, node for node, for any tile size. A ray longer than ``32768 − T/2`` voxels from its
+sensor (3.2 km less half a tile at 0.1 m) is refused.
+
+A map may own only a *region* (a box of tiles): it then updates only the tiles in it. Maps of
+disjoint regions fed the same scans in the same order together hold the one map; that is how
+:mod:`occmap.world.build` builds in parallel.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+
+from .. import checks
+from .._files import write_atomic
+from .._threads import OneCallAtATime
+from ..errors import FormatError, InvalidArgumentError, ShapeError
+from ..io.octomap import decode_ot, encode_bt, encode_ot
+from ..logodds import logit32, occupancy_classes
+from ..octree import OcTree, insertion, query
+from ..octree.keys import CENTER, DEPTH, FIELD, MAX_KEY, coord_to_keys, pack_keys
+from ..octree.pool import TOP, settle_tree
+from . import graft
+from .store import TileStore
+
+_MASK = (1 << FIELD) - 1
+_NO_BOX = np.empty((0, 3), np.float32)
+_NO_KEYS = np.empty((0, 3), np.int64)
+#: The ``.ot`` ending of a tile's file in a store.
+TILE_SUFFIX = ".ot"
+DEFAULT_TILE_SIZE = 512
+
+
+class TiledOcTree(OneCallAtATime):
+    """A 3D occupancy map with OctoMap's semantics, cut into tiles (see the module docstring).
+
+    Parameters
+    ----------
+    resolution : float
+        Edge of a voxel in metres.
+    tile_size : int
+        Voxels per tile side, a power of two from 8 to 32768 (default 512: 51.2 m at 0.1 m).
+    prob_hit, prob_miss, clamp, occupied_threshold
+        As for :class:`~occmap.octree.OcTree` (OctoMap's defaults).
+    region : ((tx0, ty0, tz0), (tx1, ty1, tz1)), optional
+        The tiles this map updates (inclusive box of tile indices); default all.
+    memory_limit : int, optional
+        Bytes of tiles kept in memory; beyond it the least recently used ones are written to the
+        store and dropped (needs a store). Default: no limit.
+
+    A map in a folder: :meth:`create` a new store, :meth:`open` one (to read, or ``writable`` to
+    add scans: mapping resumes with the full log-odds), :meth:`close` (or a ``with`` block) to
+    finish. Used from several threads, one call runs at a time (the object's lock).
+    """
+
+    def __init__(self, resolution: float, tile_size: int = DEFAULT_TILE_SIZE, prob_hit: float = 0.7,
+                 prob_miss: float = 0.4, clamp=(0.1192, 0.971), occupied_threshold: float = 0.5, *,
+                 region=None, memory_limit: int | None = None):
+        self._template = OcTree(resolution, prob_hit, prob_miss, clamp, occupied_threshold)  # checks them
+        self.resolution = self._template.resolution
+        tile_size = checks.count("tile_size", tile_size, minimum=8)
+        if tile_size & (tile_size - 1) or tile_size > CENTER:
+            raise InvalidArgumentError(f"tile_size must be a power of two from 8 to {CENTER}, got {tile_size}")
+        self.tile_size = tile_size
+        self._bits = tile_size.bit_length() - 1
+        self.region = None if region is None else _region(region)
+        self.memory_limit = None if memory_limit is None else checks.count("memory_limit", memory_limit, minimum=1)
+        self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+        self._tiles: OrderedDict[tuple[int, int, int], OcTree] = OrderedDict()  # in memory, least recent first
+        self._dirty: set[tuple[int, int, int]] = set()
+        self._store: TileStore | None = None
+        self._writer = None
+        self._l_occ = logit32(self._template.occupied_threshold)
+
+    @property
+    def params(self) -> dict:
+        """The sensor model and thresholds, as the constructor takes them."""
+        t = self._template
+        return {"prob_hit": t.prob_hit, "prob_miss": t.prob_miss, "clamp": list(t.clamp),
+                "occupied_threshold": t.occupied_threshold}
+
+    # ------------------------------------------------------------------ keys
+
+    def tile_of(self, points) -> np.ndarray:
+        """Tile indices (N, 3) int64 of points (N, 3) in metres."""
+        return (coord_to_keys(_points(points), self.resolution) - CENTER) >> self._bits
+
+    def tile_bounds(self, index) -> tuple[np.ndarray, np.ndarray]:
+        """``(min, max)`` corners in metres of tile ``index``."""
+        side = self.tile_size * self.resolution
+        t = np.asarray(index, np.float64)
+        return t * side, (t + 1) * side
+
+    def _split(self, keys, shift):
+        """Scan voxels (packed keys local to ``shift``) → (tile per voxel (n, 3), tile keys packed)."""
+        k = np.stack([(keys >> (FIELD * a)) & _MASK for a in range(3)], axis=1) + (shift - CENTER)
+        return k >> self._bits, pack_keys((k & (self.tile_size - 1)) + CENTER)
+
+    # ------------------------------------------------------------------ insertion
+
+    def insert_point_cloud(self, points, origin, max_range: float = -1.0, discretize: bool = False) -> dict:
+        """Integrate one scan as :meth:`occmap.octree.OcTree.insert_point_cloud` does (same
+        arguments but ``lazy``; NaN/inf points dropped and counted). Returns this scan's counts
+        (all 0 for a scan that cannot reach the map's region: it is not counted)."""
+        P = _points(points)
+        o = np.asarray(origin, dtype=np.float64)
+        if o.shape != (3,) or not np.all(np.isfinite(o)):
+            raise InvalidArgumentError(f"origin must be 3 finite numbers, got {np.asarray(origin).tolist()}")
+        self._check_writable()
+        if self.memory_limit is not None and self._store is None:
+            raise InvalidArgumentError("memory_limit needs a store to write tiles to: TiledOcTree.create(path, …)")
+        o32 = o.astype(np.float32)
+        centre = coord_to_keys(o32.astype(np.float64), self.resolution)
+        T = self.tile_size
+        shift = (np.floor_divide(centre - CENTER + T // 2, T) * T).astype(np.int64)  # a tile corner near the sensor
+        keep = None
+        if self.region is not None:
+            lo = self.region[0] * T + CENTER - shift
+            hi = (self.region[1] + 1) * T - 1 + CENTER - shift
+            if np.any(hi < 0) or np.any(lo > MAX_KEY) or not self._may_reach(P, o, max_range, lo, hi, shift):
+                return {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+            keep = np.stack([np.maximum(lo, 0), np.minimum(hi, MAX_KEY)])
+        keys, is_hit, summary, bad = insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, _NO_BOX,
+                                                            _NO_KEYS, shift, True, keep)
+        if bad is not None:
+            i, p = bad
+            raise InvalidArgumentError(
+                f"point {i} {np.asarray(p).tolist()} is more than {CENTER - T // 2} voxels "
+                f"({(CENTER - T // 2) * self.resolution:g} m) from the sensor at {o.tolist()}: too far for one ray")
+        self._apply(keys, is_hit, shift)
+        return self._record(summary)
+
+    def _may_reach(self, P, o, max_range, lo, hi, shift) -> bool:
+        """Whether any ray of the scan can touch the local key box [lo, hi]: the box of its points
+        and sensor (within ``max_range`` of it), a voxel wider each way, meets it."""
+        finite = P[np.all(np.isfinite(P), axis=1)]
+        b_lo = np.minimum(finite.min(axis=0), o) if len(finite) else o
+        b_hi = np.maximum(finite.max(axis=0), o) if len(finite) else o
+        if max_range >= 0:
+            b_lo, b_hi = np.maximum(b_lo, o - max_range), np.minimum(b_hi, o + max_range)
+        k_lo = coord_to_keys(b_lo, self.resolution) - shift - 1
+        k_hi = coord_to_keys(b_hi, self.resolution) - shift + 1
+        return bool(np.all(k_hi >= lo) and np.all(k_lo <= hi))
+
+    def _apply(self, keys, is_hit, shift) -> None:
+        """Give each tile its part of a scan's voxels (Morton order kept within a tile)."""
+        if not len(keys):
+            return
+        tiles, local = self._split(keys, shift)
+        base = tiles.min(axis=0)
+        rel = tiles - base
+        code = rel[:, 0] | (rel[:, 1] << 21) | (rel[:, 2] << 42)
+        order = np.argsort(code, kind="stable")
+        code = code[order]
+        starts = np.flatnonzero(np.r_[True, code[1:] != code[:-1]])
+        ends = np.r_[starts[1:], len(code)]
+        for a, b in zip(starts.tolist(), ends.tolist()):
+            index = tuple(int(v) for v in tiles[order[a]])
+            sel = order[a:b]
+            self._tile(index, create=True).update_voxels(local[sel], is_hit[sel], threads=True)
+            self._dirty.add(index)
+        self._evict()
+
+    def _record(self, summary: dict) -> dict:
+        counts = {"scans": 1, **summary}
+        for key, value in counts.items():
+            self.stats[key] += value
+        return counts
+
+    # ------------------------------------------------------------------ tiles in memory
+
+    def _tile(self, index, create: bool) -> OcTree | None:
+        """Tile ``index`` (most recently used now): in memory, else read from the store, else a
+        new empty one when ``create``, else None."""
+        tree = self._tiles.get(index)
+        if tree is not None:
+            self._tiles.move_to_end(index)
+            return tree
+        if self._store is not None and index in self._store.tiles:
+            tree = self._read_tile(index)
+        elif create:
+            t = self._template
+            tree = OcTree(self.resolution, t.prob_hit, t.prob_miss, t.clamp, t.occupied_threshold)
+        else:
+            return None
+        self._tiles[index] = tree
+        return tree
+
+    def _read_tile(self, index) -> OcTree:
+        path = self._store.tile_file(index, TILE_SUFFIX)
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            raise FormatError(path, f"tile {list(index)} is listed in the store's index but its file is missing") from None
+        t = self._template
+        tree = decode_ot(data, path, prob_hit=t.prob_hit, prob_miss=t.prob_miss, clamp=t.clamp,
+                         occupied_threshold=t.occupied_threshold)
+        if tree.resolution != self.resolution:
+            raise FormatError(path, f"tile {list(index)} has resolution {tree.resolution!r}, the store "
+                              f"{self.resolution!r}")
+        return tree
+
+    def _evict(self) -> None:
+        """Write out and drop least recently used tiles while over the memory limit."""
+        if self.memory_limit is None:
+            return
+        total = sum(t.memory_allocated() for t in self._tiles.values())
+        while total > self.memory_limit and len(self._tiles) > 1:
+            index, tree = next(iter(self._tiles.items()))
+            self._write_tile(index, tree)
+            del self._tiles[index]
+            total -= tree.memory_allocated()
+
+    def _write_tile(self, index, tree: OcTree) -> None:
+        if index not in self._dirty:
+            return
+        path = self._store.tile_file(index, TILE_SUFFIX)
+        data = encode_ot(tree)
+        write_atomic(path, data)
+        lo, hi = self.tile_bounds(index)
+        self._store.tiles[index] = {"file": str(path.relative_to(self._store.path)), "min": lo.tolist(),
+                                    "max": hi.tolist(), "nodes": tree.num_nodes(), "bytes": len(data)}
+        self._dirty.discard(index)
+
+    def tiles(self) -> list[tuple[int, int, int]]:
+        """Indices of the tiles that hold nodes (in memory or in the store), sorted."""
+        stored = set(self._store.tiles) if self._store is not None else set()
+        return sorted(stored | {k for k, t in self._tiles.items() if t.num_nodes()})
+
+    def tile(self, index) -> OcTree | None:
+        """Tile ``index`` as an :class:`OcTree` in tile keys (voxels at ``[0, tile_size·res)``
+        metres), or None when it holds nothing. The map's own tile: do not change it."""
+        return self._tile(tuple(int(v) for v in index), create=False)
+
+    # ------------------------------------------------------------------ queries
+
+    def log_odds_at(self, points) -> np.ndarray:
+        """Log-odds (N,) of the voxel (or pruned node) holding each point; NaN where unknown."""
+        P = _points(points)
+        out = np.full(len(P), np.nan)
+        good = np.all(np.isfinite(P), axis=1)
+        keys = coord_to_keys(np.where(good[:, None], P, 0.0), self.resolution) - CENTER
+        tiles = keys >> self._bits
+        local = (keys & (self.tile_size - 1)) + CENTER
+        for index in {tuple(t) for t in tiles[good].tolist()}:
+            sel = np.flatnonzero(good & np.all(tiles == index, axis=1))
+            tree = self._tile(index, create=False)
+            if tree is None:
+                continue
+            nodes = tree.nodes()
+            slots = query.search_keys(nodes.value, nodes.child, local[sel], DEPTH)
+            known = slots >= 0
+            out[sel[known]] = nodes.value[slots[known]]
+        return out
+
+    def occupancy_at(self, points) -> np.ndarray:
+        """Per point: −1 unknown, 0 free, 1 occupied (log-odds ≥ that of ``occupied_threshold``)."""
+        return occupancy_classes(self.log_odds_at(points), self._l_occ)
+
+    # ------------------------------------------------------------------ one tree
+
+    def to_octree(self, box=None) -> OcTree:
+        """The tiles (those meeting ``box`` = (min, max) in metres, default all) joined into one
+        :class:`OcTree` in world coordinates: node for node the tree one process builds from the
+        same scans. Raises when they reach beyond OctoMap's key range."""
+        chosen = self._chosen(box)
+        dt = DEPTH - self._bits
+        sizes = []
+        for index in chosen:
+            lo = np.array(index, np.int64) * self.tile_size + CENTER
+            if np.any(lo < 0) or np.any(lo + self.tile_size - 1 > MAX_KEY):
+                bound = CENTER * self.resolution
+                raise InvalidArgumentError(f"tile {list(index)} lies beyond OctoMap's key range (±{bound:g} m at "
+                                           f"{self.resolution:g} m): export a box within it")
+            nodes = self._tile(index, create=False).nodes()
+            sizes.append(graft.subtree_slots(nodes.value, nodes.child, _tile_node(nodes, dt)))
+        value, child, meta = graft.new_pool(sum(sizes) + 8 * dt * (len(chosen) + 1))
+        for index in chosen:
+            nodes = self._tile(index, create=False).nodes()
+            k = np.array(index, np.int64) * self.tile_size + CENTER
+            graft.graft(value, child, meta, nodes.value, nodes.child, _tile_node(nodes, dt), k[0], k[1], k[2], dt)
+        for d in range(dt - 1, -1, -1):  # the nodes above the tiles, deepest first, as updates leave them
+            settle_tree(value, child, meta, d, True, True)
+        top = int(meta[TOP])
+        t = self._template
+        return OcTree.from_nodes(self.resolution, value[:top].copy(), child[:top].copy(), int(meta[2]),
+                                 prob_hit=t.prob_hit, prob_miss=t.prob_miss, clamp=t.clamp,
+                                 occupied_threshold=t.occupied_threshold)
+
+    def _chosen(self, box) -> list:
+        indices = self.tiles()
+        if box is not None:
+            lo, hi = (np.asarray(b, np.float64) for b in box)
+            if lo.shape != (3,) or hi.shape != (3,) or not np.all(lo <= hi):
+                raise InvalidArgumentError(f"box must be (min, max) corners of 3 numbers, min ≤ max, got {box!r}")
+            t_lo, t_hi = self.tile_of(np.stack([lo, hi]))
+            indices = [i for i in indices if np.all(t_lo <= i) and np.all(np.array(i) <= t_hi)]
+        return [i for i in indices if self._tile(i, create=False) is not None]
+
+    # ------------------------------------------------------------------ the store
+
+    @classmethod
+    def create(cls, path, resolution: float, tile_size: int = DEFAULT_TILE_SIZE, **kwargs) -> TiledOcTree:
+        """A new map in a new store folder ``path``, open for writing (see :meth:`open`)."""
+        tiled = cls(resolution, tile_size, **kwargs)
+        store = TileStore.create(path, "octree", tiled.resolution, tiled.tile_size, tiled.params)
+        tiled._attach(store, writable=True)
+        return tiled
+
+    @classmethod
+    def open(cls, path, writable: bool = False, memory_limit: int | None = None, region=None) -> TiledOcTree:
+        """The map stored at ``path``: tiles are read as they are needed. ``writable``: hold the
+        store (one writer at a time) to add scans; :meth:`close` writes the tiles and the index."""
+        store = TileStore.open(path, kind="octree")
+        p = store.params
+        tiled = cls(store.resolution, store.tile_size, p.get("prob_hit", 0.7), p.get("prob_miss", 0.4),
+                    tuple(p.get("clamp", (0.1192, 0.971))), p.get("occupied_threshold", 0.5), region=region,
+                    memory_limit=memory_limit)
+        tiled.stats["scans"] = store.scans
+        tiled._attach(store, writable)
+        return tiled
+
+    def _attach(self, store: TileStore, writable: bool) -> None:
+        self._store = store
+        if writable:
+            self._writer = store.writer()
+            self._writer.__enter__()
+
+    def _check_writable(self) -> None:
+        if self._store is not None and self._writer is None:
+            raise InvalidArgumentError(f"{self._store.path}: the map was opened to read; open it with writable=True")
+
+    def flush(self) -> None:
+        """Write the changed tiles and the index to the store (the map stays open)."""
+        if self._store is None:
+            return
+        for index, tree in self._tiles.items():
+            self._write_tile(index, tree)
+        self._store.scans = self.stats["scans"]
+        self._store.save_index()
+
+    def close(self) -> None:
+        """Write what changed and let the store go (marked complete)."""
+        if self._writer is not None:
+            self.flush()
+            writer, self._writer = self._writer, None
+            writer.__exit__(None, None, None)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        if kind is None:
+            self.close()
+        elif self._writer is not None:  # an error: the store stays marked incomplete
+            writer, self._writer = self._writer, None
+            writer.__exit__(kind, value, tb)
+
+    def write_bt(self, path, box=None):
+        """The joined tree (:meth:`to_octree`) written as OctoMap's ``.bt``."""
+        return write_atomic(path, encode_bt(self.to_octree(box)))
+
+    def __repr__(self) -> str:
+        return (f"TiledOcTree({self.resolution} m, tiles of {self.tile_size} voxels, {len(self.tiles())} tiles, "
+                f"{self.stats['scans']} scans)")
+
+
+def _points(points) -> np.ndarray:
+    P = np.asarray(points, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise ShapeError(f"points must have shape (N, 3), got {P.shape}")
+    return P
+
+
+def _region(region) -> np.ndarray:
+    r = np.asarray(region)
+    if r.shape != (2, 3) or not np.issubdtype(r.dtype, np.integer) or not np.all(r[0] <= r[1]):
+        raise InvalidArgumentError(f"region must be ((tx0, ty0, tz0), (tx1, ty1, tz1)) integers with tx0 ≤ tx1 …, "
+                                   f"got {region!r}")
+    return r.astype(np.int64)
+
+
+def _tile_node(nodes, depth: int) -> int:
+    """Slot of the node at ``depth`` holding key (32768, 32768, 32768): a tile's subtree root."""
+    node = 0
+    for d in range(depth):
+        node = int(nodes.child[node]) + 7 * ((CENTER >> (DEPTH - 1 - d)) & 1)
+    return node
