@@ -33,7 +33,7 @@ from ..raster.walk2d import cell_of, dda_init, miss_walk
 
 
 @kernel
-def _beam_end(x0, y0, th, r, a, max_range):
+def beam_end(x0, y0, th, r, a, max_range):
     """``(kind, x, y)`` of one reading: kind 0 unusable (NaN, ≤ 0), 1 hit, 2 no return (cleared
     up to ``max_range``, marks nothing); (x, y) the end point for kinds 1 and 2."""
     if not (r > 0.0):  # NaN, zero and negative readings carry no information
@@ -61,7 +61,7 @@ def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles
         s = scan0 + k
         x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
         for b in range(n_beams):
-            kind[b], ex[b], ey[b] = _beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
+            kind[b], ex[b], ey[b] = beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
             if kind[b] == 1:
                 ix, iy = cell_of(ex[b], ey[b], ox, oy, inv_res)
                 i = base + iy * rs + ix
@@ -106,7 +106,7 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H
     for i in range(0, n, step):
         k, b = i // n_beams, i % n_beams
         x0, y0 = poses[k, 0], poses[k, 1]
-        kind, x1, y1 = _beam_end(x0, y0, poses[k, 2], ranges[k, b], angles[k, b], max_range)
+        kind, x1, y1 = beam_end(x0, y0, poses[k, 2], ranges[k, b], angles[k, b], max_range)
         if kind == 0:
             continue
         u0, v0 = cell_of(x0, y0, ox, oy, inv_res)
@@ -209,7 +209,7 @@ def _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, 
 @kernel
 def beam_extent(poses, ranges, angles, max_range):
     """World box ``(xmin, ymin, xmax, ymax)`` of the sensor positions and the ends of the beams
-    that will be walked (:func:`_beam_end`, the same arithmetic as the walk); infinite where an
+    that will be walked (:func:`beam_end`, the same arithmetic as the walk); infinite where an
     end overflows. Used to find the cells scans reach before inserting them."""
     xmin, ymin, xmax, ymax = np.inf, np.inf, -np.inf, -np.inf
     n_scans, n_beams = ranges.shape
@@ -217,7 +217,7 @@ def beam_extent(poses, ranges, angles, max_range):
         x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
         xmin, xmax, ymin, ymax = min(xmin, x0), max(xmax, x0), min(ymin, y0), max(ymax, y0)
         for b in range(n_beams):
-            kind, x, y = _beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
+            kind, x, y = beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
             if kind != 0:
                 if not (math.isfinite(x) and math.isfinite(y)):
                     return -np.inf, -np.inf, np.inf, np.inf

@@ -55,6 +55,40 @@ def _farthest(x: np.ndarray, y: np.ndarray, centre: np.ndarray | None) -> tuple[
     return np.unravel_index(int(np.nanargmax(d)), d.shape)
 
 
+def scan_arrays(poses, ranges, angles, max_range):
+    """The checked arrays of :meth:`OccupancyGrid2D.insert_scans` (its conventions), for every map
+    that takes planar scans: ``(P, R, A, max_range)``, poses (N, 3), ranges (N, n) and angles
+    (N, n) C-contiguous float64, a reading with a NaN or infinite angle turned into a NaN (dropped)
+    reading, and ``max_range`` a positive float (without one: just above the largest finite
+    reading, infinite readings dropped)."""
+    P = np.ascontiguousarray(poses, dtype=np.float64)
+    R = np.ascontiguousarray(ranges, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise ShapeError(f"poses must have shape (N, 3), got {P.shape}")
+    if R.ndim != 2 or R.shape[0] != P.shape[0]:
+        raise ShapeError(f"ranges must have shape (N, n) with N = {P.shape[0]} poses, got {R.shape}")
+    A = np.asarray(angles, dtype=np.float64)
+    if A.shape == (R.shape[1],):
+        A = np.broadcast_to(A, R.shape)
+    if A.shape != R.shape:
+        raise ShapeError(f"angles must have shape (n,) or (N, n) matching ranges {R.shape}, got {A.shape}")
+    A = np.ascontiguousarray(A)
+    bad_angle = ~np.isfinite(A)
+    if bad_angle.any():  # a beam without a direction is a dropped reading
+        R, A = np.where(bad_angle, np.nan, R), np.where(bad_angle, 0.0, A)
+    good_pose = np.isfinite(P).all(axis=1)
+    if not good_pose.all():
+        raise NonFiniteError(f"poses[{int(np.argmin(good_pose))}] = {P[np.argmin(good_pose)].tolist()} is not finite")
+    if max_range is None:
+        # no sensor limit given: every finite reading is a return, an infinite one says
+        # nothing definite and is dropped like NaN
+        finite = R[np.isfinite(R) & (R > 0)]
+        max_range = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
+        if np.isinf(R).any():
+            R = np.where(np.isinf(R), np.nan, R)
+    return P, R, A, checks.positive("max_range", max_range, "metres")
+
+
 class OccupancyGrid2D(OneCallAtATime):
     """A 2D occupancy grid in log-odds.
 
@@ -233,32 +267,7 @@ class OccupancyGrid2D(OneCallAtATime):
         ``scans``, ``points`` (readings used), ``dropped``, ``beyond_max_range``.
         """
         model = LidarModel() if model is None else model
-        P = np.ascontiguousarray(poses, dtype=np.float64)
-        R = np.ascontiguousarray(ranges, dtype=np.float64)
-        if P.ndim != 2 or P.shape[1] != 3:
-            raise ShapeError(f"poses must have shape (N, 3), got {P.shape}")
-        if R.ndim != 2 or R.shape[0] != P.shape[0]:
-            raise ShapeError(f"ranges must have shape (N, n) with N = {P.shape[0]} poses, got {R.shape}")
-        A = np.asarray(angles, dtype=np.float64)
-        if A.shape == (R.shape[1],):
-            A = np.broadcast_to(A, R.shape)
-        if A.shape != R.shape:
-            raise ShapeError(f"angles must have shape (n,) or (N, n) matching ranges {R.shape}, got {A.shape}")
-        A = np.ascontiguousarray(A)
-        bad_angle = ~np.isfinite(A)
-        if bad_angle.any():  # a beam without a direction is a dropped reading
-            R, A = np.where(bad_angle, np.nan, R), np.where(bad_angle, 0.0, A)
-        good_pose = np.isfinite(P).all(axis=1)
-        if not good_pose.all():
-            raise NonFiniteError(f"poses[{int(np.argmin(good_pose))}] = {P[np.argmin(good_pose)].tolist()} is not finite")
-        if max_range is None:
-            # no sensor limit given: every finite reading is a return, an infinite one says
-            # nothing definite and is dropped like NaN
-            finite = R[np.isfinite(R) & (R > 0)]
-            max_range = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
-            if np.isinf(R).any():
-                R = np.where(np.isinf(R), np.nan, R)
-        max_range = checks.positive("max_range", max_range, "metres")
+        P, R, A, max_range = scan_arrays(poses, ranges, angles, max_range)
         if self.growing and len(P):
             def culprit(centre):
                 x, y = _beam_points(P, R, A, max_range)
