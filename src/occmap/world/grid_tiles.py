@@ -40,6 +40,7 @@ from ..logodds import occupancy_classes, occupancy_values
 from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _grid_kernels as K
 from .store import TILES, TileStore
+from .stored_map import StoredMap, region_box
 from .zarr_tiles import CELL_OFFSET, ZarrTiles
 
 DEFAULT_TILE_SIZE = 256
@@ -53,7 +54,7 @@ THREADS = ThreadChoice(min_work=2048)
 _NO_ITEMS = np.empty(0, np.int64)
 
 
-class TiledGrid2D(OneCallAtATime):
+class TiledGrid2D(StoredMap, OneCallAtATime):
     """A 2D occupancy grid in log-odds cut into tiles (see the module docstring); the semantics,
     parameters and names of a growing :class:`~occmap.grid2d.OccupancyGrid2D`.
 
@@ -88,7 +89,7 @@ class TiledGrid2D(OneCallAtATime):
         if self.tile_size & (self.tile_size - 1):
             raise InvalidArgumentError(f"tile_size must be a power of two, got {tile_size}")
         self._bits = self.tile_size.bit_length() - 1
-        self.region = None if region is None else _region(region)
+        self.region = None if region is None else region_box(region, 2)
         self._tile_bytes = 6 * self.tile_size**2
         self.memory_limit = None if memory_limit is None else checks.count("memory_limit", memory_limit, minimum=1)
         if self.memory_limit is not None and self.memory_limit < self._tile_bytes:
@@ -389,7 +390,8 @@ class TiledGrid2D(OneCallAtATime):
         """A new map in a new store folder ``path``, open for writing (see :meth:`open`)."""
         tiled = cls(resolution, tile_size, **kwargs)
         store = TileStore.create(path, "grid", tiled.resolution, tiled.tile_size, tiled.params)
-        tiled._attach(store, ZarrTiles.create(store.path / TILES, tiled.tile_size), writable=True)
+        tiled._zarr = ZarrTiles.create(store.path / TILES, tiled.tile_size)
+        tiled._attach(store, writable=True)
         return tiled
 
     @classmethod
@@ -402,55 +404,14 @@ class TiledGrid2D(OneCallAtATime):
         tiled = cls(store.resolution, store.tile_size, p.get("prior", 0.5), tuple(p.get("clamp", (0.1192, 0.971))),
                     p.get("occupied_threshold", 0.5), region=region, memory_limit=memory_limit)
         tiled.stats["scans"] = store.scans
-        tiled._attach(store, ZarrTiles.open(store.path / TILES, store.tile_size, writable), writable)
+        tiled._zarr = ZarrTiles.open(store.path / TILES, store.tile_size, writable)
+        tiled._attach(store, writable)
         return tiled
 
-    def _attach(self, store: TileStore, zarr_tiles: ZarrTiles, writable: bool) -> None:
-        self._store, self._zarr = store, zarr_tiles
-        if writable:
-            self._writer = store.writer()
-            self._writer.__enter__()
-
-    def _check_writable(self) -> None:
-        if self._store is not None and self._writer is None:
-            raise InvalidArgumentError(f"{self._store.path}: the map was opened to read; open it with writable=True")
-        if self.memory_limit is not None and self._store is None:
-            raise InvalidArgumentError("memory_limit needs a store to write tiles to: TiledGrid2D.create(path, …)")
-
-    def flush(self) -> None:
-        """Write the changed tiles and the index to the store (the map stays open)."""
-        if self._writer is None:
-            return
+    def _write_tiles(self) -> None:
         for index in list(self._slots):
             self._write_tile(index)
-        self._store.scans = self.stats["scans"]
-        self._store.save_index()
-
-    def close(self) -> None:
-        """Write what changed and let the store go (marked complete)."""
-        if self._writer is not None:
-            self.flush()
-            writer, self._writer = self._writer, None
-            writer.__exit__(None, None, None)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, kind, value, tb):
-        if kind is None:
-            self.close()
-        elif self._writer is not None:  # an error: the store stays marked incomplete
-            writer, self._writer = self._writer, None
-            writer.__exit__(kind, value, tb)
 
     def __repr__(self) -> str:
         return (f"TiledGrid2D({self.resolution} m, tiles of {self.tile_size} cells, {len(self.tiles())} tiles, "
                 f"{self.stats['scans']} scans)")
-
-
-def _region(region) -> np.ndarray:
-    r = np.asarray(region)
-    if r.shape != (2, 2) or not np.issubdtype(r.dtype, np.integer) or not np.all(r[0] <= r[1]):
-        raise InvalidArgumentError(f"region must be ((tx0, ty0), (tx1, ty1)) integers with tx0 ≤ tx1, ty0 ≤ ty1, "
-                                   f"got {region!r}")
-    return r.astype(np.int64)

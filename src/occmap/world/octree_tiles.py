@@ -39,6 +39,7 @@ from ..octree.keys import CENTER, DEPTH, FIELD, MAX_KEY, coord_to_keys, pack_key
 from ..octree.pool import TOP, settle_tree
 from . import graft
 from .store import TileStore
+from .stored_map import StoredMap, region_box
 
 _MASK = (1 << FIELD) - 1
 _NO_BOX = np.empty((0, 3), np.float32)
@@ -48,7 +49,7 @@ TILE_SUFFIX = ".ot"
 DEFAULT_TILE_SIZE = 512
 
 
-class TiledOcTree(OneCallAtATime):
+class TiledOcTree(StoredMap, OneCallAtATime):
     """A 3D occupancy map with OctoMap's semantics, cut into tiles (see the module docstring).
 
     Parameters
@@ -80,7 +81,7 @@ class TiledOcTree(OneCallAtATime):
             raise InvalidArgumentError(f"tile_size must be a power of two from 8 to {CENTER}, got {tile_size}")
         self.tile_size = tile_size
         self._bits = tile_size.bit_length() - 1
-        self.region = None if region is None else _region(region)
+        self.region = None if region is None else region_box(region, 3)
         self.memory_limit = None if memory_limit is None else checks.count("memory_limit", memory_limit, minimum=1)
         self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         self._tiles: OrderedDict[tuple[int, int, int], OcTree] = OrderedDict()  # in memory, least recent first
@@ -124,8 +125,6 @@ class TiledOcTree(OneCallAtATime):
         if o.shape != (3,) or not np.all(np.isfinite(o)):
             raise InvalidArgumentError(f"origin must be 3 finite numbers, got {np.asarray(origin).tolist()}")
         self._check_writable()
-        if self.memory_limit is not None and self._store is None:
-            raise InvalidArgumentError("memory_limit needs a store to write tiles to: TiledOcTree.create(path, …)")
         o32 = o.astype(np.float32)
         centre = coord_to_keys(o32.astype(np.float64), self.resolution)
         T = self.tile_size
@@ -337,41 +336,9 @@ class TiledOcTree(OneCallAtATime):
         tiled._attach(store, writable)
         return tiled
 
-    def _attach(self, store: TileStore, writable: bool) -> None:
-        self._store = store
-        if writable:
-            self._writer = store.writer()
-            self._writer.__enter__()
-
-    def _check_writable(self) -> None:
-        if self._store is not None and self._writer is None:
-            raise InvalidArgumentError(f"{self._store.path}: the map was opened to read; open it with writable=True")
-
-    def flush(self) -> None:
-        """Write the changed tiles and the index to the store (the map stays open)."""
-        if self._store is None:
-            return
+    def _write_tiles(self) -> None:
         for index, tree in self._tiles.items():
             self._write_tile(index, tree)
-        self._store.scans = self.stats["scans"]
-        self._store.save_index()
-
-    def close(self) -> None:
-        """Write what changed and let the store go (marked complete)."""
-        if self._writer is not None:
-            self.flush()
-            writer, self._writer = self._writer, None
-            writer.__exit__(None, None, None)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, kind, value, tb):
-        if kind is None:
-            self.close()
-        elif self._writer is not None:  # an error: the store stays marked incomplete
-            writer, self._writer = self._writer, None
-            writer.__exit__(kind, value, tb)
 
     def write_bt(self, path, box=None):
         """The joined tree (:meth:`to_octree`) written as OctoMap's ``.bt``."""
@@ -387,14 +354,6 @@ def _points(points) -> np.ndarray:
     if P.ndim != 2 or P.shape[1] != 3:
         raise ShapeError(f"points must have shape (N, 3), got {P.shape}")
     return P
-
-
-def _region(region) -> np.ndarray:
-    r = np.asarray(region)
-    if r.shape != (2, 3) or not np.issubdtype(r.dtype, np.integer) or not np.all(r[0] <= r[1]):
-        raise InvalidArgumentError(f"region must be ((tx0, ty0, tz0), (tx1, ty1, tz1)) integers with tx0 ≤ tx1 …, "
-                                   f"got {region!r}")
-    return r.astype(np.int64)
 
 
 def _tile_node(nodes, depth: int) -> int:
