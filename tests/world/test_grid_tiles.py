@@ -249,3 +249,22 @@ def test_bad_arguments():
         t.insert_scan((0.0, 0.0, 0.0), [1e300], [0.0], max_range=1e301)
     assert t.tiles() == {} and t.stats["scans"] == 0
     assert np.isnan(t.log_odds_at([[0.0, 0.0], [np.nan, 1.0]])).all()
+
+
+def test_parts_of_a_parallel_build_write_into_one_store(tmp_path, rng):
+    """The parallel build's protocol (occmap.world.build): the driver holds the store, each
+    worker's part (one region) writes its tiles into it and hands back their index entries."""
+    P, R, A = _wander(rng, 40, (2_000.0, 3_000.0))
+    g = _grid(P, R, A, 8.0)
+    whole = TiledGrid2D(RES, 16)
+    whole.insert_scans(P, R, A, max_range=8.0)
+    mx = int(np.median([i[0] for i in whole.tiles()]))
+    with TiledGrid2D.create(tmp_path / "map", RES, 16) as driver:
+        for region in (((-FAR, -FAR), (mx - 1, FAR)), ((mx, -FAR), (FAR, FAR))):
+            part = TiledGrid2D.build_part(tmp_path / "map", region)
+            part.insert_scans(P, R, A, max_range=8.0)
+            driver._store.tiles.update(part.write_tiles())
+        driver.stats["scans"] = len(P)
+    back = TiledGrid2D.open(tmp_path / "map")
+    _same(back.log_odds(_box(g)), g.log_odds())
+    assert {i: {k: v for k, v in e.items() if k != "file"} for i, e in back.tiles().items()} == whole.tiles()

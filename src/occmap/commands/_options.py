@@ -57,6 +57,32 @@ def count(text: str) -> int:
     return value
 
 
+_UNITS = {"": 1, "b": 1, "k": 1e3, "kb": 1e3, "m": 1e6, "mb": 1e6, "g": 1e9, "gb": 1e9, "t": 1e12, "tb": 1e12,
+          "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
+
+
+def size(text: str) -> int:
+    """A memory size in bytes: a number with an optional unit (``500MB``, ``4GiB``, ``1e9``)."""
+    t = text.strip().lower()
+    digits = t.rstrip("abcdefghijklmnopqrstuvwxyz")
+    unit = t[len(digits):].strip()
+    try:
+        value = float(digits) * _UNITS[unit]
+    except (ValueError, KeyError):
+        raise argparse.ArgumentTypeError(f"expected a size such as 800MB or 4GiB, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 1):
+        raise argparse.ArgumentTypeError(f"expected a size of at least 1 byte, got {text!r}")
+    return int(value)
+
+
+def power_of_two(text: str) -> int:
+    """A whole number ≥ 8 that is a power of two (a tile's side in voxels or cells)."""
+    value = count(text)
+    if value < 8 or value & (value - 1):
+        raise argparse.ArgumentTypeError(f"expected a power of two ≥ 8, got {text!r}")
+    return value
+
+
 def pose2d(text: str) -> tuple[float, float, float]:
     """``x,y,theta`` in metres, metres, radians."""
     try:

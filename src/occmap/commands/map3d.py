@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 import time
 
-from . import _notes, _options
+from . import _notes, _options, _tiles
 from ._octree_files import check_octree_output, save_octree
 from ._outputs import check_outputs
 
@@ -15,13 +15,14 @@ def add_parser(subparsers):
     p = subparsers.add_parser("map3d", help="build a 3D occupancy octree (OctoMap .bt/.ot) from point clouds with sensor poses")
     p.add_argument("inputs", nargs="+", help="point clouds (.pcd .ply .xyz/.txt/.dat[.gz|.bz2|.xz] .bin .3d) or "
                    "OctoMap ScanGraphs (.graph); each cloud carries its sensor pose (PCD viewpoint, 3DTK .frames)")
-    p.add_argument("-o", "--output", required=True, help="octree to write (.bt maximum likelihood, .ot full values, "
-                   ".ply occupied voxels)")
+    p.add_argument("-o", "--output", help="octree to write (.bt maximum likelihood, .ot full values, .ply occupied "
+                   "voxels); with --tiles, the whole store joined into one .bt/.ot")
     p.add_argument("--resolution", type=_options.positive, default=0.1, help="voxel size in metres (default: %(default)s)")
     p.add_argument("--max-range", type=_options.positive, help="clear free space only up to this range, no hits "
                    "beyond (default: no limit)")
     p.add_argument("--discretize", action="store_true", help="merge points falling in one voxel before ray casting")
     p.add_argument("--png", help="also write a top-down height picture")
+    _tiles.add_tile_options(p, 512, "voxels")
     return p
 
 
@@ -38,13 +39,44 @@ def _clouds(paths):
             yield path, read_cloud(path)
 
 
+def _run_tiled(args) -> int:
+    from ..errors import InvalidArgumentError
+    from ..world.build import build_octree
+    from ..world.octree_tiles import DEFAULT_TILE_SIZE, TiledOcTree
+    from ..world.sources import CloudFiles
+
+    if args.png is not None or (args.output is not None and not args.output.lower().endswith((".bt", ".ot"))):
+        raise InvalidArgumentError("with --tiles, -o is a .bt or .ot export of the whole store and --png is not made")
+    source = CloudFiles(args.inputs)
+    summary = build_octree(args.tiles, source, args.resolution, args.tile_size or DEFAULT_TILE_SIZE,
+                           max_range=-1.0 if args.max_range is None else args.max_range, discretize=args.discretize,
+                           workers=args.workers or 1, scheduler=args.scheduler, memory_limit=args.memory_limit,
+                           progress=_tiles.progress_line)
+    _notes.identity_poses("map3d", [source.name(k) for k in summary.no_pose], len(source))
+    s = summary.stats
+    peak = max(part["peak_rss"] for part in summary.parts)
+    print(f"{s['scans']} scans, {s['points']:,} points ({s['dropped']:,} dropped) into {args.tiles}: "
+          f"{summary.tiles:,} tiles, {len(summary.regions)} region(s), {summary.seconds:.1f} s "
+          f"({s['points'] / max(summary.seconds, 1e-9):,.0f} points/s), peak memory per process {peak / 2**20:,.0f} MiB")
+    if args.output is not None:
+        offset = TiledOcTree.open(args.tiles).export(args.output)
+        print(f"wrote {args.output}" + (f" (offset {offset.tolist()} m, in its header)" if offset.any() else ""))
+    return 0
+
+
 def run(args) -> int:
     from .._clock import WorkClock
     from ..errors import InvalidArgumentError
     from ..octree import OcTree
 
-    check_octree_output(args.output)
+    _tiles.check_tile_options(args)
+    if args.tiles is None and args.output is None:
+        raise InvalidArgumentError("give -o MAP (.bt, .ot, .ply) or --tiles DIR")
+    if args.output is not None:
+        check_octree_output(args.output)
     check_outputs({"-o": args.output, "--png": args.png}, {f"input {p}": p for p in args.inputs})
+    if args.tiles is not None:
+        return _run_tiled(args)
     max_range = -1.0 if args.max_range is None else args.max_range
     t0 = time.perf_counter()
     tree = OcTree(args.resolution)

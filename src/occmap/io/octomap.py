@@ -72,30 +72,33 @@ _MESSAGES = {
 
 # ------------------------------------------------------------------------------ writing
 
-def _header(magic: bytes, tree_id: str, nodes: int, resolution: float) -> bytes:
+def _header(magic: bytes, tree_id: str, nodes: int, resolution: float, comment: str | None = None) -> bytes:
     # C++ `ostream << double` prints with precision 6 in the %g style
-    return (magic + _COMMENT + f"id {tree_id}\nsize {nodes}\nres {format(resolution, 'g')}\ndata\n".encode())
+    notes = "".join(f"# {line}\n" for line in comment.splitlines()).encode() if comment else b""
+    return (magic + _COMMENT + notes + f"id {tree_id}\nsize {nodes}\nres {format(resolution, 'g')}\ndata\n".encode())
 
 
-def encode_bt(tree: OcTree) -> bytes:
+def encode_bt(tree: OcTree, comment: str | None = None) -> bytes:
     """The bytes OctoMap's ``writeBinary`` writes for ``tree`` (which converts its tree to maximum
-    likelihood and prunes it first); ``tree`` itself is left unchanged."""
+    likelihood and prunes it first); ``tree`` itself is left unchanged. ``comment``: lines added
+    to the header as ``#`` comments (OctoMap's readers skip them)."""
     nodes = tree.nodes()
     lo, hi = (np.float32(v) for v in tree.clamping_log_odds)
     body, nodes = C.encode_bt(nodes.value, nodes.child, len(nodes.value), np.float32(tree.occupied_log_odds), lo, hi)
     if nodes < 0:
         raise RuntimeError("octree node pool is inconsistent: a node lies below depth 16")
-    return _header(BINARY_MAGIC, "OcTree", int(nodes), tree.resolution) + body.tobytes()
+    return _header(BINARY_MAGIC, "OcTree", int(nodes), tree.resolution, comment) + body.tobytes()
 
 
-def encode_ot(tree: OcTree) -> bytes:
-    """The bytes OctoMap's ``write`` (``.ot``, every node's log-odds) writes for ``tree``."""
+def encode_ot(tree: OcTree, comment: str | None = None) -> bytes:
+    """The bytes OctoMap's ``write`` (``.ot``, every node's log-odds) writes for ``tree``
+    (``comment`` as for :func:`encode_bt`)."""
     nodes = tree.nodes()
     body, nodes = C.encode_ot(nodes.value, nodes.value.view(np.uint32), nodes.child, len(nodes.value))
     if nodes < 0:
         raise RuntimeError("octree node pool is inconsistent: a node below depth 16 or more reachable "
                            "nodes than stored values")
-    return _header(FULL_MAGIC, "OcTree", int(nodes), tree.resolution) + body.tobytes()
+    return _header(FULL_MAGIC, "OcTree", int(nodes), tree.resolution, comment) + body.tobytes()
 
 
 def write_bt(tree: OcTree, path) -> Path:

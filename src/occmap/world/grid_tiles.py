@@ -101,11 +101,9 @@ class TiledGrid2D(StoredMap, OneCallAtATime):
         self._S = np.empty((0, T, T), np.uint16)
         self._slots: OrderedDict[tuple[int, int], int] = OrderedDict()  # tile → slot, least recent first
         self._free: list[int] = []
-        self._dirty: set[tuple[int, int]] = set()
         self._codes = ScanCodes(np.uint16)
-        self._store: TileStore | None = None
         self._zarr: ZarrTiles | None = None
-        self._writer = None
+        self._no_store()
 
     @property
     def params(self) -> dict:
@@ -305,6 +303,7 @@ class TiledGrid2D(StoredMap, OneCallAtATime):
         self._zarr.write(index, log_odds)
         self._store.tiles[index] = self._entry(index, log_odds)
         self._dirty.discard(index)
+        self._written.add(index)
 
     def _entry(self, index, log_odds) -> dict:
         lo, hi = self.tile_bounds(index)
@@ -385,30 +384,21 @@ class TiledGrid2D(StoredMap, OneCallAtATime):
 
     # ------------------------------------------------------------------ the store
 
-    @classmethod
-    def create(cls, path, resolution: float, tile_size: int = DEFAULT_TILE_SIZE, **kwargs) -> TiledGrid2D:
-        """A new map in a new store folder ``path``, open for writing (see :meth:`open`)."""
-        tiled = cls(resolution, tile_size, **kwargs)
-        store = TileStore.create(path, "grid", tiled.resolution, tiled.tile_size, tiled.params)
-        tiled._zarr = ZarrTiles.create(store.path / TILES, tiled.tile_size)
-        tiled._attach(store, writable=True)
-        return tiled
+    KIND = "grid"
 
     @classmethod
-    def open(cls, path, writable: bool = False, memory_limit: int | None = None, region=None) -> TiledGrid2D:
-        """The map stored at ``path``; tiles are read as they are needed. ``writable``: hold the
-        store (one writer at a time) to add scans, which resume from the stored log-odds;
-        :meth:`close` writes the tiles and the index."""
-        store = TileStore.open(path, kind="grid")
+    def _from_store(cls, store: TileStore, region, memory_limit) -> TiledGrid2D:
         p = store.params
-        tiled = cls(store.resolution, store.tile_size, p.get("prior", 0.5), tuple(p.get("clamp", (0.1192, 0.971))),
-                    p.get("occupied_threshold", 0.5), region=region, memory_limit=memory_limit)
-        tiled.stats["scans"] = store.scans
-        tiled._zarr = ZarrTiles.open(store.path / TILES, store.tile_size, writable)
-        tiled._attach(store, writable)
-        return tiled
+        return cls(store.resolution, store.tile_size, p.get("prior", 0.5), tuple(p.get("clamp", (0.1192, 0.971))),
+                   p.get("occupied_threshold", 0.5), region=region, memory_limit=memory_limit)
 
-    def _write_tiles(self) -> None:
+    def _attach(self, store: TileStore, writable: bool, new: bool = False, lock: bool = True) -> None:
+        folder = store.path / TILES
+        self._zarr = ZarrTiles.create(folder, self.tile_size) if new else ZarrTiles.open(folder, self.tile_size,
+                                                                                          writable)
+        super()._attach(store, writable, new, lock)
+
+    def _write_changed(self) -> None:
         for index in list(self._slots):
             self._write_tile(index)
 

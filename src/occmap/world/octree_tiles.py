@@ -85,9 +85,7 @@ class TiledOcTree(StoredMap, OneCallAtATime):
         self.memory_limit = None if memory_limit is None else checks.count("memory_limit", memory_limit, minimum=1)
         self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         self._tiles: OrderedDict[tuple[int, int, int], OcTree] = OrderedDict()  # in memory, least recent first
-        self._dirty: set[tuple[int, int, int]] = set()
-        self._store: TileStore | None = None
-        self._writer = None
+        self._no_store()
         self._l_occ = logit32(self._template.occupied_threshold)
 
     @property
@@ -237,6 +235,7 @@ class TiledOcTree(StoredMap, OneCallAtATime):
         self._store.tiles[index] = {"file": str(path.relative_to(self._store.path)), "min": lo.tolist(),
                                     "max": hi.tolist(), "nodes": tree.num_nodes(), "bytes": len(data)}
         self._dirty.discard(index)
+        self._written.add(index)
 
     def tiles(self) -> list[tuple[int, int, int]]:
         """Indices of the tiles that hold nodes (in memory or in the store), sorted."""
@@ -275,25 +274,28 @@ class TiledOcTree(StoredMap, OneCallAtATime):
 
     # ------------------------------------------------------------------ one tree
 
-    def to_octree(self, box=None) -> OcTree:
+    def to_octree(self, box=None, offset=(0, 0, 0)) -> OcTree:
         """The tiles (those meeting ``box`` = (min, max) in metres, default all) joined into one
-        :class:`OcTree` in world coordinates: node for node the tree one process builds from the
-        same scans. Raises when they reach beyond OctoMap's key range."""
+        :class:`OcTree`: node for node the tree one process builds from the same scans. The tree's
+        coordinates are the world's less ``offset`` tiles (default none; see :meth:`export`).
+        Raises when the tiles reach beyond OctoMap's key range."""
         chosen = self._chosen(box)
+        offset = np.asarray(offset, np.int64)
         dt = DEPTH - self._bits
         sizes = []
         for index in chosen:
-            lo = np.array(index, np.int64) * self.tile_size + CENTER
+            lo = (np.array(index, np.int64) - offset) * self.tile_size + CENTER
             if np.any(lo < 0) or np.any(lo + self.tile_size - 1 > MAX_KEY):
                 bound = CENTER * self.resolution
                 raise InvalidArgumentError(f"tile {list(index)} lies beyond OctoMap's key range (±{bound:g} m at "
-                                           f"{self.resolution:g} m): export a box within it")
+                                           f"{self.resolution:g} m{' from the offset' if offset.any() else ''}): "
+                                           "export a smaller box")
             nodes = self._tile(index, create=False).nodes()
             sizes.append(graft.subtree_slots(nodes.value, nodes.child, _tile_node(nodes, dt)))
         value, child, meta = graft.new_pool(sum(sizes) + 8 * dt * (len(chosen) + 1))
         for index in chosen:
             nodes = self._tile(index, create=False).nodes()
-            k = np.array(index, np.int64) * self.tile_size + CENTER
+            k = (np.array(index, np.int64) - offset) * self.tile_size + CENTER
             graft.graft(value, child, meta, nodes.value, nodes.child, _tile_node(nodes, dt), k[0], k[1], k[2], dt)
         for d in range(dt - 1, -1, -1):  # the nodes above the tiles, deepest first, as updates leave them
             settle_tree(value, child, meta, d, True, True)
@@ -315,34 +317,41 @@ class TiledOcTree(StoredMap, OneCallAtATime):
 
     # ------------------------------------------------------------------ the store
 
-    @classmethod
-    def create(cls, path, resolution: float, tile_size: int = DEFAULT_TILE_SIZE, **kwargs) -> TiledOcTree:
-        """A new map in a new store folder ``path``, open for writing (see :meth:`open`)."""
-        tiled = cls(resolution, tile_size, **kwargs)
-        store = TileStore.create(path, "octree", tiled.resolution, tiled.tile_size, tiled.params)
-        tiled._attach(store, writable=True)
-        return tiled
+    KIND = "octree"
 
     @classmethod
-    def open(cls, path, writable: bool = False, memory_limit: int | None = None, region=None) -> TiledOcTree:
-        """The map stored at ``path``: tiles are read as they are needed. ``writable``: hold the
-        store (one writer at a time) to add scans; :meth:`close` writes the tiles and the index."""
-        store = TileStore.open(path, kind="octree")
+    def _from_store(cls, store: TileStore, region, memory_limit) -> TiledOcTree:
         p = store.params
-        tiled = cls(store.resolution, store.tile_size, p.get("prob_hit", 0.7), p.get("prob_miss", 0.4),
-                    tuple(p.get("clamp", (0.1192, 0.971))), p.get("occupied_threshold", 0.5), region=region,
-                    memory_limit=memory_limit)
-        tiled.stats["scans"] = store.scans
-        tiled._attach(store, writable)
-        return tiled
+        return cls(store.resolution, store.tile_size, p.get("prob_hit", 0.7), p.get("prob_miss", 0.4),
+                   tuple(p.get("clamp", (0.1192, 0.971))), p.get("occupied_threshold", 0.5), region=region,
+                   memory_limit=memory_limit)
 
-    def _write_tiles(self) -> None:
+    def _write_changed(self) -> None:
         for index, tree in self._tiles.items():
             self._write_tile(index, tree)
 
-    def write_bt(self, path, box=None):
-        """The joined tree (:meth:`to_octree`) written as OctoMap's ``.bt``."""
-        return write_atomic(path, encode_bt(self.to_octree(box)))
+    def export(self, path, box=None) -> np.ndarray:
+        """Write the tiles meeting ``box`` (default all) joined into one OctoMap file, ``.bt``
+        (maximum likelihood) or ``.ot`` (full log-odds) by ``path``'s extension. In world
+        coordinates when they fit OctoMap's key range; else relative to the lowest corner of the
+        exported tiles, and that offset is written in the header as the comment
+        ``occmap offset: x y z`` (metres to add for world coordinates; OctoMap skips comments).
+        Returns the offset (3,) in metres."""
+        suffix = str(path).lower().rsplit(".", 1)[-1]
+        if suffix not in ("bt", "ot"):
+            raise InvalidArgumentError(f"{str(path)!r}: an export is a .bt or .ot file")
+        offset = np.zeros(3, np.int64)
+        chosen = self._chosen(box)
+        if chosen:
+            t = np.array(chosen, np.int64)
+            reach = CENTER // self.tile_size
+            if np.any(t.min(axis=0) < -reach) or np.any(t.max(axis=0) >= reach):
+                offset = t.min(axis=0)
+        tree = self.to_octree(box, offset)
+        metres = offset * (self.tile_size * self.resolution)
+        comment = f"occmap offset: {metres[0]!r} {metres[1]!r} {metres[2]!r}" if offset.any() else None
+        write_atomic(path, (encode_bt if suffix == "bt" else encode_ot)(tree, comment))
+        return metres
 
     def __repr__(self) -> str:
         return (f"TiledOcTree({self.resolution} m, tiles of {self.tile_size} voxels, {len(self.tiles())} tiles, "

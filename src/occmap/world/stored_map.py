@@ -22,34 +22,92 @@ def region_box(region, dims: int) -> np.ndarray:
 
 
 class StoredMap:
-    """Base of the tiled maps: holding the store's writer, refusing changes to a map opened to
-    read, writing out (:meth:`flush`), finishing (:meth:`close`, or a ``with`` block, which leaves
-    the store marked incomplete when it ends by an exception).
+    """Base of the tiled maps: a map in a store folder.
 
-    A subclass sets ``_store`` and ``_writer`` to None, ``memory_limit`` and ``stats`` (with
-    ``"scans"``) in its constructor, calls :meth:`_attach` when it is in a store, and writes its
-    changed tiles and their index entries in ``_write_tiles()``.
+    :meth:`create` a new store, :meth:`open` one (to read, or ``writable`` to add scans: mapping
+    resumes with the stored log-odds), :meth:`build_part` for one worker of a parallel build (the
+    driver holds the store), :meth:`write_tiles`, :meth:`flush`, :meth:`close` (or a ``with``
+    block, which leaves the store marked incomplete when it ends by an exception).
+
+    A subclass names its store ``KIND``; its constructor takes ``(resolution, tile_size, …)`` and
+    the keywords ``region`` and ``memory_limit``, sets ``stats`` and calls :meth:`_no_store`; it
+    defines :meth:`_from_store` (a map with a store's parameters), ``_write_changed()`` (write its
+    changed tiles in memory, each through the store's index, adding them to ``_written``) and may
+    extend :meth:`_attach` (to open its tiles' files).
     """
 
-    def _attach(self, store: TileStore, writable: bool) -> None:
+    KIND = ""
+
+    def _no_store(self) -> None:
+        self._store: TileStore | None = None
+        self._writable = True  # False for a stored map opened to read
+        self._writer = None  # the store's writer lock while this map holds it
+        self._dirty: set = set()  # tiles changed since last written
+        self._written: set = set()  # tiles this map has written
+
+    @classmethod
+    def _from_store(cls, store: TileStore, region, memory_limit):
+        """A map with the store's resolution, tile size and parameters (no store attached)."""
+        raise NotImplementedError
+
+    @classmethod
+    def create(cls, path, *args, **kwargs):
+        """A new map (the constructor's arguments) in a new store folder ``path``, open for
+        writing."""
+        tiled = cls(*args, **kwargs)
+        store = TileStore.create(path, cls.KIND, tiled.resolution, tiled.tile_size, tiled.params)
+        tiled._attach(store, writable=True, new=True)
+        return tiled
+
+    @classmethod
+    def open(cls, path, writable: bool = False, memory_limit: int | None = None, region=None):
+        """The map stored at ``path``; tiles are read as they are needed. ``writable``: hold the
+        store (one writer at a time) to add scans; :meth:`close` writes the tiles and the index."""
+        store = TileStore.open(path, kind=cls.KIND)
+        tiled = cls._from_store(store, region, memory_limit)
+        tiled.stats["scans"] = store.scans
+        tiled._attach(store, writable)
+        return tiled
+
+    @classmethod
+    def build_part(cls, path, region, memory_limit: int | None = None):
+        """The map of one worker of a parallel build (:mod:`occmap.world.build`): the store at
+        ``path``, which the build's driver holds, open to write the tiles of ``region`` only;
+        :meth:`write_tiles` hands the driver what it wrote."""
+        store = TileStore.open(path, kind=cls.KIND, incomplete_ok=True)
+        part = cls._from_store(store, region, memory_limit)
+        part._attach(store, writable=True, lock=False)
+        return part
+
+    def _attach(self, store: TileStore, writable: bool, new: bool = False, lock: bool = True) -> None:
+        """Keep the map in ``store`` (``new``: just created); ``writable`` with ``lock``: hold its
+        writer."""
         self._store = store
-        if writable:
+        self._writable = writable
+        if writable and lock:
             self._writer = store.writer()
             self._writer.__enter__()
 
     def _check_writable(self) -> None:
         """Refuse to change a map opened to read, or one with a memory limit and no store."""
-        if self._store is not None and self._writer is None:
+        if not self._writable:
             raise InvalidArgumentError(f"{self._store.path}: the map was opened to read; open it with writable=True")
         if self.memory_limit is not None and self._store is None:
             raise InvalidArgumentError(f"memory_limit needs a store to write tiles to: {type(self).__name__}"
                                        ".create(path, …)")
 
+    def write_tiles(self) -> dict:
+        """Write the tiles changed since they were last written to the store; returns the index
+        entries (tile index → entry) of every tile this map has written."""
+        self._write_changed()
+        return {index: self._store.tiles[index] for index in self._written}
+
     def flush(self) -> None:
-        """Write the changed tiles and the index to the store (the map stays open)."""
+        """Write the changed tiles and the index to the store (the map stays open); nothing for a
+        map that does not hold its store's writer."""
         if self._writer is None:
             return
-        self._write_tiles()
+        self.write_tiles()
         self._store.scans = self.stats["scans"]
         self._store.save_index()
 

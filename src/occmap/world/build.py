@@ -1,0 +1,224 @@
+"""Building a tiled octree in parallel on Dask, equal to the map one process builds.
+
+Why it is exact. Clamping makes a voxel's log-odds depend on the order of its updates, so each
+voxel must take its updates in scan order. The build partitions *space*: the plane is cut along
+tile borders into as many regions as workers (:func:`partition`), and each worker takes every scan
+that can reach its region, in scan order, and applies the part of each ray inside its region
+(:class:`~occmap.world.octree_tiles.TiledOcTree` with ``region``): its walk is the global walk,
+computed from the sensor. A voxel lies in exactly one region, so it gets the updates it gets in
+one process, in the same order, whatever the number of workers, the tile size or the order in
+which Dask runs the work.
+
+The steps: (1) the *footprint* of each scan (its sensor, the box its rays can reach, its points),
+on the workers; (2) :func:`partition`: regions of about equal work (points), cut where the scans'
+sensors lie; (3) one task per region, which writes its tiles into the store; (4) the driver — which
+holds the store for writing all along — records the tiles in the index and marks the store
+complete. A build that stops part way leaves the store marked incomplete (:mod:`.store`).
+
+A scan read by several workers (near a region border) costs each of them the reading and the
+walking of its rays up to their region: that overlap, and the balance of the regions, are what
+keep the speed-up below the number of workers (:func:`balance`).
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+from .octree_tiles import DEFAULT_TILE_SIZE, TiledOcTree
+from .store import TileStore
+
+#: A tile index far beyond any map: the open sides of the outer regions.
+UNBOUNDED = 1 << 40
+
+
+@dataclass
+class BuildSummary:
+    """What a build did: the scans' counts (``stats``), the scans that had no pose (``no_pose``,
+    their numbers), the regions, and per region the scans it read, its points inserted, seconds,
+    peak memory (bytes) and tiles written."""
+
+    stats: dict
+    no_pose: list
+    regions: list
+    parts: list = field(default_factory=list)
+    seconds: float = 0.0
+    tiles: int = 0
+
+
+def footprint(source, k: int, max_range: float):
+    """Scan ``k``'s sensor (3,), the corners (3,), (3,) of the box its rays can reach (within
+    ``max_range`` of the sensor when ≥ 0) and its number of finite points."""
+    cloud = source.cloud(k)
+    origin = cloud.origin
+    finite = cloud.world_points()
+    finite = finite[np.all(np.isfinite(finite), axis=1)]
+    lo = np.minimum(finite.min(axis=0), origin) if len(finite) else origin.copy()
+    hi = np.maximum(finite.max(axis=0), origin) if len(finite) else origin.copy()
+    if max_range >= 0:
+        lo, hi = np.maximum(lo, origin - max_range), np.minimum(hi, origin + max_range)
+    return origin, lo, hi, len(finite)
+
+
+def partition(cells: np.ndarray, weights: np.ndarray, parts: int) -> list:
+    """At most ``parts`` regions (boxes of tile indices, z unbounded) that cover the plane, cut
+    along tile borders so that the ``weights`` of the scans whose sensors lie in tile columns
+    ``cells`` (S, 2) are split about evenly: recursive halving, each cut across the longer side of
+    the sensors' spread, between two of their columns (sensors all in one column make one region)."""
+    parts = int(parts)
+    if parts < 1:
+        raise InvalidArgumentError(f"parts must be ≥ 1, got {parts}")
+    out = []
+
+    def split(lo, hi, idx, n):
+        c = cells[idx]
+        spread = c.max(axis=0) - c.min(axis=0) if len(idx) else np.zeros(2, np.int64)
+        if n == 1 or not spread.any():
+            out.append((lo, hi))
+            return
+        axis = int(np.argmax(spread))
+        order = idx[np.argsort(c[:, axis], kind="stable")]
+        w = np.cumsum(weights[order])
+        left = n // 2
+        at = int(np.searchsorted(w, w[-1] * left / n))
+        first, last = int(cells[order[0], axis]), int(cells[order[-1], axis])
+        cut = min(max(int(cells[order[min(at, len(order) - 1)], axis]), first + 1), last)  # right side's first column
+        a_hi, b_lo = list(hi), list(lo)
+        a_hi[axis], b_lo[axis] = cut - 1, cut
+        mask = cells[idx, axis] < cut
+        split(lo, tuple(a_hi), idx[mask], left)
+        split(tuple(b_lo), hi, idx[~mask], n - left)
+
+    split((-UNBOUNDED, -UNBOUNDED), (UNBOUNDED, UNBOUNDED), np.arange(len(cells)), parts)
+    return [((r[0][0], r[0][1], -UNBOUNDED), (r[1][0], r[1][1], UNBOUNDED)) for r in out]
+
+
+def reaching(region, lo: np.ndarray, hi: np.ndarray, tile_metres: float) -> np.ndarray:
+    """Indices of the scans whose reach boxes (``lo``, ``hi`` (S, 3) metres) meet ``region``
+    (a voxel of margin is in the caller's test: here a whole tile)."""
+    r_lo = np.asarray(region[0], np.float64) * tile_metres - tile_metres
+    r_hi = (np.asarray(region[1], np.float64) + 1) * tile_metres + tile_metres
+    return np.flatnonzero(np.all((hi >= r_lo) & (lo <= r_hi), axis=1))
+
+
+def build_part(path, source, scans, region, max_range: float, discretize: bool, memory_limit, threads):
+    """One region's work (a Dask task): insert ``scans`` of ``source`` in order into the region's
+    tiles of the store at ``path``, write them; returns what the driver records."""
+    if threads:
+        import numba
+
+        numba.set_num_threads(int(threads))
+    t0 = time.perf_counter()
+    part = TiledOcTree.build_part(path, region, memory_limit)
+    summaries = {}
+    no_pose = []
+    inserted = 0
+    for k in scans:
+        cloud = source.cloud(int(k))
+        s = part.insert_point_cloud(cloud.world_points(), cloud.origin, max_range, discretize)
+        if s["scans"]:
+            summaries[int(k)] = s
+            inserted += s["points"]
+        if not cloud.has_pose:
+            no_pose.append(int(k))
+    tiles = part.write_tiles()
+    return {"tiles": tiles, "summaries": summaries, "no_pose": no_pose, "scans": len(scans), "points": inserted,
+            "seconds": time.perf_counter() - t0, "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
+
+
+def build_octree(path, source, resolution: float | None = None, tile_size: int = DEFAULT_TILE_SIZE, *,
+                 max_range: float = -1.0, discretize: bool = False, workers: int = 1, scheduler: str | None = None,
+                 memory_limit: int | None = None, progress=None, **params) -> BuildSummary:
+    """Insert the scans of ``source`` (:mod:`.sources`), in order, into the tiled octree stored at
+    ``path``: a new store (``resolution``, ``tile_size``, ``params`` as for
+    :class:`~occmap.world.octree_tiles.TiledOcTree`) or one that exists (mapping resumes).
+
+    ``workers`` = 1 without a ``scheduler`` builds in this process; more start a local Dask
+    cluster of that many worker processes; ``scheduler`` (``tcp://host:8786``) uses a running
+    cluster (its workers must see ``path`` and the source's files at the same paths).
+    ``memory_limit`` (bytes) bounds the tiles held in memory, split among the workers.
+    ``progress(text)`` is called as regions finish. The map is the same whatever the workers.
+    """
+    t0 = time.perf_counter()
+    store = _store(path, resolution, tile_size, params)
+    n = len(source)
+    with store.writer():
+        if workers == 1 and scheduler is None:
+            regions = [None]
+            parts = [build_part(store.path, source, range(n), None, max_range, discretize, memory_limit, 0)]
+            if progress:
+                progress(_part_line(0, parts[0]))
+        else:
+            regions, parts = _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory_limit,
+                                      progress)
+        stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+        summaries = {}
+        no_pose = set()
+        for part in parts:
+            store.tiles.update(part["tiles"])
+            summaries.update(part["summaries"])
+            no_pose.update(part["no_pose"])
+        for s in summaries.values():
+            for key in stats:
+                stats[key] += s[key]
+        store.scans += n
+    return BuildSummary(stats, sorted(no_pose), regions, parts, time.perf_counter() - t0, len(store.tiles))
+
+
+def _store(path, resolution, tile_size, params) -> TileStore:
+    """The store to build into: opened if ``path`` is one, else created."""
+    if (os.path.isdir(path) and os.listdir(path)) or os.path.isfile(path):
+        store = TileStore.open(path, kind="octree")
+        if resolution is not None and resolution != store.resolution:
+            raise InvalidArgumentError(f"{path}: the store's resolution is {store.resolution:g} m, not {resolution:g}")
+        return store
+    if resolution is None:
+        raise InvalidArgumentError(f"{path}: a new store needs a resolution")
+    template = TiledOcTree(resolution, tile_size, **params)
+    return TileStore.create(path, "octree", template.resolution, template.tile_size, template.params)
+
+
+def _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory_limit, progress):
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, memory_limit=0,
+                               dashboard_address=None, silence_logs=40)
+    client = Client(scheduler if scheduler is not None else cluster)
+    try:
+        count = len(client.scheduler_info()["workers"]) if scheduler is not None else int(workers)
+        feet = client.gather(client.map(footprint, [source] * n, range(n), [max_range] * n, pure=False))
+        origins = np.array([f[0] for f in feet]).reshape(-1, 3)
+        lo = np.array([f[1] for f in feet]).reshape(-1, 3)
+        hi = np.array([f[2] for f in feet]).reshape(-1, 3)
+        weights = np.array([f[3] for f in feet], np.float64) + 1.0
+        side = store.tile_size * store.resolution
+        cells = np.floor(origins[:, :2] / side).astype(np.int64)
+        regions = partition(cells, weights, count)
+        limit = None if memory_limit is None else max(1, int(memory_limit) // len(regions))
+        threads = max(1, (os.cpu_count() or 1) // len(regions)) if cluster is not None else 0
+        futures = {client.submit(build_part, str(store.path), source, reaching(r, lo, hi, side), r, max_range,
+                                 discretize, limit, threads, pure=False): i for i, r in enumerate(regions)}
+        parts = [None] * len(regions)
+        for future in as_completed(futures):
+            i = futures[future]
+            parts[i] = future.result()
+            if progress:
+                progress(_part_line(i, parts[i]))
+        return regions, parts
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _part_line(i: int, part: dict) -> str:
+    rate = part["points"] / part["seconds"] if part["seconds"] > 0 else 0.0
+    return (f"region {i}: {part['scans']:,} scans read, {part['points']:,} points in {part['seconds']:.1f} s "
+            f"({rate:,.0f} points/s), {len(part['tiles']):,} tiles, peak {part['peak_rss'] / 2**20:,.0f} MiB")

@@ -1,0 +1,53 @@
+"""Where a world-scale build reads its scans: a *scan source* is a picklable sequence of scans
+that any process can open by number, so Dask workers (local or remote, sharing the files) each read
+just the scans their region needs, in the same order.
+
+A source has ``len(source)``, ``source.cloud(k)``: scan ``k`` as a
+:class:`~occmap.cloud.PointCloud` (its ``world_points()`` and ``origin`` are what a map inserts;
+``has_pose`` false where the data gave no pose), and ``source.name(k)`` to name it in messages.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+
+class CloudFiles:
+    """Point-cloud files as a scan source, in order: each file one scan with its pose (PCD
+    ``VIEWPOINT``, 3DTK ``.frames``; identity where the format has none), an OctoMap ScanGraph
+    (``.graph``) one scan per node. ``**read_options`` go to :func:`occmap.io.pointclouds.read_cloud`."""
+
+    def __init__(self, paths, **read_options):
+        self.paths = [str(p) for p in paths]
+        self.read_options = read_options
+        self._scans = []  # (file, node or None)
+        for path in self.paths:
+            if path.endswith(".graph"):
+                self._scans += [(path, k) for k in range(len(_graph(path).nodes))]
+            else:
+                self._scans.append((path, None))
+
+    def __len__(self) -> int:
+        return len(self._scans)
+
+    def cloud(self, k: int):
+        """Scan ``k`` as a :class:`occmap.cloud.PointCloud`."""
+        path, node = self._scans[k]
+        if node is not None:
+            return _graph(path).nodes[node]
+        from ..io.pointclouds import read_cloud
+
+        return read_cloud(path, **self.read_options)
+
+    def name(self, k: int) -> str:
+        path, node = self._scans[k]
+        return path if node is None else f"{path} node {node}"
+
+
+@lru_cache(maxsize=1)
+def _graph(path: str):
+    """The last ScanGraph read in this process (a build reads its nodes one after another)."""
+    from ..io.scangraph import read_scangraph
+
+    return read_scangraph(Path(path))
