@@ -31,7 +31,7 @@ from collections import OrderedDict
 import numpy as np
 
 from .. import checks
-from .._threads import OneCallAtATime, ThreadChoice
+from .._threads import ThreadChoice
 from ..errors import InvalidArgumentError, ShapeError
 from ..grid2d import LidarModel, OccupancyGrid2D
 from ..grid2d._kernels import count_readings
@@ -54,7 +54,7 @@ THREADS = ThreadChoice(min_work=2048)
 _NO_ITEMS = np.empty(0, np.int64)
 
 
-class TiledGrid2D(StoredMap, OneCallAtATime):
+class TiledGrid2D(StoredMap):
     """A 2D occupancy grid in log-odds cut into tiles (see the module docstring); the semantics,
     parameters and names of a growing :class:`~occmap.grid2d.OccupancyGrid2D`.
 

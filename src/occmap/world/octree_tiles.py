@@ -30,7 +30,6 @@ import numpy as np
 
 from .. import checks
 from .._files import write_atomic
-from .._threads import OneCallAtATime
 from ..errors import FormatError, InvalidArgumentError, ShapeError
 from ..io.octomap import decode_ot, encode_bt, encode_ot
 from ..logodds import logit32, occupancy_classes
@@ -49,7 +48,7 @@ TILE_SUFFIX = ".ot"
 DEFAULT_TILE_SIZE = 512
 
 
-class TiledOcTree(StoredMap, OneCallAtATime):
+class TiledOcTree(StoredMap):
     """A 3D occupancy map with OctoMap's semantics, cut into tiles (see the module docstring).
 
     Parameters

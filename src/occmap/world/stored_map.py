@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError
 from .store import TileStore
 
@@ -21,8 +22,8 @@ def region_box(region, dims: int) -> np.ndarray:
     return r.astype(np.int64)
 
 
-class StoredMap:
-    """Base of the tiled maps: a map in a store folder.
+class StoredMap(OneCallAtATime):
+    """Base of the tiled maps: a map in a store folder (one call at a time, :class:`OneCallAtATime`).
 
     :meth:`create` a new store, :meth:`open` one (to read, or ``writable`` to add scans: mapping
     resumes with the stored log-odds), :meth:`build_part` for one worker of a parallel build (the
