@@ -10,7 +10,7 @@ import pytest
 from occmap.errors import FormatError, InvalidArgumentError, OccmapError
 from occmap.grid2d import LidarModel, OccupancyGrid2D
 from occmap.world.grid_tiles import TiledGrid2D
-from occmap.world.store import TileStore
+from occmap.world.store import IncompleteStoreError, TileStore
 
 RES = 0.05
 FAR = 2**40  # a region bound beyond any tile here
@@ -229,6 +229,13 @@ def test_bad_stores_are_clear_errors(tmp_path, rng):
         (x, y), = centre(index)
         cx, cy = int(np.floor(x / RES)) + 400, int(np.floor(y / RES)) + 400  # cells of `want` from (-20, -20)
         assert t.log_odds_at([[x, y]])[0] == pytest.approx(want[cy, cx], nan_ok=True)
+    # a build that stopped part way is marked incomplete and refused
+    with pytest.raises(RuntimeError):
+        with TiledGrid2D.create(tmp_path / "stopped", RES, 16) as t:
+            t.insert_scans(P, R, A, max_range=8.0)
+            raise RuntimeError("killed")
+    with pytest.raises(IncompleteStoreError):
+        TiledGrid2D.open(tmp_path / "stopped")
     # a tiles folder that is not the map's zarr array
     (tmp_path / "map" / "tiles" / "zarr.json").write_text("{}")
     with pytest.raises(FormatError, match="zarr"):
@@ -268,3 +275,17 @@ def test_parts_of_a_parallel_build_write_into_one_store(tmp_path, rng):
     back = TiledGrid2D.open(tmp_path / "map")
     _same(back.log_odds(_box(g)), g.log_odds())
     assert {i: {k: v for k, v in e.items() if k != "file"} for i, e in back.tiles().items()} == whole.tiles()
+
+
+def test_scans_past_the_stamp_codes_equal_the_grid(rng):
+    """The 16-bit stamps run out of scan codes every 32,767 scans (then every tile's stamps are
+    lowered): 70,000 small scans in calls of uneven sizes give the grid's cells."""
+    n = 70_000
+    P = np.column_stack([rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), rng.uniform(-np.pi, np.pi, n)])
+    A = np.linspace(-np.pi, np.pi, 6, endpoint=False)
+    R = rng.uniform(0.3, 1.2, (n, 6))
+    g = _grid(P, R, A, 1.0)
+    t = TiledGrid2D(RES, 8)
+    for i, j in ((0, 1), (1, 32_766), (32_766, 32_768), (32_768, 65_535), (65_535, 65_536), (65_536, n)):
+        t.insert_scans(P[i:j], R[i:j], A, max_range=1.0)
+    _same(t.log_odds(_box(g)), g.log_odds())

@@ -34,7 +34,7 @@ from .. import checks
 from .._threads import ThreadChoice
 from ..errors import InvalidArgumentError, ShapeError
 from ..grid2d import LidarModel, OccupancyGrid2D
-from ..grid2d._kernels import count_readings
+from ..grid2d._kernels import beam_extent, count_readings
 from ..grid2d.grid import scan_arrays
 from ..logodds import occupancy_classes, occupancy_values
 from ..raster.update import SEEN, UNSEEN, ScanCodes
@@ -156,16 +156,15 @@ class TiledGrid2D(StoredMap):
         model = LidarModel() if model is None else model
         P, R, A, max_range = scan_arrays(poses, ranges, angles, max_range)
         self._check_writable()
-        N, n = R.shape
-        kinds = np.empty((N, n), np.int8)
-        ex, ey = np.empty((N, n)), np.empty((N, n))
-        K.beam_ends(P, R, A, max_range, kinds, ex, ey)
-        self._check_reach(P, kinds, ex, ey)
+        self._check_reach(P, R, A, max_range)
         d = (model.l_hit - self._template.l_prior, model.l_miss - self._template.l_prior)
+        N = len(P)
         i = 0
         while i < N:
             code, k = self._codes.take(N - i, self._S)
-            self._insert_run(P[i:i + k], kinds[i:i + k], ex[i:i + k], ey[i:i + k], code, d)
+            for j in range(i, i + k, _RUN_SCANS):  # the beams' ends of a run at a time
+                s = slice(j, min(j + _RUN_SCANS, i + k))
+                self._insert_run(P[s], *_beam_ends(P[s], R[s], A[s], max_range), code + j - i, d)
             i += k
         used, dropped, maxed = count_readings(R, max_range)
         counts = {"scans": N, "points": int(used), "dropped": int(dropped), "beyond_max_range": int(maxed)}
@@ -173,19 +172,25 @@ class TiledGrid2D(StoredMap):
             self.stats[key] += value
         return counts
 
-    def _check_reach(self, P, kinds, ex, ey) -> None:
+    def _check_reach(self, P, R, A, max_range) -> None:
         """Refuse, naming it, a sensor position or beam end beyond the lattice's reach
         (±2⁵² cells; an overflowing end included), before anything changes."""
         limit = CELL_OFFSET * self.resolution
+        xmin, ymin, xmax, ymax = beam_extent(P, R, A, max_range)
+        if max(-xmin, -ymin, xmax, ymax) < limit:
+            return
         far = ~(np.abs(P[:, :2]) < limit).all(axis=1)
         if far.any():
             i = int(np.argmax(far))
             raise InvalidArgumentError(f"poses[{i}] = {P[i].tolist()} lies beyond the map's reach (±{limit:.6g} m)")
-        far = (kinds != 0) & ~((np.abs(ex) < limit) & (np.abs(ey) < limit))
-        if far.any():
-            i, j = np.unravel_index(int(np.argmax(far)), far.shape)
-            raise InvalidArgumentError(f"beam {j} of scan {i} (poses[{i}] = {P[i].tolist()}) ends at "
-                                       f"({ex[i, j]!r}, {ey[i, j]!r}), beyond the map's reach (±{limit:.6g} m)")
+        for i0 in range(0, len(P), _RUN_SCANS):
+            kinds, ex, ey = _beam_ends(P[i0:i0 + _RUN_SCANS], R[i0:i0 + _RUN_SCANS], A[i0:i0 + _RUN_SCANS], max_range)
+            far = (kinds != 0) & ~((np.abs(ex) < limit) & (np.abs(ey) < limit))
+            if far.any():
+                i, j = np.unravel_index(int(np.argmax(far)), far.shape)
+                raise InvalidArgumentError(
+                    f"beam {j} of scan {i0 + i} (poses[{i0 + i}] = {P[i0 + i].tolist()}) ends at ({ex[i, j]!r}, "
+                    f"{ey[i, j]!r}), beyond the map's reach (±{limit:.6g} m)")
 
     def _insert_run(self, P, kinds, ex, ey, code: int, d) -> None:
         """Integrate scans with stamp codes ``code, code + 1, …`` in runs small enough for the
@@ -405,3 +410,11 @@ class TiledGrid2D(StoredMap):
     def __repr__(self) -> str:
         return (f"TiledGrid2D({self.resolution} m, tiles of {self.tile_size} cells, {len(self.tiles())} tiles, "
                 f"{self.stats['scans']} scans)")
+
+
+def _beam_ends(P, R, A, max_range):
+    """``(kinds, ex, ey)`` (N, n) of scans' readings (:func:`._grid_kernels.beam_ends`)."""
+    kinds = np.empty(R.shape, np.int8)
+    ex, ey = np.empty(R.shape), np.empty(R.shape)
+    K.beam_ends(P, R, A, max_range, kinds, ex, ey)
+    return kinds, ex, ey
