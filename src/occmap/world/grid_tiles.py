@@ -81,10 +81,9 @@ class TiledGrid2D(StoredMap):
                  memory_limit: int | None = None):
         self._template = OccupancyGrid2D(resolution, prior=prior, clamp=clamp,
                                          occupied_threshold=occupied_threshold)  # checks them
-        t = self._template
-        self.resolution = t.resolution
-        self.prior, self.clamp, self.occupied_threshold = float(prior), tuple(float(c) for c in clamp), float(
-            t.occupied_threshold)
+        self.resolution = self._template.resolution
+        self.prior, self.clamp = float(prior), (float(clamp[0]), float(clamp[1]))
+        self.occupied_threshold = self._template.occupied_threshold
         self.tile_size = checks.count("tile_size", tile_size, minimum=1)
         if self.tile_size & (self.tile_size - 1):
             raise InvalidArgumentError(f"tile_size must be a power of two, got {tile_size}")
@@ -222,8 +221,8 @@ class TiledGrid2D(StoredMap):
                 break
             if cap is not None and len(tiles) > cap:
                 raise InvalidArgumentError(
-                    f"memory_limit = {self.memory_limit} bytes holds {cap} tiles, but scan {j} of the call crosses "
-                    f"{len(tiles)} (tiles of {self.tile_size}² cells, {self._tile_bytes} bytes each)")
+                    f"memory_limit = {self.memory_limit} bytes holds {cap} tiles, but one scan crosses {len(tiles)} "
+                    f"(tiles of {self.tile_size}² cells, {self._tile_bytes} bytes each)")
             if len(tiles):
                 self._apply(P[s], kinds[s], ex[s], ey[s], code + j, d, tiles, rows, cols, counts, table, tx0, ty0)
             j += m
