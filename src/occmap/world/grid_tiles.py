@@ -360,9 +360,11 @@ class TiledGrid2D(StoredMap):
         ``OccupancyGrid2D`` of the same scans and its own box, its ``log_odds()``."""
         x0, y0, x1, y1 = self.box_cells(box)
         out = np.full((y1 - y0, x1 - x0), np.nan, np.float32)
-        T = self.tile_size
-        stored = set() if self._store is None else set(self._store.tiles)
-        for tx, ty in sorted(stored | set(self._slots)):
+        T, b = self.tile_size, self._bits
+        known = set(self._slots) if self._store is None else set(self._slots) | set(self._store.tiles)
+        if x1 > x0 and y1 > y0 and ((x1 - 1 >> b) - (x0 >> b) + 1) * ((y1 - 1 >> b) - (y0 >> b) + 1) < len(known):
+            known &= {(tx, ty) for tx in range(x0 >> b, (x1 - 1 >> b) + 1) for ty in range(y0 >> b, (y1 - 1 >> b) + 1)}
+        for tx, ty in sorted(known):
             cx0, cy0 = max(tx * T, x0), max(ty * T, y0)
             cx1, cy1 = min(tx * T + T, x1), min(ty * T + T, y1)
             if cx0 >= cx1 or cy0 >= cy1:
