@@ -36,6 +36,7 @@ def test_readme_code_runs(tmp_path, monkeypatch):
     # halfway between the stamps 0 and 1 at t = 0.25: base_link moved 0.25 m along its own x
     expected = namespace["T_map_base"] @ namespace["SE3"].from_rt(np.eye(3), [0.25, 0, 0]) @ namespace["T_base_laser"]
     assert np.allclose(T.matrix, expected.matrix, atol=1e-12)
+    assert namespace["town"].stats["scans"] == 20 and (tmp_path / "town-tiles" / "index.json").is_file()
     if data is not None:
         assert (tmp_path / "intel.yaml").is_file() and (namespace["occupancy"] >= 65).any()  # clamped at 97
 

@@ -66,6 +66,9 @@ def test_commands_after_warmup_compile_nothing(tmp_path):
         ["info", f"{t_}/scan.bt"],
         ["convert", f"{t_}/scan.ot", f"{t_}/scan.ply"],
         ["render", f"{t_}/scan.bt", "-o", f"{t_}/slice.png", "--slice", "1.0"],
+        ["map3d", f"{t_}/scan.pcd", "--tiles", f"{t_}/store", "--resolution", "0.2", "-o", f"{t_}/store.bt"],
+        ["info", f"{t_}/store"],
+        ["export", f"{t_}/store", "-o", f"{t_}/box.ot", "--box", "-5", "-5", "-1", "5", "5", "3"],
     ]
     run = subprocess.run([sys.executable, "-c", HARNESS, json.dumps(commands)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr

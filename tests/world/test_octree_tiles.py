@@ -57,7 +57,30 @@ def test_tiles_joined_are_the_one_tree_byte_for_byte(drive, tile_size):
     probe = np.random.default_rng(0).uniform([-5, 0, -1], [60, 40, 8], size=(20000, 3))
     np.testing.assert_array_equal(tiled.log_odds_at(probe), ref.log_odds_at(probe))
     np.testing.assert_array_equal(tiled.occupancy_at(probe), ref.occupancy_at(probe))
+    box = ([2.0, 3.0, -1.0], [30.0, 20.0, 4.0])
+    a, b = ref.leaves(*box), tiled.leaves(*box)
+    if tile_size > 8:  # (tiles of 8 voxels: uniform ones that the tree holds as one larger leaf)
+        ka, kb = (np.lexsort(np.c_[lv.centers, lv.depths].T) for lv in (a, b))
+        for field in ("centers", "sizes", "log_odds", "depths"):
+            np.testing.assert_array_equal(getattr(b, field)[kb], getattr(a, field)[ka])
     assert tiled.stats == {**ref.stats, "beyond_max_range": tiled.stats["beyond_max_range"]}
+
+
+@pytest.mark.parametrize("tile_size", [8, 512])
+def test_rays_cast_across_tiles_stop_where_the_one_trees_do(drive, tile_size):
+    ref = _one_tree(drive, 0.2, max_range=40.0)
+    tiled = _tiled(drive, 0.2, tile_size, max_range=40.0)
+    directions = np.random.default_rng(1).normal(size=(4000, 3))
+    directions[0] = 0.0  # no direction: not cast
+    origin = drive[1][1]
+    for max_range, ignore_unknown in [(-1.0, False), (15.0, False), (25.0, True), (-1.0, True)]:
+        hit, ends = ref.cast_ray(origin, directions, max_range, ignore_unknown)
+        t_hit, t_ends = tiled.cast_ray(origin, directions, max_range, ignore_unknown)
+        np.testing.assert_array_equal(t_hit, hit)
+        same = hit if ignore_unknown and max_range <= 0 else slice(None)  # (borders differ: the tiles', the keys')
+        np.testing.assert_array_equal(t_ends[same], ends[same])
+        assert np.isnan(t_ends[0]).all()
+    assert not TiledOcTree(0.2).cast_ray(origin, directions, ignore_unknown=True)[0].any()  # an empty map
 
 
 @pytest.mark.parametrize("parts", [2, 4])

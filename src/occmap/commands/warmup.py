@@ -248,7 +248,39 @@ def octree(folder: Path) -> None:
     world.truth_voxels(0.5)
 
 
-JOBS = (geometry, grids, local_map, localization, octree)
+def world(folder: Path) -> None:
+    """Tiled octrees: insertion (small and large scans, a region), queries, joining, a store."""
+    from ..sim.world3d import VELODYNE_HDL32, simulate_drive
+    from ..world.octree_tiles import TiledOcTree
+
+    clouds = simulate_drive(2, VELODYNE_HDL32.with_azimuth_step(np.radians(0.32)), rng=3)  # 36,000 rays each
+    with TiledOcTree.create(folder / "tiles", 0.2, 64, memory_limit=1) as tiled:
+        for c in clouds:
+            tiled.insert_point_cloud(c.world_points(), c.origin, max_range=40.0)
+        small = clouds[0].world_points()[::40]
+        tiled.insert_point_cloud(small, clouds[0].origin, 10.0, discretize=True)
+    part = TiledOcTree(0.2, 64, region=((0, 0, -1), (3, 3, 1)))
+    part.insert_point_cloud(small, clouds[0].origin)
+    tiled = TiledOcTree.open(folder / "tiles")
+    tiled.occupancy_at(small)
+    tiled.cast_ray(clouds[0].origin, small[:50] - clouds[0].origin, max_range=30.0)
+    tiled.cast_ray(clouds[0].origin, small[:50] - clouds[0].origin, ignore_unknown=True)
+    tiled.leaves(bbx_min=[-5.0, -5.0, -1.0], bbx_max=[5.0, 5.0, 3.0])
+    tiled.export(folder / "tiles.bt")
+    tiled.export(folder / "tiles.ot", box=([-5.0, -5.0, -1.0], [5.0, 5.0, 3.0]))
+
+
+def city(folder: Path) -> None:
+    """The procedural town's scans and truth: casts and point tests through its grid of solids."""
+    from ..sim.city import CityDrive, CityPlan, city_laser_scan, city_scan
+
+    drive = CityDrive(CityPlan(size=(300.0, 300.0), route_length=300.0))
+    cloud = city_scan(1, drive)  # 14,400 rays: the parallel kernel
+    city_laser_scan(1, drive)  # 720 rays: the serial one
+    drive.city.occupied(cloud.world_points())
+
+
+JOBS = (geometry, grids, local_map, localization, octree, world, city)
 
 
 def run(args) -> int:

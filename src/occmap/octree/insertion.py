@@ -180,10 +180,14 @@ def _apply_halves(pool: P.Pool, keys, is_hit, rule, lazy: bool) -> bool:
         if not len(path):
             return False
     split = subtree_split(keys, shared, first)
-    # slot ranges: the first thread from the top of the pool (and the free list), the second
-    # above its range; a thread that runs out leaves its rest to this one
+    # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
+    # second above the first's range; a thread that runs out leaves its rest to this one. (The
+    # first's range is what the free list may lack: a range it never touches would join the free
+    # list, and the pool would grow scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
-    room_a = 8 * ((_ROOM_PER_VOXEL * (split - first) + _ROOM_MARGIN) // 8 + 1)
+    need_a = _ROOM_PER_VOXEL * (split - first)
+    need_a -= P.free_slots(pool.child, pool.meta[P.FREE], need_a)
+    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1)
     room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
     if pool.value.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)

@@ -83,6 +83,18 @@ def path_to(value, child, key, depth):
 
 
 @kernel
+def free_slots(child, head, limit):
+    """Slots on the free list that starts at block ``head``, counted up to ``limit`` (or a block
+    more)."""
+    n = 0
+    c = head
+    while c >= 0 and n < limit:
+        n += 8
+        c = child[c]
+    return n
+
+
+@kernel
 def join_pools(child, meta, meta_a, meta_b, gap_lo, gap_hi):
     """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``, with the pool's free
     list) and [gap_hi, ·) (``meta_b``): one pool again, the first range's unused blocks

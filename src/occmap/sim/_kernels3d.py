@@ -1,12 +1,13 @@
 """Numba kernels of the 3D simulator: exact ray casting against axis-aligned boxes, vertical
-cylinders and a ground plane; the point-in-solid test; and the voxel rasterisation of the truth.
+cylinders and a ground plane, over all solids or through a 2D grid of them; the point-in-solid
+test; and the voxel rasterisation of the truth.
 
 Plain float64 arrays in, arrays out; the caller validates shapes and finiteness and allocates
 ``out``. Boxes are rows ``[xmin, ymin, zmin, xmax, ymax, zmax]``, cylinders rows
 ``[cx, cy, r, zmin, zmax]`` (vertical axis), the ground the half-space ``z <= ground_z`` when
 ``has_ground``. Every solid is closed: a point on a surface is inside.
 
-The per-ray work is written out inline in one serial kernel over a span of rays (a call to a
+The per-ray work runs in one serial kernel over a span of rays, its helpers inlined (a call to a
 helper that takes arrays costs ~25 ns inside Numba, as much as testing a box); the parallel kernel
 hands out chunks of rays to it, one call per chunk. No fastmath: the hit tests rely on IEEE
 comparisons with ±inf.
@@ -42,106 +43,131 @@ def _slab(near, far, o, d, inv, tn, tf):
     return np.inf, -np.inf
 
 
+@inline_kernel
+def _box_entry(boxes, j, nxc, nyc, nzc, ox, oy, oz, dx, dy, dz, ix, iy, iz, best):
+    """``best`` lowered to where the ray enters box ``j``, if it does so nearer (0 when it starts
+    inside or on it): the slab test, entry = largest near-slab distance, exit = smallest far-slab
+    distance; an axis the ray runs parallel to is either always inside its slab or never.
+    ``nxc``, ``nyc``, ``nzc`` are the columns of the near face on each axis (0–2 for a positive
+    direction, 3–5 for a negative one)."""
+    tn, tf = _slab(boxes[j, nxc], boxes[j, 3 - nxc], ox, dx, ix, -np.inf, np.inf)
+    tn, tf = _slab(boxes[j, nyc], boxes[j, 5 - nyc], oy, dy, iy, tn, tf)
+    if tn > tf or tf < 0.0 or tn >= best:
+        return best  # early out: most boxes miss in plan view
+    tn, tf = _slab(boxes[j, nzc], boxes[j, 7 - nzc], oz, dz, iz, tn, tf)
+    if tn > tf or tf < 0.0:
+        return best
+    tn = tn if tn > 0.0 else 0.0
+    return tn if tn < best else best
+
+
+@inline_kernel
+def _cylinder_entry(cylinders, j, ox, oy, oz, dx, dy, dz, iz, a, best):
+    """``best`` lowered to where the ray enters vertical cylinder ``j``, if it does so nearer (0
+    when it starts inside or on it): the radial quadratic (``a = dx² + dy²``, roots written
+    without cancellation) intersected with the z slab. A tangent ray touches the surface and
+    counts as a hit."""
+    tn = -np.inf
+    tf = np.inf
+    lo = cylinders[j, 3]
+    hi = cylinders[j, 4]
+    if dz == 0.0:
+        if oz < lo or oz > hi:
+            return best
+    else:
+        t1 = (lo - oz) * iz
+        t2 = (hi - oz) * iz
+        tn = t1 if t1 < t2 else t2
+        tf = t2 if t1 < t2 else t1
+    fx = ox - cylinders[j, 0]
+    fy = oy - cylinders[j, 1]
+    r = cylinders[j, 2]
+    c = fx * fx + fy * fy - r * r
+    if a == 0.0:
+        if c > 0.0:
+            return best  # a vertical ray outside the disc
+    else:
+        b = fx * dx + fy * dy
+        if c > 0.0 and b >= 0.0:
+            return best  # outside the disc and not closing in on it
+        disc = b * b - a * c
+        if disc < 0.0:
+            return best
+        sq = math.sqrt(disc)
+        q = -b - sq if b >= 0.0 else -b + sq
+        if q == 0.0:
+            t1 = 0.0  # b = 0 and disc = 0: c = 0, the ray touches at its origin
+            t2 = 0.0
+        else:
+            t1 = q / a
+            t2 = c / q
+            if t1 > t2:
+                t1, t2 = t2, t1
+        if t1 > tn:
+            tn = t1
+        if t2 < tf:
+            tf = t2
+    if tn > tf or tf < 0.0:
+        return best
+    if tn < 0.0:
+        tn = 0.0
+    return tn if tn < best else best
+
+
+@inline_kernel
+def _ray(origins, directions, i, ostep):
+    """Ray ``i``: its origin (row ``i·ostep``: one per ray, or one for all), its direction and the
+    direction's reciprocals (0 for a zero component)."""
+    k = i * ostep
+    dx = directions[i, 0]
+    dy = directions[i, 1]
+    dz = directions[i, 2]
+    return (origins[k, 0], origins[k, 1], origins[k, 2], dx, dy, dz,
+            1.0 / dx if dx != 0.0 else 0.0, 1.0 / dy if dy != 0.0 else 0.0,
+            1.0 / dz if dz != 0.0 else 0.0)
+
+
+@inline_kernel
+def _near_columns(dx, dy, dz):
+    """The columns of a box row that hold the face a ray of this direction meets first, per axis."""
+    return 0 if dx >= 0.0 else 3, 1 if dy >= 0.0 else 4, 2 if dz >= 0.0 else 5
+
+
+@inline_kernel
+def _ground_entry(oz, dz, iz, ground_z, has_ground):
+    """Where the ray meets the ground half-space (0 when it starts on or below it), else inf."""
+    if has_ground:
+        if oz <= ground_z:
+            return 0.0
+        if dz < 0.0:
+            return (ground_z - oz) * iz
+    return np.inf
+
+
 @kernel
 def cast_span(origins, directions, boxes, cylinders, ground_z, has_ground, max_range, start, stop,
               out):
     """``out[i]`` for ``start <= i < stop`` = distance along the unit ray ``origins[k] +
     t·directions[i]`` (t ≥ 0) to the first solid, ``inf`` when none lies within ``max_range``;
     ``k = i`` when ``origins`` has one row per ray, else 0 (one origin for all). A ray that starts
-    inside or on a solid reads 0.
-
-    Boxes: the slab test (entry = largest near-slab distance, exit = smallest far-slab distance;
-    an axis the ray runs parallel to is either always inside its slab or never). Cylinders: the
-    radial quadratic (roots written without cancellation) intersected with the z slab. A tangent
-    ray touches the surface and counts as a hit."""
+    inside or on a solid reads 0. Every box and cylinder is tested (:func:`_box_entry`,
+    :func:`_cylinder_entry`); :func:`cast_grid_span` tests only those along the ray."""
     ostep = 1 if origins.shape[0] > 1 else 0  # one origin per ray, or one for all
     nb = boxes.shape[0]
     nc = cylinders.shape[0]
     for i in range(start, stop):
-        k = i * ostep
-        ox = origins[k, 0]
-        oy = origins[k, 1]
-        oz = origins[k, 2]
-        dx = directions[i, 0]
-        dy = directions[i, 1]
-        dz = directions[i, 2]
-        ix = 1.0 / dx if dx != 0.0 else 0.0
-        iy = 1.0 / dy if dy != 0.0 else 0.0
-        iz = 1.0 / dz if dz != 0.0 else 0.0
-        best = np.inf
-        if has_ground:
-            if oz <= ground_z:
-                best = 0.0
-            elif dz < 0.0:
-                best = (ground_z - oz) * iz
-        # per ray, the columns of a box row that hold the near and the far face on each axis
-        nxc = 0 if dx >= 0.0 else 3
-        nyc = 1 if dy >= 0.0 else 4
-        nzc = 2 if dz >= 0.0 else 5
-        # ---- boxes
+        ox, oy, oz, dx, dy, dz, ix, iy, iz = _ray(origins, directions, i, ostep)
+        nxc, nyc, nzc = _near_columns(dx, dy, dz)
+        best = _ground_entry(oz, dz, iz, ground_z, has_ground)
         for j in range(nb):
             if best == 0.0:
                 break
-            tn, tf = _slab(boxes[j, nxc], boxes[j, 3 - nxc], ox, dx, ix, -np.inf, np.inf)
-            tn, tf = _slab(boxes[j, nyc], boxes[j, 5 - nyc], oy, dy, iy, tn, tf)
-            if tn > tf or tf < 0.0 or tn >= best:
-                continue  # early out: most boxes miss in plan view
-            tn, tf = _slab(boxes[j, nzc], boxes[j, 7 - nzc], oz, dz, iz, tn, tf)
-            if tn > tf or tf < 0.0:
-                continue
-            tn = tn if tn > 0.0 else 0.0
-            best = tn if tn < best else best
-        # ---- vertical cylinders
+            best = _box_entry(boxes, j, nxc, nyc, nzc, ox, oy, oz, dx, dy, dz, ix, iy, iz, best)
         a = dx * dx + dy * dy
         for j in range(nc):
             if best == 0.0:
                 break
-            tn = -np.inf
-            tf = np.inf
-            lo = cylinders[j, 3]
-            hi = cylinders[j, 4]
-            if dz == 0.0:
-                if oz < lo or oz > hi:
-                    continue
-            else:
-                t1 = (lo - oz) * iz
-                t2 = (hi - oz) * iz
-                tn = t1 if t1 < t2 else t2
-                tf = t2 if t1 < t2 else t1
-            fx = ox - cylinders[j, 0]
-            fy = oy - cylinders[j, 1]
-            r = cylinders[j, 2]
-            c = fx * fx + fy * fy - r * r
-            if a == 0.0:
-                if c > 0.0:
-                    continue  # a vertical ray outside the disc
-            else:
-                b = fx * dx + fy * dy
-                if c > 0.0 and b >= 0.0:
-                    continue  # outside the disc and not closing in on it
-                disc = b * b - a * c
-                if disc < 0.0:
-                    continue
-                sq = math.sqrt(disc)
-                q = -b - sq if b >= 0.0 else -b + sq
-                if q == 0.0:
-                    t1 = 0.0  # b = 0 and disc = 0: c = 0, the ray touches at its origin
-                    t2 = 0.0
-                else:
-                    t1 = q / a
-                    t2 = c / q
-                    if t1 > t2:
-                        t1, t2 = t2, t1
-                if t1 > tn:
-                    tn = t1
-                if t2 < tf:
-                    tf = t2
-            if tn > tf or tf < 0.0:
-                continue
-            if tn < 0.0:
-                tn = 0.0
-            if tn < best:
-                best = tn
+            best = _cylinder_entry(cylinders, j, ox, oy, oz, dx, dy, dz, iz, a, best)
         out[i] = best if best <= max_range else np.inf
     return out
 
@@ -206,6 +232,24 @@ def lidar_points(directions, ranges, noise, uniform, dropout, min_range, max_ran
     return n
 
 
+@inline_kernel
+def _in_box(boxes, j, x, y, z):
+    """Whether the point lies inside or on box ``j``."""
+    return (boxes[j, 0] <= x <= boxes[j, 3] and boxes[j, 1] <= y <= boxes[j, 4]
+            and boxes[j, 2] <= z <= boxes[j, 5])
+
+
+@inline_kernel
+def _in_cylinder(cylinders, j, x, y, z):
+    """Whether the point lies inside or on vertical cylinder ``j``."""
+    if not cylinders[j, 3] <= z <= cylinders[j, 4]:
+        return False
+    fx = x - cylinders[j, 0]
+    fy = y - cylinders[j, 1]
+    r = cylinders[j, 2]
+    return fx * fx + fy * fy <= r * r
+
+
 @kernel_parallel
 def occupied(points, boxes, cylinders, ground_z, has_ground, out):
     """``out[i]`` = whether ``points[i]`` lies inside or on a solid (or on or below the ground)."""
@@ -216,21 +260,165 @@ def occupied(points, boxes, cylinders, ground_z, has_ground, out):
         y = points[i, 1]
         z = points[i, 2]
         hit = has_ground and z <= ground_z
-        if not hit:
-            for j in range(nb):
-                if (boxes[j, 0] <= x <= boxes[j, 3] and boxes[j, 1] <= y <= boxes[j, 4]
-                        and boxes[j, 2] <= z <= boxes[j, 5]):
-                    hit = True
-                    break
-        if not hit:
-            for j in range(nc):
-                if cylinders[j, 3] <= z <= cylinders[j, 4]:
-                    fx = x - cylinders[j, 0]
-                    fy = y - cylinders[j, 1]
-                    r = cylinders[j, 2]
-                    if fx * fx + fy * fy <= r * r:
-                        hit = True
+        for j in range(nb):
+            if hit:
+                break
+            hit = _in_box(boxes, j, x, y, z)
+        for j in range(nc):
+            if hit:
+                break
+            hit = _in_cylinder(cylinders, j, x, y, z)
+        out[i] = hit
+    return out
+
+
+# ------------------------------------------------------------------ the solids on a 2D grid
+#
+# A world of thousands of solids is cast against through a uniform grid over the xy plane: cell
+# (cx, cy) spans [x0 + cx·cell, x0 + (cx+1)·cell] × [y0 + cy·cell, y0 + (cy+1)·cell] and lists
+# (CSR: ``start[c] .. start[c+1]`` into ``items``, c = cy·nx + cx) every solid whose footprint,
+# grown by a margin, meets it. A ray visits the cells its xy shadow crosses, nearest first
+# (Amanatides–Woo), testing only their solids, and stops once its nearest hit lies before the cell's
+# far edge. The result is the very value :func:`cast_span` gives over all solids (the same tests,
+# the same minimum): a solid hit at t lies under the ray's shadow at t, and the margin (far above
+# the rounding of the walk, ~1e-12 m) puts it into every cell the walk may assign that stretch of
+# the shadow to, also where the shadow grazes a cell corner or an edge.
+
+
+@kernel
+def bin_rects(rects, x0, y0, cell, nx, ny):
+    """The CSR lists ``(start (nx·ny + 1,), items)`` of the grid cells (see above) that each
+    rectangle ``[xmin, ymin, xmax, ymax]`` of ``rects`` (N, 4) meets; ``items`` holds rectangle
+    indices, ascending within a cell. Cell indices are clipped to the grid."""
+    n = rects.shape[0]
+    lo = np.empty((n, 2), dtype=np.int64)
+    hi = np.empty((n, 2), dtype=np.int64)
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    for k in range(n):
+        lo[k, 0] = min(max(int(math.floor((rects[k, 0] - x0) / cell)), 0), nx - 1)
+        lo[k, 1] = min(max(int(math.floor((rects[k, 1] - y0) / cell)), 0), ny - 1)
+        hi[k, 0] = min(max(int(math.floor((rects[k, 2] - x0) / cell)), 0), nx - 1)
+        hi[k, 1] = min(max(int(math.floor((rects[k, 3] - y0) / cell)), 0), ny - 1)
+        for cy in range(lo[k, 1], hi[k, 1] + 1):
+            for cx in range(lo[k, 0], hi[k, 0] + 1):
+                start[cy * nx + cx + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    items = np.empty(start[nx * ny], dtype=np.int64)
+    for k in range(n):
+        for cy in range(lo[k, 1], hi[k, 1] + 1):
+            for cx in range(lo[k, 0], hi[k, 0] + 1):
+                c = cy * nx + cx
+                items[fill[c]] = k
+                fill[c] += 1
+    return start, items
+
+
+@inline_kernel
+def _edge_time(x0, cell, c, step, o, inv):
+    """The ray parameter at which it leaves grid column (or row) ``c`` moving by ``step`` (±1),
+    inf when it runs parallel to the columns (``step`` 0)."""
+    if step == 0:
+        return np.inf
+    return (x0 + (c + 1 if step > 0 else c) * cell - o) * inv
+
+
+@kernel
+def cast_grid_span(origins, directions, boxes, cylinders, ground_z, has_ground, max_range, x0, y0,
+                   cell, nx, ny, box_start, box_items, cyl_start, cyl_items, start, stop, out):
+    """:func:`cast_span` for rays ``start .. stop``, testing only the solids of the grid cells
+    (see above) along each ray, up to the first hit, ``max_range`` or the grid's edge."""
+    ostep = 1 if origins.shape[0] > 1 else 0
+    x1 = x0 + nx * cell
+    y1 = y0 + ny * cell
+    for i in range(start, stop):
+        ox, oy, oz, dx, dy, dz, ix, iy, iz = _ray(origins, directions, i, ostep)
+        nxc, nyc, nzc = _near_columns(dx, dy, dz)
+        best = _ground_entry(oz, dz, iz, ground_z, has_ground)
+        a = dx * dx + dy * dy
+        # the stretch [tn, tf] of the ray over the grid and within max_range
+        tn, tf = _slab(x0 if dx >= 0.0 else x1, x1 if dx >= 0.0 else x0, ox, dx, ix, 0.0, max_range)
+        tn, tf = _slab(y0 if dy >= 0.0 else y1, y1 if dy >= 0.0 else y0, oy, dy, iy, tn, tf)
+        if tn <= tf and best > 0.0:
+            cx = min(max(int(math.floor((ox + tn * dx - x0) / cell)), 0), nx - 1)
+            cy = min(max(int(math.floor((oy + tn * dy - y0) / cell)), 0), ny - 1)
+            sx = 0 if dx == 0.0 else (1 if dx > 0.0 else -1)
+            sy = 0 if dy == 0.0 else (1 if dy > 0.0 else -1)
+            tx = _edge_time(x0, cell, cx, sx, ox, ix)
+            ty = _edge_time(y0, cell, cy, sy, oy, iy)
+            while True:
+                c = cy * nx + cx
+                for m in range(box_start[c], box_start[c + 1]):
+                    if best == 0.0:
                         break
+                    best = _box_entry(boxes, box_items[m], nxc, nyc, nzc, ox, oy, oz, dx, dy, dz,
+                                      ix, iy, iz, best)
+                for m in range(cyl_start[c], cyl_start[c + 1]):
+                    if best == 0.0:
+                        break
+                    best = _cylinder_entry(cylinders, cyl_items[m], ox, oy, oz, dx, dy, dz, iz, a,
+                                           best)
+                t_exit = tx if tx < ty else ty
+                if best <= t_exit or t_exit >= tf:
+                    break
+                if tx < ty:
+                    cx += sx
+                    if cx < 0 or cx >= nx:
+                        break
+                    tx = _edge_time(x0, cell, cx, sx, ox, ix)
+                else:
+                    cy += sy
+                    if cy < 0 or cy >= ny:
+                        break
+                    ty = _edge_time(y0, cell, cy, sy, oy, iy)
+        out[i] = best if best <= max_range else np.inf
+    return out
+
+
+@kernel
+def cast_grid_rays(origins, directions, boxes, cylinders, ground_z, has_ground, max_range, x0, y0,
+                   cell, nx, ny, box_start, box_items, cyl_start, cyl_items, out):
+    """:func:`cast_grid_span` over all rays, on one core."""
+    return cast_grid_span(origins, directions, boxes, cylinders, ground_z, has_ground, max_range,
+                          x0, y0, cell, nx, ny, box_start, box_items, cyl_start, cyl_items, 0,
+                          directions.shape[0], out)
+
+
+@kernel_parallel
+def cast_grid_rays_parallel(origins, directions, boxes, cylinders, ground_z, has_ground, max_range,
+                            x0, y0, cell, nx, ny, box_start, box_items, cyl_start, cyl_items, out):
+    """:func:`cast_grid_span` over all rays, in chunks of :data:`CHUNK` rays on all cores."""
+    n = directions.shape[0]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        cast_grid_span(origins, directions, boxes, cylinders, ground_z, has_ground, max_range, x0,
+                       y0, cell, nx, ny, box_start, box_items, cyl_start, cyl_items, c * CHUNK,
+                       min(n, (c + 1) * CHUNK), out)
+    return out
+
+
+@kernel_parallel
+def occupied_grid(points, boxes, cylinders, ground_z, has_ground, x0, y0, cell, nx, ny, box_start,
+                  box_items, cyl_start, cyl_items, out):
+    """:func:`occupied`, testing only the solids listed in the grid cell (see above) of each
+    point; a point off the grid is inside no solid."""
+    for i in prange(points.shape[0]):
+        x = points[i, 0]
+        y = points[i, 1]
+        z = points[i, 2]
+        hit = has_ground and z <= ground_z
+        fx = math.floor((x - x0) / cell)
+        fy = math.floor((y - y0) / cell)
+        if not hit and 0.0 <= fx < nx and 0.0 <= fy < ny:
+            c = int(fy) * nx + int(fx)
+            for m in range(box_start[c], box_start[c + 1]):
+                if hit:
+                    break
+                hit = _in_box(boxes, box_items[m], x, y, z)
+            for m in range(cyl_start[c], cyl_start[c + 1]):
+                if hit:
+                    break
+                hit = _in_cylinder(cylinders, cyl_items[m], x, y, z)
         out[i] = hit
     return out
 

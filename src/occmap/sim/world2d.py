@@ -145,14 +145,23 @@ def _drop_duplicates(p):
 
 def _resample_path(points, n):
     """``n`` poses evenly spaced by arc length along the polyline, heading along the path."""
+    p, s = _arc_lengths(points)
+    # heading from the chord between points half a step ahead and behind (one-sided at the ends)
+    return _poses_along(p, s, np.linspace(0.0, s[-1], n), 0.5 * s[-1] / (n - 1))
+
+
+def _arc_lengths(points):
+    """The polyline without repeated points, and the arc length at each of its points."""
     p = _drop_duplicates(np.asarray(points, dtype=np.float64))
     seg = np.hypot(*np.diff(p, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    t = np.linspace(0.0, s[-1], n)
+    return p, np.concatenate([[0.0], np.cumsum(seg)])
+
+
+def _poses_along(p, s, t, h):
+    """Poses ``(len(t), 3)`` at arc lengths ``t`` along the polyline ``p`` (arc lengths ``s``),
+    heading along the chord from ``t − h`` to ``t + h`` (clipped to the ends)."""
     x = np.interp(t, s, p[:, 0])
     y = np.interp(t, s, p[:, 1])
-    # heading from the chord between points half a step ahead and behind (one-sided at the ends)
-    h = 0.5 * s[-1] / (n - 1)
     ta = np.clip(t + h, 0.0, s[-1])
     tb = np.clip(t - h, 0.0, s[-1])
     dx = np.interp(ta, s, p[:, 0]) - np.interp(tb, s, p[:, 0])

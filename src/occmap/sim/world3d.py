@@ -4,9 +4,11 @@ The world is a set of solid axis-aligned boxes (buildings, walls, car bodies, a 
 vertical cylinders (poles, tree trunks and crowns) and, optionally, the ground: the half-space
 ``z <= ground_z``. Every solid is closed (a point on its surface is inside). Rays are cast
 exactly against them (:meth:`World3D.cast`: the slab test for boxes, the radial quadratic for
-cylinders), :func:`simulate_lidar` turns one sensor pose into an :class:`~occmap.cloud.PointCloud`
-the way a Velodyne would, and :meth:`World3D.truth_voxels` rasterises the truth on the octree's
-voxel grid (voxel ``k`` per axis spans ``[k·res, (k+1)·res)``, key ``k + 32768``).
+cylinders; in a world of more than :data:`GRID_MIN_SOLIDS` solids through a 2D grid of them,
+:mod:`occmap.sim.solid_grid`, with the same results), :func:`simulate_lidar` turns one sensor
+pose into an :class:`~occmap.cloud.PointCloud` the way a Velodyne would, and
+:meth:`World3D.truth_voxels` rasterises the truth on the octree's voxel grid (voxel ``k`` per
+axis spans ``[k·res, (k+1)·res)``, key ``k + 32768``).
 
 >>> world = World3D.default()
 >>> poses = world.default_trajectory(n_scans=60)            # (60, 4, 4) T_world_sensor
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -28,12 +30,14 @@ from ..cloud import PointCloud
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..geometry.se3 import SE3
 from . import _kernels3d
+from .solid_grid import SolidGrid, build_grid
 from .world2d import _as_rows, _resample_path, _rng
 
 __all__ = [
     "LidarModel",
     "VELODYNE_HDL32",
     "VELODYNE_HDL64",
+    "VELODYNE_VLP16",
     "VoxelTruth",
     "World3D",
     "simulate_drive",
@@ -81,9 +85,10 @@ _DEFAULT_BOXES = np.array(
 )
 
 
-def _tree(x, y):
-    """A trunk (r 0.2 m, up to 3 m) and a crown (r 1.0 m, 3–6.5 m): the crown overhangs."""
-    return [(x, y, 0.2, 0.0, 3.0), (x, y, 1.0, 3.0, 6.5)]
+def _tree(x, y, trunk_r=0.2, crown_r=1.0, trunk_top=3.0, top=6.5):
+    """A trunk (by default r 0.2 m, up to 3 m) and a crown above it (r 1.0 m, 3–6.5 m): the
+    crown overhangs."""
+    return [(x, y, trunk_r, 0.0, trunk_top), (x, y, crown_r, trunk_top, top)]
 
 
 _DEFAULT_CYLINDERS = np.array(
@@ -116,6 +121,10 @@ def _default_path():
     phi = np.linspace(0.0, np.pi / 2.0, 91)
     arc = np.stack([32.0 + 6.0 * np.sin(phi), 26.0 - 6.0 * np.cos(phi)], axis=1)
     return np.vstack([[(3.0, 20.0)], arc, [(38.0, 36.0)]])
+
+
+#: Worlds with more solids than this are cast against through a grid of them (World3D._grid).
+GRID_MIN_SOLIDS = 64
 
 
 # ------------------------------------------------------------------ voxel truth
@@ -152,6 +161,25 @@ class VoxelTruth(NamedTuple):
 
 
 # ------------------------------------------------------------------ the world
+
+
+def level_poses(poses2d, z) -> np.ndarray:
+    """Transforms ``T_world_sensor`` (N, 4, 4) of a level sensor (no roll or pitch) at planar
+    poses ``(x, y, theta)`` (N, 3) and height ``z``: its x axis along ``theta``."""
+    p = np.asarray(poses2d, dtype=np.float64).reshape(-1, 3)
+    c = np.cos(p[:, 2])
+    s = np.sin(p[:, 2])
+    T = np.zeros((p.shape[0], 4, 4))
+    T[:, 0, 0] = c
+    T[:, 0, 1] = -s
+    T[:, 1, 0] = s
+    T[:, 1, 1] = c
+    T[:, 2, 2] = 1.0
+    T[:, 3, 3] = 1.0
+    T[:, 0, 3] = p[:, 0]
+    T[:, 1, 3] = p[:, 1]
+    T[:, 2, 3] = z
+    return T
 
 
 def _as_points(name, a):
@@ -258,20 +286,7 @@ class World3D:
         n = checks.count("n_scans", n_scans, 2)
         if not math.isfinite(height):
             raise NonFiniteError(f"height must be finite, got {height}")
-        p = _resample_path(self.waypoints, n)
-        c = np.cos(p[:, 2])
-        s = np.sin(p[:, 2])
-        T = np.zeros((n, 4, 4))
-        T[:, 0, 0] = c
-        T[:, 0, 1] = -s
-        T[:, 1, 0] = s
-        T[:, 1, 1] = c
-        T[:, 2, 2] = 1.0
-        T[:, 3, 3] = 1.0
-        T[:, 0, 3] = p[:, 0]
-        T[:, 1, 3] = p[:, 1]
-        T[:, 2, 3] = (self.ground_z or 0.0) + float(height)
-        return T
+        return level_poses(_resample_path(self.waypoints, n), (self.ground_z or 0.0) + float(height))
 
     # ------------------------------------------------------------------ queries
 
@@ -317,12 +332,28 @@ class World3D:
         d /= norm[:, None]
         return self._cast(o, d, float(max_range))
 
+    @cached_property
+    def _grid(self) -> SolidGrid | None:
+        """The solids binned on a 2D grid (:mod:`occmap.sim.solid_grid`) when there are more than
+        :data:`GRID_MIN_SOLIDS`, else None: casts and point tests then visit only the solids near
+        each ray or point, with the same results. Built on first use; the solids must not change
+        after that."""
+        if len(self.boxes) + len(self.cylinders) <= GRID_MIN_SOLIDS:
+            return None
+        return build_grid(self.boxes, self.cylinders)
+
     def _cast(self, origins, unit_directions, max_range):
         out = np.empty(unit_directions.shape[0])
         gz, has_ground = self._ground()
         n = unit_directions.shape[0]
-        f = _kernels3d.cast_rays_parallel if n >= _kernels3d.PARALLEL_MIN else _kernels3d.cast_rays
-        f(origins, unit_directions, self.boxes, self.cylinders, gz, has_ground, max_range, out)
+        args = (origins, unit_directions, self.boxes, self.cylinders, gz, has_ground, max_range)
+        if self._grid is None:
+            f = _kernels3d.cast_rays_parallel if n >= _kernels3d.PARALLEL_MIN else _kernels3d.cast_rays
+            f(*args, out)
+        else:
+            f = (_kernels3d.cast_grid_rays_parallel if n >= _kernels3d.PARALLEL_MIN
+                 else _kernels3d.cast_grid_rays)
+            f(*args, *self._grid, out)
         return out
 
     def occupied(self, points) -> np.ndarray:
@@ -332,7 +363,10 @@ class World3D:
         flat = np.ascontiguousarray(p.reshape(-1, 3))
         out = np.empty(flat.shape[0], dtype=np.bool_)
         gz, has_ground = self._ground()
-        _kernels3d.occupied(flat, self.boxes, self.cylinders, gz, has_ground, out)
+        if self._grid is None:
+            _kernels3d.occupied(flat, self.boxes, self.cylinders, gz, has_ground, out)
+        else:
+            _kernels3d.occupied_grid(flat, self.boxes, self.cylinders, gz, has_ground, *self._grid, out)
         return out.reshape(p.shape[:-1])
 
     def truth_voxels(self, resolution: float, bbx_min=None, bbx_max=None,
@@ -479,6 +513,10 @@ def _directions(elevations, n_columns):
 #: at 10 Hz (2,250 columns, 72,000 beams per revolution), 100 m range.
 VELODYNE_HDL32 = LidarModel.from_degrees("Velodyne HDL-32E", np.linspace(-30.67, 10.67, 32), 0.16,
                                          100.0)
+
+#: Velodyne VLP-16 ("Puck"): 16 lasers from −15° to +15° (2° apart), 0.2° azimuth step at 10 Hz
+#: (1,800 columns, 28,800 beams per revolution), 100 m range.
+VELODYNE_VLP16 = LidarModel.from_degrees("Velodyne VLP-16", np.linspace(-15.0, 15.0, 16), 0.2, 100.0)
 
 #: Velodyne HDL-64E: 64 lasers from −24.9° to +2.0° in two blocks as on the real sensor — the
 #: lower 32 evenly from −24.9° to −8.83°, the upper 32 from −8.33° to +2.0° (1/3° apart) — with a

@@ -34,13 +34,14 @@ from ..errors import FormatError, InvalidArgumentError, ShapeError
 from ..io.octomap import decode_ot, encode_bt, encode_ot
 from ..logodds import logit32, occupancy_classes
 from ..octree import OcTree, insertion, query
-from ..octree.keys import CENTER, DEPTH, FIELD, MAX_KEY, coord_to_keys, pack_keys
+from ..octree.keys import CENTER, DEPTH, MAX_KEY, coord_to_keys, node_cells, node_centers
+from ..octree.tree import Leaves
 from ..octree.pool import TOP, settle_tree
-from . import graft
+from . import cast, graft
+from .split import split_by_tile
 from .store import TileStore
 from .stored_map import StoredMap, region_box
 
-_MASK = (1 << FIELD) - 1
 _NO_BOX = np.empty((0, 3), np.float32)
 _NO_KEYS = np.empty((0, 3), np.int64)
 #: The ``.ot`` ending of a tile's file in a store.
@@ -106,11 +107,6 @@ class TiledOcTree(StoredMap):
         t = np.asarray(index, np.float64)
         return t * side, (t + 1) * side
 
-    def _split(self, keys, shift):
-        """Scan voxels (packed keys local to ``shift``) → (tile per voxel (n, 3), tile keys packed)."""
-        k = np.stack([(keys >> (FIELD * a)) & _MASK for a in range(3)], axis=1) + (shift - CENTER)
-        return k >> self._bits, pack_keys((k & (self.tile_size - 1)) + CENTER)
-
     # ------------------------------------------------------------------ insertion
 
     def insert_point_cloud(self, points, origin, max_range: float = -1.0, discretize: bool = False) -> dict:
@@ -157,20 +153,10 @@ class TiledOcTree(StoredMap):
 
     def _apply(self, keys, is_hit, shift) -> None:
         """Give each tile its part of a scan's voxels (Morton order kept within a tile)."""
-        if not len(keys):
-            return
-        tiles, local = self._split(keys, shift)
-        base = tiles.min(axis=0)
-        rel = tiles - base
-        code = rel[:, 0] | (rel[:, 1] << 21) | (rel[:, 2] << 42)
-        order = np.argsort(code, kind="stable")
-        code = code[order]
-        starts = np.flatnonzero(np.r_[True, code[1:] != code[:-1]])
-        ends = np.r_[starts[1:], len(code)]
-        for a, b in zip(starts.tolist(), ends.tolist()):
-            index = tuple(int(v) for v in tiles[order[a]])
-            sel = order[a:b]
-            self._tile(index, create=True).update_voxels(local[sel], is_hit[sel], threads=True)
+        tiles, starts, local, hits = split_by_tile(keys, is_hit, shift, self._bits)
+        for i, index in enumerate(map(tuple, tiles.tolist())):
+            a, b = starts[i], starts[i + 1]
+            self._tile(index, create=True).update_voxels(local[a:b], hits[a:b], threads=True)
             self._dirty.add(index)
         self._evict()
 
@@ -271,6 +257,80 @@ class TiledOcTree(StoredMap):
         """Per point: −1 unknown, 0 free, 1 occupied (log-odds ≥ that of ``occupied_threshold``)."""
         return occupancy_classes(self.log_odds_at(points), self._l_occ)
 
+    def cast_ray(self, origins, directions, max_range: float = -1.0, ignore_unknown: bool = False):
+        """OctoMap's ``castRay`` for each ray across the tiles, as
+        :meth:`occmap.octree.OcTree.cast_ray`: from the voxel of ``origins`` (N, 3) (or one)
+        along ``directions`` (N, 3) (or one), stop at the first occupied voxel (a hit), at an
+        unknown one (a miss, unless ``ignore_unknown``), beyond ``max_range`` (> 0), or — for rays
+        that only those two would stop — on leaving the box of the map's tiles (its border; a
+        tree's is its key range). Returns ``(hit (N,), end_points (N, 3))``: the
+        centre of the voxel where each ray stopped, NaN for a ray with no direction."""
+        O, D = _points(origins).astype(np.float32), _points(directions).astype(np.float32)
+        n = max(len(O), len(D))
+        if len(O) not in (1, n) or len(D) not in (1, n):
+            raise ShapeError(f"origins {O.shape} and directions {D.shape} do not match")
+        if not (np.all(np.isfinite(O)) and np.all(np.isfinite(D))):
+            raise InvalidArgumentError("ray origins and directions must be finite")
+        keys, steps, t, g, _ = cast.start_rays(O, D, self.resolution)
+        status = np.full(n, cast.MOVED, np.int8)
+        first = np.ones(n, np.bool_)
+        tiles = self.tiles()
+        T = self.tile_size
+        if ignore_unknown and max_range <= 0:
+            t_all = np.array(tiles or [(0, 0, 0)], np.int64)
+            lo, hi = t_all.min(axis=0) * T + CENTER, (t_all.max(axis=0) + 1) * T - 1 + CENTER
+            status[np.any((keys < lo) | (keys > hi), axis=1) | (not tiles)] = cast.STOPPED  # origins outside the map
+        else:  # unknown space or max_range stops every ray
+            lo, hi = np.full(3, -(1 << 62), np.int64), np.full(3, 1 << 62, np.int64)
+        empty_v, empty_c = np.empty(0, np.float32), np.empty(0, np.int32)
+        while True:
+            active = np.flatnonzero(status == cast.MOVED)
+            if not len(active):
+                break
+            where = (keys[active] - CENTER) >> self._bits
+            order = np.lexsort(where.T[::-1])
+            where, active = where[order], active[order]
+            cuts = np.flatnonzero(np.any(where[1:] != where[:-1], axis=1)) + 1
+            for group in np.split(np.arange(len(active)), cuts):
+                index = tuple(int(v) for v in where[group[0]])
+                tree = self._tile(index, create=False)
+                value, child = (empty_v, empty_c) if tree is None else tree.nodes()[:2]
+                base = np.array(index, np.int64) * T + CENTER
+                cast.walk_tile(value, child, base, T, active[group], O, keys, steps, t, g, first, self.resolution,
+                               float(max_range), bool(ignore_unknown), self._l_occ, lo, hi, status)
+        ends = (keys - CENTER + 0.5) * self.resolution
+        ends = ends.astype(np.float32).astype(np.float64)
+        ends[status == cast.NOT_CAST] = np.nan
+        return status == cast.HIT, ends
+
+    def leaves(self, bbx_min=None, bbx_max=None):
+        """The leaves of the tiles (:class:`occmap.octree.tree.Leaves`: centres, sizes in metres,
+        log-odds, depths), only those overlapping the box [bbx_min, bbx_max] in metres when given;
+        centres computed from global keys as OctoMap's ``keyToCoord`` does. Eight uniform tiles
+        that one tree would hold as a single larger leaf come as their eight tiles' leaves."""
+        box = None if bbx_min is None and bbx_max is None else (
+            np.full(3, -np.inf) if bbx_min is None else np.asarray(bbx_min, np.float64),
+            np.full(3, np.inf) if bbx_max is None else np.asarray(bbx_max, np.float64))
+        parts = []
+        for index in self._chosen(None if box is None else tuple(np.clip(b, -1e15, 1e15) for b in box)):
+            base = np.array(index, np.int64) * self.tile_size  # (key − 32768) of the tile's first voxel
+            if box is None:
+                kmin, kmax = np.zeros(3, np.int64), np.full(3, MAX_KEY, np.int64)
+            else:
+                k = coord_to_keys(np.clip(np.stack(box), -1e15, 1e15), self.resolution) - CENTER - base + CENTER
+                kmin, kmax = np.clip(k[0], 0, MAX_KEY), np.clip(k[1], 0, MAX_KEY)
+            nodes = self._tile(index, create=False).nodes()
+            args = (nodes.value, nodes.child, DEPTH, kmin, kmax, True)
+            n = query.collect_nodes(*args, True, np.empty((0, 3), np.int64), np.empty(0, np.int64),
+                                    np.empty(0, np.float32))
+            keys, depths, values = np.empty((n, 3), np.int64), np.empty(n, np.int64), np.empty(n, np.float32)
+            query.collect_nodes(*args, False, keys, depths, values)
+            parts.append((keys + base, depths, values))
+        keys, depths, values = (np.concatenate(a) for a in zip(*parts)) if parts else (
+            np.empty((0, 3), np.int64), np.empty(0, np.int64), np.empty(0, np.float32))
+        return Leaves(node_centers(keys, depths, self.resolution), self.resolution * node_cells(depths).astype(np.float64),
+                      values, depths)
+
     # ------------------------------------------------------------------ one tree
 
     def to_octree(self, box=None, offset=(0, 0, 0)) -> OcTree:
@@ -358,7 +418,10 @@ class TiledOcTree(StoredMap):
 
 
 def _points(points) -> np.ndarray:
+    """(N, 3) float64 (one point (3,) becomes (1, 3))."""
     P = np.asarray(points, dtype=np.float64)
+    if P.shape == (3,):
+        P = P[None, :]
     if P.ndim != 2 or P.shape[1] != 3:
         raise ShapeError(f"points must have shape (N, 3), got {P.shape}")
     return P
