@@ -35,6 +35,9 @@ from .store import TileStore
 
 #: A tile index far beyond any map: the open sides of the outer regions.
 UNBOUNDED = 1 << 40
+#: Seconds between a region's progress lines, and the Dask topic that carries them to the driver.
+PROGRESS_SECONDS = 5.0
+PROGRESS_TOPIC = "occmap-build-progress"
 
 
 @dataclass
@@ -106,19 +109,31 @@ def reaching(region, lo: np.ndarray, hi: np.ndarray, tile_metres: float) -> np.n
     return np.flatnonzero(np.all((hi >= r_lo) & (lo <= r_hi), axis=1))
 
 
-def build_part(path, source, scans, region, max_range: float, discretize: bool, memory_limit, threads):
+def _peak_rss() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def _dask_progress(text: str) -> None:
+    from distributed import get_worker
+
+    get_worker().log_event(PROGRESS_TOPIC, text)
+
+
+def build_part(path, source, scans, region, max_range: float, discretize: bool, memory_limit, threads,
+               name: int = 0, progress=None):
     """One region's work (a Dask task): insert ``scans`` of ``source`` in order into the region's
-    tiles of the store at ``path``, write them; returns what the driver records."""
+    tiles of the store at ``path``, write them; returns what the driver records. ``progress(text)``
+    is told how far it is every few seconds."""
     if threads:
         import numba
 
         numba.set_num_threads(int(threads))
-    t0 = time.perf_counter()
+    t0 = last = time.perf_counter()
     part = TiledOcTree.build_part(path, region, memory_limit)
     summaries = {}
     no_pose = []
     inserted = 0
-    for k in scans:
+    for j, k in enumerate(scans):
         cloud = source.cloud(int(k))
         s = part.insert_point_cloud(cloud.world_points(), cloud.origin, max_range, discretize)
         if s["scans"]:
@@ -126,9 +141,15 @@ def build_part(path, source, scans, region, max_range: float, discretize: bool, 
             inserted += s["points"]
         if not cloud.has_pose:
             no_pose.append(int(k))
+        now = time.perf_counter()
+        if progress is not None and now - last >= PROGRESS_SECONDS:
+            last = now
+            held, held_bytes = part.in_memory()
+            progress(f"region {name}: {j + 1:,}/{len(scans):,} scans, {inserted / (now - t0):,.0f} points/s, "
+                     f"{held:,} tiles in memory ({held_bytes / 2**20:,.0f} MiB), peak {_peak_rss() / 2**20:,.0f} MiB")
     tiles = part.write_tiles()
     return {"tiles": tiles, "summaries": summaries, "no_pose": no_pose, "scans": len(scans), "points": inserted,
-            "seconds": time.perf_counter() - t0, "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
+            "seconds": time.perf_counter() - t0, "peak_rss": _peak_rss()}
 
 
 def build_octree(path, source, resolution: float | None = None, tile_size: int = DEFAULT_TILE_SIZE, *,
@@ -150,7 +171,8 @@ def build_octree(path, source, resolution: float | None = None, tile_size: int =
     with store.writer():
         if workers == 1 and scheduler is None:
             regions = [None]
-            parts = [build_part(store.path, source, range(n), None, max_range, discretize, memory_limit, 0)]
+            parts = [build_part(store.path, source, range(n), None, max_range, discretize, memory_limit, 0, 0,
+                                progress)]
             if progress:
                 progress(_part_line(0, parts[0]))
         else:
@@ -189,8 +211,10 @@ def _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory
     cluster = None
     if scheduler is None:
         cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, memory_limit=0,
-                               dashboard_address=None, silence_logs=40)
+                               dashboard_address=":0", silence_logs=40)  # (":0": any free port)
     client = Client(scheduler if scheduler is not None else cluster)
+    if progress:
+        client.subscribe_topic(PROGRESS_TOPIC, lambda event: progress(event[1]))
     try:
         count = len(client.scheduler_info()["workers"]) if scheduler is not None else int(workers)
         feet = client.gather(client.map(footprint, [source] * n, range(n), [max_range] * n, pure=False))
@@ -204,7 +228,8 @@ def _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory
         limit = None if memory_limit is None else max(1, int(memory_limit) // len(regions))
         threads = max(1, (os.cpu_count() or 1) // len(regions)) if cluster is not None else 0
         futures = {client.submit(build_part, str(store.path), source, reaching(r, lo, hi, side), r, max_range,
-                                 discretize, limit, threads, pure=False): i for i, r in enumerate(regions)}
+                                 discretize, limit, threads, i, _dask_progress if progress else None, pure=False): i
+                   for i, r in enumerate(regions)}
         parts = [None] * len(regions)
         for future in as_completed(futures):
             i = futures[future]

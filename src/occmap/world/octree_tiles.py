@@ -203,7 +203,7 @@ class TiledOcTree(StoredMap):
         """Write out and drop least recently used tiles while over the memory limit."""
         if self.memory_limit is None:
             return
-        total = sum(t.memory_allocated() for t in self._tiles.values())
+        total = self.in_memory()[1]
         while total > self.memory_limit and len(self._tiles) > 1:
             index, tree = next(iter(self._tiles.items()))
             self._write_tile(index, tree)
@@ -221,6 +221,10 @@ class TiledOcTree(StoredMap):
                                     "max": hi.tolist(), "nodes": tree.num_nodes(), "bytes": len(data)}
         self._dirty.discard(index)
         self._written.add(index)
+
+    def in_memory(self) -> tuple[int, int]:
+        """Tiles held in memory now, and the bytes their node pools take."""
+        return len(self._tiles), sum(t.memory_allocated() for t in self._tiles.values())
 
     def tiles(self) -> list[tuple[int, int, int]]:
         """Indices of the tiles that hold nodes (in memory or in the store), sorted."""
