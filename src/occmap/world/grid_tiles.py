@@ -295,6 +295,10 @@ class TiledGrid2D(StoredMap):
             self._write_tile(index)
             self._free.append(self._slots.pop(index))
 
+    def in_memory(self) -> tuple[int, int]:
+        """Tiles held in memory now, and the bytes the pool holding them takes."""
+        return len(self._slots), self._L.nbytes + self._S.nbytes
+
     def _known(self, slot: int) -> np.ndarray:
         """Tile in ``slot`` as float32 log-odds, NaN where unknown."""
         return np.where(self._S[slot] != UNSEEN, self._L[slot], np.float32(np.nan))
