@@ -107,7 +107,7 @@ def test_scans_past_the_stamp_codes_equal_wide_stamps(rng):
     L = np.zeros(one.shape, np.float32)
     S = np.zeros(one.shape, np.int32)
     K.integrate_lidar(L, S, 1, poses, ranges, np.ascontiguousarray(np.broadcast_to(angles, ranges.shape)), 1.0,
-                      -1.5, -1.5, 20.0, L_HIT, L_MISS, L_MIN, L_MAX)
+                      -1.5, -1.5, 0, 0, 20.0, L_HIT, L_MISS, L_MIN, L_MAX)
     for g in (one, split):
         np.testing.assert_array_equal(g.log_odds().view(np.int32), np.where(S != 0, L, np.float32(np.nan)).view(np.int32))
         np.testing.assert_array_equal(g.observed, S != 0)
@@ -205,3 +205,40 @@ def test_log_odds_is_a_copy_with_nan_where_unobserved_and_occupancy_at_follows_t
     g75 = OccupancyGrid2D(0.1, size=(2.0, 1.0), occupied_threshold=0.75)
     single_beam(g75, 1.0)
     assert g75.occupancy_at([[1.05, 0.05]]).tolist() == [0]  # 0.7 < 0.75
+
+
+def _wandering_scans(rng, n, start=(0.0, 0.0)):
+    """n scans along a random walk that keeps leaving the map (so it grows many times)."""
+    steps = rng.normal(0.0, 1.5, (n, 2))
+    xy = np.asarray(start) + np.cumsum(steps, axis=0)
+    poses = np.column_stack([xy, rng.uniform(-np.pi, np.pi, n)])
+    ranges = rng.uniform(0.3, 6.0, (n, 90))
+    ranges[rng.random(ranges.shape) < 0.05] = np.inf
+    return poses, ranges, np.linspace(-np.pi, np.pi, 90, endpoint=False)
+
+
+@pytest.mark.parametrize("start", [(0.0, 0.0), (10_003.3, -7.71)])
+def test_a_growing_map_does_not_depend_on_how_its_scans_were_chunked(rng, start):
+    poses, ranges, angles = _wandering_scans(rng, 200, start)
+    maps = []
+    for chunk in (1, 7, 200):
+        g = OccupancyGrid2D(0.05)
+        for i in range(0, len(poses), chunk):
+            g.insert_scans(poses[i:i + chunk], ranges[i:i + chunk], angles, max_range=5.0)
+        maps.append(g)
+    for g in maps[1:]:
+        assert g.shape == maps[0].shape
+        np.testing.assert_array_equal(g.origin, maps[0].origin)
+        np.testing.assert_array_equal(g.log_odds().view(np.int32), maps[0].log_odds().view(np.int32))
+
+
+def test_a_growing_map_lies_on_the_world_lattice(rng):
+    poses, ranges, angles = _wandering_scans(rng, 30, (3.0, -2.0))
+    g = OccupancyGrid2D(0.05)
+    g.insert_scans(poses, ranges, angles, max_range=5.0)
+    ix, iy = np.round(g.origin / 0.05)
+    np.testing.assert_array_equal(g.origin, np.array([ix, iy]) * 0.05)  # an integer cell offset
+    # the cell of a point is floor(x / res) of the world, whatever the map's extent
+    p = rng.uniform(-2.0, 8.0, (1000, 2)) + poses[0, :2]
+    cells = g.world_to_cell(p)
+    np.testing.assert_array_equal(cells[:, ::-1] + [ix, iy], np.floor(p * (1.0 / 0.05)))

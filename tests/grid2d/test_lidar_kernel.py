@@ -51,10 +51,11 @@ def _ref_cells(x0, y0, x1, y1, ox, oy, inv_res):
     return cells
 
 
-def reference_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, inv_res, l_hit, l_miss, l_min, l_max):
+def reference_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, l_hit, l_miss,
+                    l_min, l_max):
     """One scan at a time: the set of hit cells and the set of crossed cells; each hit cell gets
     ``l_hit`` once, each crossed cell that is no hit ``l_miss`` once (clamped, float64 sum stored
-    as float32)."""
+    as float32). ``L[r, c]`` is the cell ``(gx0 + c, gy0 + r)``."""
     H, W = L.shape
     used = dropped = maxed = 0
     for k in range(len(poses)):
@@ -78,16 +79,17 @@ def reference_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
             free.update(cells[:-1])
         for cells, delta, value in ((hits, l_hit, 2 * s + 1), (free - hits, l_miss, 2 * s)):
             for ix, iy in cells:
+                ix, iy = ix - gx0, iy - gy0
                 if 0 <= ix < W and 0 <= iy < H:
                     L[iy, ix] = min(max(float(L[iy, ix]) + delta, l_min), l_max)
                     stamp[iy, ix] = value
     return used, dropped, maxed
 
 
-def _compare(L0, S0, scan0, poses, ranges, angles, max_range, ox, oy, res):
+def _compare(L0, S0, scan0, poses, ranges, angles, max_range, ox, oy, res, offset=(0, 0)):
     args = (scan0, np.ascontiguousarray(poses, dtype=np.float64), np.ascontiguousarray(ranges, dtype=np.float64),
             np.ascontiguousarray(np.broadcast_to(angles, ranges.shape), dtype=np.float64), float(max_range),
-            float(ox), float(oy), 1.0 / res, L_HIT, L_MISS, L_MIN, L_MAX)
+            float(ox), float(oy), offset[0], offset[1], 1.0 / res, L_HIT, L_MISS, L_MIN, L_MAX)
     Lb, Sb = L0.copy(), S0.copy()
     want = reference_lidar(Lb, Sb, *args)
     # one thread, the grid split in two parts (on two threads where Numba has them), the default
@@ -164,6 +166,20 @@ def test_lattice_aligned_beams_through_cell_corners_and_along_edges():
     _compare(L, S, 1, poses, ranges, angles, 2.5, 0.0, 0.0, res)
     # the same with the origin off the world lattice and negative cells in play
     _compare(L, S, 1, poses, ranges, angles, 2.5, 3.0, 3.0, res)
+
+
+def test_a_window_of_the_world_lattice_far_from_the_origin():
+    """A growing map's storage: a window at an integer cell offset of the world lattice (origin
+    (0, 0)), here near x = 10 km, with beams leaving it on every side."""
+    rng = np.random.default_rng(9)
+    res, H, W, offset = 0.05, 60, 80, (200_030, -41)
+    n_scans, n_beams = 5, 400
+    cx, cy = (offset[0] + W / 2) * res, (offset[1] + H / 2) * res
+    poses = np.column_stack([rng.uniform(cx - 3.0, cx + 3.0, n_scans), rng.uniform(cy - 2.0, cy + 2.0, n_scans),
+                             rng.uniform(-np.pi, np.pi, n_scans)])
+    ranges = rng.uniform(0.05, 5.0, (n_scans, n_beams))
+    L, S = _initial(rng, H, W)
+    _compare(L, S, 4, poses, ranges, rng.uniform(-np.pi, np.pi, (n_scans, n_beams)), 4.0, 0.0, 0.0, res, offset)
 
 
 def test_beams_along_and_outside_every_border_of_a_fixed_map():

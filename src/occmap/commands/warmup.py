@@ -268,6 +268,23 @@ def world(folder: Path) -> None:
     tiled.leaves(bbx_min=[-5.0, -5.0, -1.0], bbx_max=[5.0, 5.0, 3.0])
     tiled.export(folder / "tiles.bt")
     tiled.export(folder / "tiles.ot", box=([-5.0, -5.0, -1.0], [5.0, 5.0, 3.0]))
+    grid_tiles(folder)
+
+
+def grid_tiles(folder: Path) -> None:
+    """Tiled 2D grids: insertion (on one thread and on several, a region, evicting), a store, queries."""
+    from ..world.grid_tiles import TiledGrid2D
+
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.5, 0.3]])
+    ranges = np.full((2, 360), 8.0)
+    with TiledGrid2D.create(folder / "grid_tiles", 0.05, 16, memory_limit=1 << 20) as grid:
+        for _ in range(4):  # the thread choice tries both paths
+            grid.insert_scans(poses, ranges, angles, max_range=10.0)
+    TiledGrid2D(0.05, 16, region=((0, 0), (3, 3))).insert_scans(poses, ranges, angles, max_range=10.0)
+    grid = TiledGrid2D.open(folder / "grid_tiles")
+    grid.occupancy_at(poses[:, :2])
+    grid.export((-2.0, -2.0, 2.0, 2.0), folder / "grid_tiles.yaml")
 
 
 def city(folder: Path) -> None:

@@ -33,7 +33,7 @@ from ..raster.walk2d import cell_of, dda_init, miss_walk
 
 
 @kernel
-def _beam_end(x0, y0, th, r, a, max_range):
+def beam_end(x0, y0, th, r, a, max_range):
     """``(kind, x, y)`` of one reading: kind 0 unusable (NaN, ≤ 0), 1 hit, 2 no return (cleared
     up to ``max_range``, marks nothing); (x, y) the end point for kinds 1 and 2."""
     if not (r > 0.0):  # NaN, zero and negative readings carry no information
@@ -47,11 +47,12 @@ def _beam_end(x0, y0, th, r, a, max_range):
 
 
 @kernel
-def _part(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
           l_hit, l_miss, l_min, l_max):
     """All scans' updates of the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
     first the scan's hits, then the free cells along each of its beams (stamps:
-    :mod:`occmap.raster.update`)."""
+    :mod:`occmap.raster.update`). Cell ``(ix, iy)`` (the index rule with origin ``(ox, oy)``) is
+    at ``base + iy·rs + ix`` of the flat arrays ``Lf`` and ``Sf``."""
     n_scans, n_beams = ranges.shape
     ex = np.empty(n_beams)
     ey = np.empty(n_beams)
@@ -60,26 +61,26 @@ def _part(Lf, Sf, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_
         s = scan0 + k
         x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
         for b in range(n_beams):
-            kind[b], ex[b], ey[b] = _beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
+            kind[b], ex[b], ey[b] = beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
             if kind[b] == 1:
                 ix, iy = cell_of(ex[b], ey[b], ox, oy, inv_res)
-                i = iy * rs + ix
+                i = base + iy * rs + ix
                 if x_lo <= ix < x_hi and y_lo <= iy < y_hi and Sf[i] != hit_stamp(s):
                     Sf[i] = hit_stamp(s)
                     Lf[i] = clamp_add(Lf[i], l_hit, l_min, l_max)
         for b in range(n_beams):
             if kind[b] != 0:
                 steps, state = dda_init(x0, y0, ex[b], ey[b], ox, oy, inv_res)
-                miss_walk(Lf, Sf, 0, 1, rs, steps, state, x_lo, x_hi, y_lo, y_hi, s, l_miss, l_min, l_max)
+                miss_walk(Lf, Sf, base, 1, rs, steps, state, x_lo, x_hi, y_lo, y_hi, s, l_miss, l_min, l_max)
 
 
 @kernel_parallel
-def _parts(Lf, Sf, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+def _parts(Lf, Sf, base, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
            l_hit, l_miss, l_min, l_max):
     """:func:`_part` for each row ``(x_lo, x_hi, y_lo, y_hi)`` of ``parts`` (disjoint), one
     thread each, with no synchronisation until all are done."""
     for p in prange(parts.shape[0]):
-        _part(Lf, Sf, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, ranges, angles,
+        _part(Lf, Sf, base, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, ranges, angles,
               max_range, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
 
 
@@ -88,13 +89,14 @@ _SPLIT_SAMPLE = 4096
 
 
 @kernel
-def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_cells, parts):
+def _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H, W, min_cells, parts):
     """Fill ``parts`` (k, 4) with the cell rectangles the work is split into and return how many:
-    one (the whole grid) for less than ``min_cells`` cells of work (estimated from a sample of
-    the beams), else up to k strips of whole rows that share the cells to walk evenly (rows, not
-    columns: a part's cells are then one block of memory)."""
+    one (the whole grid, cells ``[gx0, gx0 + W) × [gy0, gy0 + H)``) for less than ``min_cells``
+    cells of work (estimated from a sample of the beams), else up to k strips of whole rows that
+    share the cells to walk evenly (rows, not columns: a part's cells are then one block of
+    memory)."""
     n_scans, n_beams = ranges.shape
-    parts[0, 0], parts[0, 1], parts[0, 2], parts[0, 3] = 0, W, 0, H
+    parts[0, 0], parts[0, 1], parts[0, 2], parts[0, 3] = gx0, gx0 + W, gy0, gy0 + H
     n = n_scans * n_beams
     if min_cells < 0 or n == 0 or H < 2:
         return 1
@@ -104,13 +106,13 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_c
     for i in range(0, n, step):
         k, b = i // n_beams, i % n_beams
         x0, y0 = poses[k, 0], poses[k, 1]
-        kind, x1, y1 = _beam_end(x0, y0, poses[k, 2], ranges[k, b], angles[k, b], max_range)
+        kind, x1, y1 = beam_end(x0, y0, poses[k, 2], ranges[k, b], angles[k, b], max_range)
         if kind == 0:
             continue
         u0, v0 = cell_of(x0, y0, ox, oy, inv_res)
         u1, v1 = cell_of(x1, y1, ox, oy, inv_res)
         c = abs(u1 - u0) + abs(v1 - v0) + 1.0
-        lo, hi = max(min(v0, v1), 0), min(max(v0, v1), H - 1)
+        lo, hi = max(min(v0, v1) - gy0, 0), min(max(v0, v1) - gy0, H - 1)
         if lo <= hi:  # the beam's cells spread evenly over its rows in the grid
             total += c
             density[lo] += c / (hi - lo + 1)
@@ -118,17 +120,17 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, min_c
     if total * step < min_cells:
         return 1
     k = min(parts.shape[0], H)
-    m = 0  # rows [parts[m, 2], row) make part m
+    m = 0  # rows [parts[m, 2], gy0 + row) make part m
     acc = 0.0
     d = 0.0
     for row in range(H):
         d += density[row]
         acc += d
         if m < k - 1 and acc >= total * (m + 1) / k:
-            parts[m, 3] = row + 1
+            parts[m, 3] = gy0 + row + 1
             m += 1
-            parts[m, 0], parts[m, 1], parts[m, 2] = 0, W, row + 1
-    parts[m, 3] = H
+            parts[m, 0], parts[m, 1], parts[m, 2] = gx0, gx0 + W, gy0 + row + 1
+    parts[m, 3] = gy0 + H
     return m + 1
 
 
@@ -147,12 +149,13 @@ def _flat(L, stamp):
     raise ValueError("L and stamp must be C-contiguous (H, W) arrays")
 
 
-def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
                     l_hit, l_miss, l_min, l_max, split_min_cells=None):
     """Integrate scans ``k = 0..N-1`` (poses (N, 3), ranges (N, n), angles (N, n)) into the grid
     ``L`` (float32 log-odds), ``stamp`` (unsigned integers), both (H, W), with scan codes
-    ``scan0 + k`` (see the module's docstring for what they must fit).
-    Returns (beams used, readings dropped as NaN/≤ 0, max-range readings).
+    ``scan0 + k`` (see the module's docstring for what they must fit). ``L[r, c]`` is the cell
+    ``(gx0 + c, gy0 + r)`` of the lattice with origin ``(ox, oy)`` (:mod:`occmap.raster`'s index
+    rule). Returns (beams used, readings dropped as NaN/≤ 0, max-range readings).
 
     With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` when
     :data:`THREADS` chooses several threads, else never; negative: never) the grid is cut into
@@ -162,22 +165,21 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, i
     H, W = L.shape
     max_parts = max(get_num_threads(), 2)
     if split_min_cells is not None:
-        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
                                 l_hit, l_miss, l_min, l_max, split_min_cells, max_parts)
     with THREADS.choose(ranges.size) as parallel:
-        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
                                 l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts)
 
 
 @kernel
-def _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-                     l_hit, l_miss, l_min, l_max, split_min_cells, max_parts):
-    n_scans, n_beams = ranges.shape
+def count_readings(ranges, max_range):
+    """(readings used, dropped as NaN/≤ 0, at or beyond ``max_range``) of ranges (N, n)."""
     used = 0
     dropped = 0
     maxed = 0
-    for k in range(n_scans):
-        for b in range(n_beams):
+    for k in range(ranges.shape[0]):
+        for b in range(ranges.shape[1]):
             r = ranges[k, b]
             if not (r > 0.0):
                 dropped += 1
@@ -185,20 +187,47 @@ def _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, 
                 used += 1
                 if not (r < max_range):
                     maxed += 1
-    parts = np.empty((max_parts, 4), dtype=np.int64)
-    n_parts = _choose_parts(poses, ranges, angles, max_range, ox, oy, inv_res, H, W, split_min_cells, parts)
-    if n_parts == 1:
-        _part(Lf, Sf, W, 0, W, 0, H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-              l_hit, l_miss, l_min, l_max)
-    else:
-        _parts(Lf, Sf, W, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-               l_hit, l_miss, l_min, l_max)
     return used, dropped, maxed
 
 
 @kernel
+def _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
+                     l_hit, l_miss, l_min, l_max, split_min_cells, max_parts):
+    parts = np.empty((max_parts, 4), dtype=np.int64)
+    n_parts = _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H, W, split_min_cells,
+                            parts)
+    base = -(gy0 * W + gx0)
+    if n_parts == 1:
+        _part(Lf, Sf, base, W, gx0, gx0 + W, gy0, gy0 + H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+              l_hit, l_miss, l_min, l_max)
+    else:
+        _parts(Lf, Sf, base, W, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+               l_hit, l_miss, l_min, l_max)
+    return count_readings(ranges, max_range)
+
+
+@kernel
+def beam_extent(poses, ranges, angles, max_range):
+    """World box ``(xmin, ymin, xmax, ymax)`` of the sensor positions and the ends of the beams
+    that will be walked (:func:`beam_end`, the same arithmetic as the walk); infinite where an
+    end overflows. Used to find the cells scans reach before inserting them."""
+    xmin, ymin, xmax, ymax = np.inf, np.inf, -np.inf, -np.inf
+    n_scans, n_beams = ranges.shape
+    for k in range(n_scans):
+        x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
+        xmin, xmax, ymin, ymax = min(xmin, x0), max(xmax, x0), min(ymin, y0), max(ymax, y0)
+        for b in range(n_beams):
+            kind, x, y = beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
+            if kind != 0:
+                if not (math.isfinite(x) and math.isfinite(y)):
+                    return -np.inf, -np.inf, np.inf, np.inf
+                xmin, xmax, ymin, ymax = min(xmin, x), max(xmax, x), min(ymin, y), max(ymax, y)
+    return xmin, ymin, xmax, ymax
+
+
+@kernel
 def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_hi, half_width, wrap, uniform,
-                    min_range, max_range, ignore_max, arc, ox, oy, res, l_occ, l_free, l_min, l_max):
+                    min_range, max_range, ignore_max, arc, ox, oy, gx0, gy0, res, l_occ, l_free, l_min, l_max):
     """Cone updates for N readings rings (poses (N, 3), ranges (N, k), bearings (k,)).
 
     For reading b a cell's angle from the transducer axis is φ = atan2(cell − robot) − θ − bearing,
@@ -207,7 +236,8 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_
     weighted by 1 − (φ/half_width)², or by 1 when ``uniform``. Readings that are NaN, ≤ 0 or below
     ``min_range`` are dropped; those at or beyond ``max_range`` clear their cone up to it, except
     that with ``ignore_max`` those beyond it are skipped. No cell beyond ``max_range`` is touched (an arc near it is cut
-    there). Returns (readings used, readings dropped, max-range readings)."""
+    there). ``L[r, c]`` is the cell ``(gx0 + c, gy0 + r)`` of the lattice with origin ``(ox, oy)``.
+    Returns (readings used, readings dropped, max-range readings)."""
     H, W = L.shape
     n_scans, n_beams = ranges.shape
     used = 0
@@ -232,14 +262,14 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_
             lo = sector_lo[b]
             hi = sector_hi[b]
             outer = min(reach + 0.5 * arc, max_range)  # nothing beyond max_range (Table 9.2)
-            ix0 = max(0, int(math.floor((x0 - outer - ox) / res)))
-            ix1 = min(W - 1, int(math.floor((x0 + outer - ox) / res)))
-            iy0 = max(0, int(math.floor((y0 - outer - oy) / res)))
-            iy1 = min(H - 1, int(math.floor((y0 + outer - oy) / res)))
+            ix0 = max(0, int(math.floor((x0 - outer - ox) / res)) - gx0)
+            ix1 = min(W - 1, int(math.floor((x0 + outer - ox) / res)) - gx0)
+            iy0 = max(0, int(math.floor((y0 - outer - oy) / res)) - gy0)
+            iy1 = min(H - 1, int(math.floor((y0 + outer - oy) / res)) - gy0)
             for iy in range(iy0, iy1 + 1):
-                cy = oy + (iy + 0.5) * res - y0
+                cy = oy + (gy0 + iy + 0.5) * res - y0
                 for ix in range(ix0, ix1 + 1):
-                    cx = ox + (ix + 0.5) * res - x0
+                    cx = ox + (gx0 + ix + 0.5) * res - x0
                     d = math.sqrt(cx * cx + cy * cy)
                     if d > outer:
                         continue

@@ -55,6 +55,40 @@ def _farthest(x: np.ndarray, y: np.ndarray, centre: np.ndarray | None) -> tuple[
     return np.unravel_index(int(np.nanargmax(d)), d.shape)
 
 
+def scan_arrays(poses, ranges, angles, max_range):
+    """The checked arrays of :meth:`OccupancyGrid2D.insert_scans` (its conventions), for every map
+    that takes planar scans: ``(P, R, A, max_range)``, poses (N, 3), ranges (N, n) and angles
+    (N, n) C-contiguous float64, a reading with a NaN or infinite angle turned into a NaN (dropped)
+    reading, and ``max_range`` a positive float (without one: just above the largest finite
+    reading, infinite readings dropped)."""
+    P = np.ascontiguousarray(poses, dtype=np.float64)
+    R = np.ascontiguousarray(ranges, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise ShapeError(f"poses must have shape (N, 3), got {P.shape}")
+    if R.ndim != 2 or R.shape[0] != P.shape[0]:
+        raise ShapeError(f"ranges must have shape (N, n) with N = {P.shape[0]} poses, got {R.shape}")
+    A = np.asarray(angles, dtype=np.float64)
+    if A.shape == (R.shape[1],):
+        A = np.broadcast_to(A, R.shape)
+    if A.shape != R.shape:
+        raise ShapeError(f"angles must have shape (n,) or (N, n) matching ranges {R.shape}, got {A.shape}")
+    A = np.ascontiguousarray(A)
+    bad_angle = ~np.isfinite(A)
+    if bad_angle.any():  # a beam without a direction is a dropped reading
+        R, A = np.where(bad_angle, np.nan, R), np.where(bad_angle, 0.0, A)
+    good_pose = np.isfinite(P).all(axis=1)
+    if not good_pose.all():
+        raise NonFiniteError(f"poses[{int(np.argmin(good_pose))}] = {P[np.argmin(good_pose)].tolist()} is not finite")
+    if max_range is None:
+        # no sensor limit given: every finite reading is a return, an infinite one says
+        # nothing definite and is dropped like NaN
+        finite = R[np.isfinite(R) & (R > 0)]
+        max_range = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
+        if np.isinf(R).any():
+            R = np.where(np.isinf(R), np.nan, R)
+    return P, R, A, checks.positive("max_range", max_range, "metres")
+
+
 class OccupancyGrid2D(OneCallAtATime):
     """A 2D occupancy grid in log-odds.
 
@@ -63,11 +97,16 @@ class OccupancyGrid2D(OneCallAtATime):
     resolution : float
         Cell side in metres.
     size : (width, height) in metres, optional
-        Fixed extent. ``None`` (default) makes a map that grows to fit what it is given, keeping
-        its content and cell alignment; a fixed map ignores the parts of rays outside it.
+        Fixed extent. ``None`` (default) makes a map that grows to fit what it is given; a fixed
+        map ignores the parts of rays outside it.
     origin : (x, y), optional
-        World position of the outer corner of cell (0, 0); default (0, 0) for a fixed map, the
-        first scan's surroundings for a growing one.
+        World position of the outer corner of cell (0, 0) of a fixed map (default (0, 0)). A
+        growing map's cells are those of the *world lattice*: cell ``(i, j)`` covers
+        ``[ox + i·res, ox + (i+1)·res) × [oy + j·res, oy + (j+1)·res)`` with ``(ox, oy)`` this
+        ``origin`` (default (0, 0)), found as ``floor((x − ox) · (1/res))``; the map is the box
+        of lattice cells holding every sensor position and beam end it was given (:attr:`origin`
+        reports that box's corner). Its cells and extent therefore do not depend on how the
+        scans were split into calls, and equal a tiled map's (:mod:`occmap.world`).
     prior : float
         Prior occupancy probability of every cell (0.5: no prior knowledge).
     clamp : (p_min, p_max)
@@ -100,14 +139,19 @@ class OccupancyGrid2D(OneCallAtATime):
         self.growing = size is None
         self._codes = ScanCodes(np.uint16)
         self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+        # the lattice: cell (i, j) is floor((p − anchor) · (1/res)); storage cell [r, c] is the
+        # lattice cell offset + (c, r); the map is the lattice box window = (x0, y0, x1, y1),
+        # half-open (None: an empty growing map). A fixed map's storage is its window.
+        self._anchor = np.zeros(2) if origin is None else np.array(origin, dtype=np.float64)
+        self._offset = (0, 0)
         if size is None:
-            self.origin = None if origin is None else np.array(origin, dtype=np.float64)
+            self._window = None
             shape = (0, 0)
         else:
             w, h = size
             w, h = checks.positive("size[0] (width)", w, "metres"), checks.positive("size[1] (height)", h, "metres")
-            self.origin = np.zeros(2) if origin is None else np.array(origin, dtype=np.float64)
             shape = (int(math.ceil(h / self.resolution - 1e-9)), int(math.ceil(w / self.resolution - 1e-9)))
+            self._window = (0, 0, shape[1], shape[0])
         self._L, self._stamp = _new_cells(shape, self.l_prior)
 
     # ------------------------------------------------------------------ geometry
@@ -115,15 +159,38 @@ class OccupancyGrid2D(OneCallAtATime):
     @property
     def shape(self) -> tuple[int, int]:
         """(height, width) in cells."""
-        return self._L.shape
+        if self._window is None:
+            return (0, 0)
+        x0, y0, x1, y1 = self._window
+        return (y1 - y0, x1 - x0)
+
+    @property
+    def origin(self) -> np.ndarray | None:
+        """World position (x, y) of the outer corner of cell (0, 0); ``None`` for an empty growing
+        map."""
+        if self._window is None:
+            return None
+        return self._anchor + np.array(self._window[:2]) * self.resolution
+
+    def _corner(self) -> np.ndarray:
+        """Lattice cell (x, y) of the map's cell (0, 0)."""
+        return np.array((0, 0) if self._window is None else self._window[:2], dtype=np.int64)
+
+    def _cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """Views (log-odds, stamps) (H, W) of the map's cells in the storage."""
+        if self._window is None:
+            return self._L, self._stamp
+        x0, y0, x1, y1 = self._window
+        gx0, gy0 = self._offset
+        rows, cols = slice(y0 - gy0, y1 - gy0), slice(x0 - gx0, x1 - gx0)
+        return self._L[rows, cols], self._stamp[rows, cols]
 
     def world_to_cell(self, points) -> np.ndarray:
         """Integer cells ``(iy, ix)`` (..., 2) of world points (..., 2); not clipped to the map."""
         p = np.asarray(points, dtype=np.float64)
         if p.shape[-1:] != (2,):
             raise ShapeError(f"points must have shape (..., 2), got {p.shape}")
-        o = self._origin_or_zero()
-        cell = np.floor((p - o) * (1.0 / self.resolution)).astype(np.int64)
+        cell = np.floor((p - self._anchor) * (1.0 / self.resolution)).astype(np.int64) - self._corner()
         return cell[..., ::-1]
 
     def cell_to_world(self, cells) -> np.ndarray:
@@ -131,25 +198,23 @@ class OccupancyGrid2D(OneCallAtATime):
         c = np.asarray(cells)
         if c.shape[-1:] != (2,):
             raise ShapeError(f"cells must have shape (..., 2), got {c.shape}")
-        return self._origin_or_zero() + (c[..., ::-1] + 0.5) * self.resolution
-
-    def _origin_or_zero(self) -> np.ndarray:
-        return np.zeros(2) if self.origin is None else self.origin
+        return self._anchor + (c[..., ::-1] + self._corner() + 0.5) * self.resolution
 
     # ------------------------------------------------------------------ read-outs
 
     def log_odds(self) -> np.ndarray:
         """Log-odds per cell (a copy, float32, (H, W), row 0 at the origin), NaN where unobserved."""
-        return np.where(self.observed, self._L, np.float32(np.nan))
+        L, stamp = self._cells()
+        return np.where(stamp != UNSEEN, L, np.float32(np.nan))
 
     @property
     def observed(self) -> np.ndarray:
         """True for cells some reading has touched."""
-        return self._stamp != UNSEEN
+        return self._cells()[1] != UNSEEN
 
     def probability(self) -> np.ndarray:
         """Occupancy probability per cell (float64); unobserved cells hold the prior."""
-        return probability(self._L)
+        return probability(self._cells()[0])
 
     def occupancy(self) -> np.ndarray:
         """nav_msgs/OccupancyGrid values (int8, (H, W), row 0 at the origin): −1 unknown, else
@@ -158,7 +223,7 @@ class OccupancyGrid2D(OneCallAtATime):
 
     def maximum_likelihood(self) -> np.ndarray:
         """int8 map: 1 occupied (l > 0), 0 free (observed, l ≤ 0), −1 never observed."""
-        ml = np.where(self._L > 0, 1, 0).astype(np.int8)
+        ml = np.where(self._cells()[0] > 0, 1, 0).astype(np.int8)
         ml[~self.observed] = -1
         return ml
 
@@ -173,9 +238,8 @@ class OccupancyGrid2D(OneCallAtATime):
         inside = good & (iy >= 0) & (iy < H) & (ix >= 0) & (ix < W)
         out = np.full(iy.shape, np.nan)
         jy, jx = iy[inside], ix[inside]
-        seen = self._stamp[jy, jx] != UNSEEN
-        vals = np.where(seen, self._L[jy, jx], np.nan)
-        out[inside] = vals
+        L, stamp = self._cells()
+        out[inside] = np.where(stamp[jy, jx] != UNSEEN, L[jy, jx], np.nan)
         return out
 
     def occupancy_at(self, points) -> np.ndarray:
@@ -203,47 +267,21 @@ class OccupancyGrid2D(OneCallAtATime):
         ``scans``, ``points`` (readings used), ``dropped``, ``beyond_max_range``.
         """
         model = LidarModel() if model is None else model
-        P = np.ascontiguousarray(poses, dtype=np.float64)
-        R = np.ascontiguousarray(ranges, dtype=np.float64)
-        if P.ndim != 2 or P.shape[1] != 3:
-            raise ShapeError(f"poses must have shape (N, 3), got {P.shape}")
-        if R.ndim != 2 or R.shape[0] != P.shape[0]:
-            raise ShapeError(f"ranges must have shape (N, n) with N = {P.shape[0]} poses, got {R.shape}")
-        A = np.asarray(angles, dtype=np.float64)
-        if A.shape == (R.shape[1],):
-            A = np.broadcast_to(A, R.shape)
-        if A.shape != R.shape:
-            raise ShapeError(f"angles must have shape (n,) or (N, n) matching ranges {R.shape}, got {A.shape}")
-        A = np.ascontiguousarray(A)
-        bad_angle = ~np.isfinite(A)
-        if bad_angle.any():  # a beam without a direction is a dropped reading
-            R, A = np.where(bad_angle, np.nan, R), np.where(bad_angle, 0.0, A)
-        good_pose = np.isfinite(P).all(axis=1)
-        if not good_pose.all():
-            raise NonFiniteError(f"poses[{int(np.argmin(good_pose))}] = {P[np.argmin(good_pose)].tolist()} is not finite")
-        if max_range is None:
-            # no sensor limit given: every finite reading is a return, an infinite one says
-            # nothing definite and is dropped like NaN
-            finite = R[np.isfinite(R) & (R > 0)]
-            max_range = float(np.nextafter(finite.max(), np.inf)) if finite.size else 1.0
-            if np.isinf(R).any():
-                R = np.where(np.isinf(R), np.nan, R)
-        max_range = checks.positive("max_range", max_range, "metres")
+        P, R, A, max_range = scan_arrays(poses, ranges, angles, max_range)
         if self.growing and len(P):
-            x, y = _beam_points(P, R, A, max_range)
-
             def culprit(centre):
+                x, y = _beam_points(P, R, A, max_range)
                 i, j = _farthest(x, y, centre)
                 if j == 0:
                     return f"poses[{i}] = {P[i].tolist()}"
                 return (f"beam {j - 1} of scan {i} (poses[{i}] = {P[i].tolist()}, ranges[{i}, {j - 1}] = "
                         f"{float(R[i, j - 1])!r}) ending at ({float(x[i, j])!r}, {float(y[i, j])!r})")
 
-            self._grow_to(np.nanmin(x), np.nanmin(y), np.nanmax(x), np.nanmax(y), culprit)
+            self._grow_to(*K.beam_extent(P, R, A, float(max_range)), culprit)
+        (ox, oy), (gx0, gy0) = self._anchor, self._offset
         used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_lidar(
-            self._L, self._stamp, code, P[i:j], R[i:j], A[i:j], float(max_range), float(self.origin[0]),
-            float(self.origin[1]), 1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior,
-            self.l_min, self.l_max,
+            self._L, self._stamp, code, P[i:j], R[i:j], A[i:j], float(max_range), float(ox), float(oy), gx0, gy0,
+            1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior, self.l_min, self.l_max,
         ))
         return self._record(len(P), used, dropped, maxed)
 
@@ -281,10 +319,11 @@ class OccupancyGrid2D(OneCallAtATime):
                           culprit)
         lo, hi = model.sector_bounds(B)
         P, R = np.ascontiguousarray(P), np.ascontiguousarray(R)
+        (ox, oy), (gx0, gy0) = self._anchor, self._offset
         used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_sonar(
             self._L, self._stamp, code, P[i:j], R[i:j], B, lo, hi,
             0.5 * model.beam_width, bool(model.wrap_angles), model.weighting == "uniform", float(model.min_range),
-            float(max_range), bool(model.ignore_max_range), float(arc), float(self.origin[0]), float(self.origin[1]),
+            float(max_range), bool(model.ignore_max_range), float(arc), float(ox), float(oy), gx0, gy0,
             self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior, self.l_min, self.l_max,
         ))
         return self._record(len(P), used, dropped, maxed)
@@ -309,44 +348,42 @@ class OccupancyGrid2D(OneCallAtATime):
         return counts
 
     def _grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float, culprit) -> None:
-        """Grow (never shrink) so the world box is inside, keeping cell alignment; amortised by
-        a margin proportional to the current size, never past ``max_extent``. Beyond it, raise
-        naming ``culprit(centre)``: the point farthest from the map's centre (``None`` for an
-        empty map: from the call's first sensor position)."""
+        """Extend the map to the lattice cells holding the world box (never shrink it), so that
+        its extent is the union of the boxes it was given, whatever the calls. The storage grows
+        with a margin proportional to its size (amortising the copies), never past
+        ``max_extent``. Beyond it, raise naming ``culprit(centre)``: the point farthest from the
+        map's centre (``None`` for an empty map: from the call's first sensor position)."""
         res = self.resolution
-        origin = self.origin
-        if origin is None:
-            origin = np.array([math.floor(xmin / res) * res, math.floor(ymin / res) * res])
-        H, W = self.shape
         if not math.isfinite(xmin + ymin + xmax + ymax):  # readings so long their ends overflow
             raise InvalidArgumentError(f"{culprit(None)} lies beyond any map (its coordinates overflow)")
-        lo_x = math.floor((xmin - origin[0]) / res)
-        lo_y = math.floor((ymin - origin[1]) / res)
-        hi_x = math.ceil((xmax - origin[0]) / res)
-        hi_y = math.ceil((ymax - origin[1]) / res)
-        if lo_x >= 0 and lo_y >= 0 and hi_x <= W and hi_y <= H:
-            return
-        need_w, need_h = max(hi_x, W) - min(lo_x, 0), max(hi_y, H) - min(lo_y, 0)
+        inv = 1.0 / res  # the index rule of the kernels (occmap.raster), in the same float64 steps
+        (ax, ay), box = self._anchor, self._window
+        x0, y0 = math.floor((xmin - ax) * inv), math.floor((ymin - ay) * inv)
+        x1, y1 = math.floor((xmax - ax) * inv) + 1, math.floor((ymax - ay) * inv) + 1
+        if box is not None:
+            x0, y0, x1, y1 = min(x0, box[0]), min(y0, box[1]), max(x1, box[2]), max(y1, box[3])
+        need_w, need_h = x1 - x0, y1 - y0
         limit = math.inf if self.max_extent is None else math.floor(self.max_extent / res + 1e-9)
         if max(need_w, need_h) > limit:
-            centre = origin + 0.5 * res * np.array([W, H]) if W else None
+            centre = None if box is None else self._anchor + 0.5 * res * np.array([box[0] + box[2], box[1] + box[3]])
             raise InvalidArgumentError(
                 f"{culprit(centre)} would grow the map to {need_w * res:.6g} m × {need_h * res:.6g} m, beyond "
                 f"max_extent = {self.max_extent!r} m per side (an outlier? drop it, or raise max_extent; None: "
                 f"no limit)")
-        spare_x, spare_y = min(limit - need_w, 2**62), min(limit - need_h, 2**62)
-        margin_x = min(max(_GROW_MARGIN_CELLS, W // 2), spare_x // 2)
-        margin_y = min(max(_GROW_MARGIN_CELLS, H // 2), spare_y // 2)
-        add_left = margin_x - lo_x if lo_x < 0 else 0
-        add_bottom = margin_y - lo_y if lo_y < 0 else 0
-        add_right = hi_x - W + margin_x if hi_x > W else 0
-        add_top = hi_y - H + margin_y if hi_y > H else 0
-        shape = (H + add_bottom + add_top, W + add_left + add_right)
-        L, stamp = _new_cells(shape, self.l_prior)
-        L[add_bottom:add_bottom + H, add_left:add_left + W] = self._L
-        stamp[add_bottom:add_bottom + H, add_left:add_left + W] = self._stamp
-        self._L, self._stamp = L, stamp
-        self.origin = origin - np.array([add_left, add_bottom]) * res
+        self._window = (x0, y0, x1, y1)
+        (gx0, gy0), (H, W) = self._offset, self._L.shape
+        if H and gx0 <= x0 and gy0 <= y0 and x1 <= gx0 + W and y1 <= gy0 + H:
+            return
+        margin_x = min(max(_GROW_MARGIN_CELLS, W // 2), min(limit - need_w, 2**62) // 2)
+        margin_y = min(max(_GROW_MARGIN_CELLS, H // 2), min(limit - need_h, 2**62) // 2)
+        sx0 = x0 - margin_x if not H or x0 < gx0 else gx0
+        sy0 = y0 - margin_y if not H or y0 < gy0 else gy0
+        sx1 = x1 + margin_x if not H or x1 > gx0 + W else gx0 + W
+        sy1 = y1 + margin_y if not H or y1 > gy0 + H else gy0 + H
+        L, stamp = _new_cells((sy1 - sy0, sx1 - sx0), self.l_prior)
+        L[gy0 - sy0:gy0 - sy0 + H, gx0 - sx0:gx0 - sx0 + W] = self._L
+        stamp[gy0 - sy0:gy0 - sy0 + H, gx0 - sx0:gx0 - sx0 + W] = self._stamp
+        self._L, self._stamp, self._offset = L, stamp, (sx0, sy0)
 
     # ------------------------------------------------------------------ files
 

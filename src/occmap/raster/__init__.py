@@ -11,7 +11,8 @@ Grid conventions (the modules and the maps built on them refer here):
 * A grid's ``origin`` ``(ox, oy)`` is the world position of the *outer corner* of cell (0, 0):
   cell ``(iy, ix)`` covers ``[ox + ix·res, ox + (ix+1)·res) × [oy + iy·res, oy + (iy+1)·res)``
   and its centre is ``(ox + (ix + 0.5)·res, oy + (iy + 0.5)·res)``. A world-lattice map (the
-  local map) has its origin at a multiple of ``res``, so its cells are the lattice's.
+  local map, a growing 2D grid, the tiled map) computes cells with origin (0, 0) and holds a
+  window of them at an integer cell offset; its reported origin is that offset times ``res``.
 * The cell of a point is ``ix = floor((x − ox) · (1/res))`` (and ``iy`` alike): multiplied by the
   reciprocal, OctoMap's arithmetic, so a point within rounding of a boundary lands where OctoMap
   puts it. Cells are half-open: a point on a boundary belongs to the cell above it (larger index).

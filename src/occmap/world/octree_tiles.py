@@ -30,7 +30,6 @@ import numpy as np
 
 from .. import checks
 from .._files import write_atomic
-from .._threads import OneCallAtATime
 from ..errors import FormatError, InvalidArgumentError, ShapeError
 from ..io.octomap import decode_ot, encode_bt, encode_ot
 from ..logodds import logit32, occupancy_classes
@@ -41,6 +40,7 @@ from ..octree.pool import TOP, settle_tree
 from . import cast, graft
 from .split import split_by_tile
 from .store import TileStore
+from .stored_map import StoredMap, region_box
 
 _NO_BOX = np.empty((0, 3), np.float32)
 _NO_KEYS = np.empty((0, 3), np.int64)
@@ -49,7 +49,7 @@ TILE_SUFFIX = ".ot"
 DEFAULT_TILE_SIZE = 512
 
 
-class TiledOcTree(OneCallAtATime):
+class TiledOcTree(StoredMap):
     """A 3D occupancy map with OctoMap's semantics, cut into tiles (see the module docstring).
 
     Parameters
@@ -81,15 +81,11 @@ class TiledOcTree(OneCallAtATime):
             raise InvalidArgumentError(f"tile_size must be a power of two from 8 to {CENTER}, got {tile_size}")
         self.tile_size = tile_size
         self._bits = tile_size.bit_length() - 1
-        self.region = None if region is None else _region(region)
+        self.region = None if region is None else region_box(region, 3)
         self.memory_limit = None if memory_limit is None else checks.count("memory_limit", memory_limit, minimum=1)
         self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         self._tiles: OrderedDict[tuple[int, int, int], OcTree] = OrderedDict()  # in memory, least recent first
-        self._dirty: set[tuple[int, int, int]] = set()  # changed since last written
-        self._written: set[tuple[int, int, int]] = set()
-        self._store: TileStore | None = None
-        self._writable = True  # False for a stored map opened to read
-        self._writer = None  # the store's writer lock while this map holds it
+        self._no_store()
         self._l_occ = logit32(self._template.occupied_threshold)
 
     @property
@@ -122,8 +118,6 @@ class TiledOcTree(OneCallAtATime):
         if o.shape != (3,) or not np.all(np.isfinite(o)):
             raise InvalidArgumentError(f"origin must be 3 finite numbers, got {np.asarray(origin).tolist()}")
         self._check_writable()
-        if self.memory_limit is not None and self._store is None:
-            raise InvalidArgumentError("memory_limit needs a store to write tiles to: TiledOcTree.create(path, …)")
         o32 = o.astype(np.float32)
         centre = coord_to_keys(o32.astype(np.float64), self.resolution)
         T = self.tile_size
@@ -386,81 +380,18 @@ class TiledOcTree(OneCallAtATime):
 
     # ------------------------------------------------------------------ the store
 
-    @classmethod
-    def create(cls, path, resolution: float, tile_size: int = DEFAULT_TILE_SIZE, **kwargs) -> TiledOcTree:
-        """A new map in a new store folder ``path``, open for writing (see :meth:`open`)."""
-        tiled = cls(resolution, tile_size, **kwargs)
-        store = TileStore.create(path, "octree", tiled.resolution, tiled.tile_size, tiled.params)
-        tiled._attach(store, writable=True)
-        return tiled
+    KIND = "octree"
 
     @classmethod
-    def open(cls, path, writable: bool = False, memory_limit: int | None = None, region=None) -> TiledOcTree:
-        """The map stored at ``path``: tiles are read as they are needed. ``writable``: hold the
-        store (one writer at a time) to add scans; :meth:`close` writes the tiles and the index."""
-        store = TileStore.open(path, kind="octree")
+    def _from_store(cls, store: TileStore, region, memory_limit) -> TiledOcTree:
         p = store.params
-        tiled = cls(store.resolution, store.tile_size, p.get("prob_hit", 0.7), p.get("prob_miss", 0.4),
-                    tuple(p.get("clamp", (0.1192, 0.971))), p.get("occupied_threshold", 0.5), region=region,
-                    memory_limit=memory_limit)
-        tiled.stats["scans"] = store.scans
-        tiled._attach(store, writable)
-        return tiled
+        return cls(store.resolution, store.tile_size, p.get("prob_hit", 0.7), p.get("prob_miss", 0.4),
+                   tuple(p.get("clamp", (0.1192, 0.971))), p.get("occupied_threshold", 0.5), region=region,
+                   memory_limit=memory_limit)
 
-    @classmethod
-    def build_part(cls, path, region, memory_limit: int | None = None) -> TiledOcTree:
-        """The map of one worker of a parallel build (:mod:`occmap.world.build`): the store at
-        ``path``, which the build's driver holds, open to write the tiles of ``region`` only;
-        :meth:`write_tiles` hands the driver what it wrote."""
-        store = TileStore.open(path, kind="octree", incomplete_ok=True)
-        p = store.params
-        part = cls(store.resolution, store.tile_size, p["prob_hit"], p["prob_miss"], tuple(p["clamp"]),
-                   p["occupied_threshold"], region=region, memory_limit=memory_limit)
-        part._store = store
-        return part
-
-    def _attach(self, store: TileStore, writable: bool) -> None:
-        self._store = store
-        self._writable = writable
-        if writable:
-            self._writer = store.writer()
-            self._writer.__enter__()
-
-    def _check_writable(self) -> None:
-        if not self._writable:
-            raise InvalidArgumentError(f"{self._store.path}: the map was opened to read; open it with writable=True")
-
-    def write_tiles(self) -> dict:
-        """Write the tiles changed since they were last written to the store; returns the index
-        entries (tile index → entry) of every tile this map has written."""
+    def _write_changed(self) -> None:
         for index, tree in self._tiles.items():
             self._write_tile(index, tree)
-        return {index: self._store.tiles[index] for index in self._written}
-
-    def flush(self) -> None:
-        """Write the changed tiles and the index to the store (the map stays open)."""
-        if self._store is None:
-            return
-        self.write_tiles()
-        self._store.scans = self.stats["scans"]
-        self._store.save_index()
-
-    def close(self) -> None:
-        """Write what changed and let the store go (marked complete)."""
-        if self._writer is not None:
-            self.flush()
-            writer, self._writer = self._writer, None
-            writer.__exit__(None, None, None)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, kind, value, tb):
-        if kind is None:
-            self.close()
-        elif self._writer is not None:  # an error: the store stays marked incomplete
-            writer, self._writer = self._writer, None
-            writer.__exit__(kind, value, tb)
 
     def export(self, path, box=None) -> np.ndarray:
         """Write the tiles meeting ``box`` (default all) joined into one OctoMap file, ``.bt``
@@ -498,14 +429,6 @@ def _points(points) -> np.ndarray:
     if P.ndim != 2 or P.shape[1] != 3:
         raise ShapeError(f"points must have shape (N, 3), got {P.shape}")
     return P
-
-
-def _region(region) -> np.ndarray:
-    r = np.asarray(region)
-    if r.shape != (2, 3) or not np.issubdtype(r.dtype, np.integer) or not np.all(r[0] <= r[1]):
-        raise InvalidArgumentError(f"region must be ((tx0, ty0, tz0), (tx1, ty1, tz1)) integers with tx0 ≤ tx1 …, "
-                                   f"got {region!r}")
-    return r.astype(np.int64)
 
 
 def _tile_node(nodes, depth: int) -> int:
