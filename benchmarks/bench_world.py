@@ -59,12 +59,12 @@ from occmap.io.octomap import write_bt
 from occmap.octree import OcTree
 spec = json.loads(sys.argv[1])
 src = source(True, spec["scans"])
-src.cloud(0)
+src.scan(0)
 t0 = time.perf_counter()
 tree = OcTree(spec["res"])
 points = 0
 for k in range(len(src)):
-    cloud = src.cloud(k)
+    cloud = src.scan(k)
     points += tree.insert_point_cloud(cloud.world_points(), cloud.origin, spec["max_range"])["points"]
 write_bt(tree, spec["out"])
 print(json.dumps({"seconds": time.perf_counter() - t0, "points": points,
@@ -76,7 +76,7 @@ import json, resource, shutil, sys, time
 from occmap.world.build import build_octree
 spec = json.loads(sys.argv[1])
 src = source(spec["near"], spec["scans"])
-src.cloud(0)
+src.scan(0)
 shutil.rmtree(spec["out"], ignore_errors=True)
 t0 = time.perf_counter()
 s = build_octree(spec["out"], src, spec["res"], spec["tile"], max_range=spec["max_range"], workers=spec["workers"],
@@ -103,7 +103,7 @@ def _mark_share(source) -> float:
     tree = OcTree(RES)
     walk = apply = 0.0
     for k in range(min(20, len(source))):
-        cloud = source.cloud(k)
+        cloud = source.scan(k)
         t0 = time.perf_counter()
         keys, is_hit, _, _ = insertion.cloud_voxels(cloud.world_points(), cloud.origin.astype(np.float32), MAX_RANGE,
                                                     False, RES, np.empty((0, 3), np.float32),

@@ -36,7 +36,7 @@ def scans(tmp_path_factory):
 def _one_tree(source, **kw):
     tree = OcTree(0.2)
     for k in range(len(source)):
-        cloud = source.cloud(k)
+        cloud = source.scan(k)
         tree.insert_point_cloud(cloud.world_points(), cloud.origin, **kw)
     return tree
 
@@ -94,3 +94,41 @@ def test_a_killed_build_leaves_the_store_marked_incomplete(tmp_path, scans):
     proc.wait()
     with pytest.raises(IncompleteStoreError, match="incomplete"):
         TiledOcTree.open(tmp_path / "s")
+
+
+def _office_log(path):
+    """A CARMEN log of the simulated office (FLASER, 180 beams, 30 scans)."""
+    from occmap.sim import World2D, simulate_scans
+
+    world = World2D.default()
+    poses = world.default_trajectory(n=30)
+    lines = []
+    for k, (p, s) in enumerate(zip(poses, simulate_scans(world, poses, n_beams=180, rng=0))):
+        r = " ".join(f"{v:.3f}" for v in np.minimum(s.ranges, 10.0))
+        lines.append(f"FLASER {len(s.ranges)} {r} {p[0]} {p[1]} {p[2]} {p[0]} {p[1]} {p[2]} {k}.0 test {k}.0\n")
+    path.write_text("".join(lines))
+    return path
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_grid_built_on_any_workers_exports_map2ds_files(tmp_path, workers):
+    """The tiled grid's export of the whole map is ``occmap map2d``'s pair, byte for byte: on the
+    simulated office, and (two workers) on the Intel and Freiburg 079 logs when the shared data
+    is there."""
+    from pathlib import Path
+
+    from occmap._data import find_shared_data
+    from occmap.cli import main
+
+    logs = [_office_log(tmp_path / "office.log")]
+    data = find_shared_data(Path(__file__).resolve().parent) if workers == 2 else None
+    if data is not None:
+        logs += [data / "carmen" / "intel-corrected.log.gz", data / "carmen" / "freiburg-079-corrected.log.gz"]
+    for i, log in enumerate(logs):
+        every = ["--every", "4"] if i else []
+        assert main(["map2d", str(log), "-o", str(tmp_path / f"one{i}.yaml"), *every]) == 0
+        assert main(["map2d", str(log), "--tiles", str(tmp_path / f"s{i}"), "--tile-size", "32", "--workers",
+                     str(workers), "-o", str(tmp_path / f"tiled{i}.yaml"), *every]) == 0
+        assert (tmp_path / f"one{i}.pgm").read_bytes() == (tmp_path / f"tiled{i}.pgm").read_bytes()
+        one, tiled = ((tmp_path / f"{n}{i}.yaml").read_text().replace(f"{n}{i}.pgm", "") for n in ("one", "tiled"))
+        assert one == tiled

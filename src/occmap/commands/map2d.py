@@ -7,15 +7,16 @@ import sys
 import time
 from pathlib import Path
 
-from . import _notes, _options
+from . import _notes, _options, _tiles
 from ._outputs import check_outputs, check_suffix
 
 
 def add_parser(subparsers):
     p = subparsers.add_parser("map2d", help="build a 2D occupancy grid from a CARMEN laser log (plain, .gz or .bz2)")
     p.add_argument("log", help="CARMEN log with FLASER / RLASER / ROBOTLASER1 lines")
-    p.add_argument("-o", "--output", required=True,
-                   help="map_server YAML to write (.yaml or .yml; the .pgm goes beside it)")
+    p.add_argument("-o", "--output",
+                   help="map_server YAML to write (.yaml or .yml; the .pgm goes beside it); with --tiles, the whole "
+                   "store's known cells")
     p.add_argument("--resolution", type=_options.positive, default=0.05,
                    help="cell size in metres (default: %(default)s)")
     p.add_argument("--png", help="also write a probability picture")
@@ -31,7 +32,34 @@ def add_parser(subparsers):
     p.add_argument("--prob-miss", type=_options.probability, default=0.4,
                    help="P(occupied) for cells a beam passes (default: %(default)s, OctoMap's; 0.45 keeps walls "
                    "that many grazing beams cross more continuous)")
+    _tiles.add_tile_options(p, 256, "cells")
     return p
+
+
+def _run_tiled(args, model) -> int:
+    from ..errors import InvalidArgumentError
+    from ..world.build import build_grid
+    from ..world.grid_tiles import TiledGrid2D
+    from ..world.sources import CarmenScans
+
+    if args.png is not None:
+        raise InvalidArgumentError("with --tiles, --png is not made (export a box, then draw it)")
+    source = CarmenScans(args.log, lenient=args.lenient, every=args.every, max_range=args.max_range)
+    if not len(source):
+        raise InvalidArgumentError(f"{args.log}: no laser scans found")
+    _notes.carmen_assumptions("map2d", source.stats)
+    summary = build_grid(args.tiles, source, args.resolution, args.tile_size, model=model,
+                         workers=args.workers or 1, scheduler=args.scheduler, memory_limit=args.memory_limit,
+                         progress=_tiles.progress_line)
+    s = summary.stats
+    peak = max(part["peak_rss"] for part in summary.parts)
+    print(f"{s['scans']:,} scans, beams {s['points']:,}, dropped readings {s['dropped']:,}, no-return readings "
+          f"{s['beyond_max_range']:,} into {args.tiles}: {summary.tiles:,} tiles, {len(summary.regions)} region(s), "
+          f"{summary.seconds:.1f} s, peak memory per process {peak / 2**20:,.0f} MiB")
+    if args.output is not None:
+        image = TiledGrid2D.open(args.tiles).export(None, args.output)
+        print(f"wrote {args.output} and {image}")
+    return 0
 
 
 def run(args) -> int:
@@ -40,10 +68,17 @@ def run(args) -> int:
     from ..io.carmen import read_carmen
     from ..mapping2d import map_scans
 
-    check_suffix("-o", args.output, (".yaml", ".yml"))
-    image = Path(args.output).with_suffix(".pgm")
+    _tiles.check_tile_options(args)
+    if args.tiles is None and args.output is None:
+        raise InvalidArgumentError("give -o MAP.yaml or --tiles DIR")
+    image = None
+    if args.output is not None:
+        check_suffix("-o", args.output, (".yaml", ".yml"))
+        image = Path(args.output).with_suffix(".pgm")
     check_outputs({"-o": args.output, "the map's image": image, "--png": args.png}, {"LOG": args.log})
     model = LidarModel(args.prob_hit, args.prob_miss)  # checks the pair before the log is read
+    if args.tiles is not None:
+        return _run_tiled(args, model)
 
     t0 = time.perf_counter()
     log = read_carmen(args.log, lenient=args.lenient, every=args.every, max_range=args.max_range)

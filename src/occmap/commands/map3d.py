@@ -42,13 +42,13 @@ def _clouds(paths):
 def _run_tiled(args) -> int:
     from ..errors import InvalidArgumentError
     from ..world.build import build_octree
-    from ..world.octree_tiles import DEFAULT_TILE_SIZE, TiledOcTree
+    from ..world.octree_tiles import TiledOcTree
     from ..world.sources import CloudFiles
 
     if args.png is not None or (args.output is not None and not args.output.lower().endswith((".bt", ".ot"))):
         raise InvalidArgumentError("with --tiles, -o is a .bt or .ot export of the whole store and --png is not made")
     source = CloudFiles(args.inputs)
-    summary = build_octree(args.tiles, source, args.resolution, args.tile_size or DEFAULT_TILE_SIZE,
+    summary = build_octree(args.tiles, source, args.resolution, args.tile_size,
                            max_range=-1.0 if args.max_range is None else args.max_range, discretize=args.discretize,
                            workers=args.workers or 1, scheduler=args.scheduler, memory_limit=args.memory_limit,
                            progress=_tiles.progress_line)

@@ -1,11 +1,12 @@
-"""Building a tiled octree in parallel on Dask, equal to the map one process builds.
+"""Building a tiled map — octree or 2D grid — in parallel on Dask, equal to the map one process
+builds.
 
 Why it is exact. Clamping makes a voxel's log-odds depend on the order of its updates, so each
 voxel must take its updates in scan order. The build partitions *space*: the plane is cut along
 tile borders into as many regions as workers (:func:`partition`), and each worker takes every scan
 that can reach its region, in scan order, and applies the part of each ray inside its region
-(:class:`~occmap.world.octree_tiles.TiledOcTree` with ``region``): its walk is the global walk,
-computed from the sensor. A voxel lies in exactly one region, so it gets the updates it gets in
+(:class:`~occmap.world.octree_tiles.TiledOcTree` or :class:`~occmap.world.grid_tiles.TiledGrid2D`
+with ``region``): its walk is the global walk, computed from the sensor. A voxel lies in exactly one region, so it gets the updates it gets in
 one process, in the same order, whatever the number of workers, the tile size or the order in
 which Dask runs the work.
 
@@ -17,7 +18,7 @@ complete. A build that stops part way leaves the store marked incomplete (:mod:`
 
 A scan read by several workers (near a region border) costs each of them the reading and the
 walking of its rays up to their region: that overlap, and the balance of the regions, are what
-keep the speed-up below the number of workers (:func:`balance`).
+keep the speed-up below the number of workers (``benchmarks/bench_world.py`` estimates them).
 """
 
 from __future__ import annotations
@@ -30,8 +31,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from .octree_tiles import DEFAULT_TILE_SIZE, TiledOcTree
+from .grid_tiles import TiledGrid2D
+from .octree_tiles import TiledOcTree
 from .store import TileStore
+from .stored_map import union_extent
 
 #: A tile index far beyond any map: the open sides of the outer regions.
 UNBOUNDED = 1 << 40
@@ -54,18 +57,60 @@ class BuildSummary:
     tiles: int = 0
 
 
-def footprint(source, k: int, max_range: float):
-    """Scan ``k``'s sensor (3,), the corners (3,), (3,) of the box its rays can reach (within
-    ``max_range`` of the sensor when ≥ 0) and its number of finite points."""
-    cloud = source.cloud(k)
-    origin = cloud.origin
-    finite = cloud.world_points()
-    finite = finite[np.all(np.isfinite(finite), axis=1)]
-    lo = np.minimum(finite.min(axis=0), origin) if len(finite) else origin.copy()
-    hi = np.maximum(finite.max(axis=0), origin) if len(finite) else origin.copy()
-    if max_range >= 0:
-        lo, hi = np.maximum(lo, origin - max_range), np.minimum(hi, origin + max_range)
-    return origin, lo, hi, len(finite)
+class Clouds:
+    """How a build inserts point clouds into a :class:`TiledOcTree` (``max_range``, ``discretize``
+    as for :meth:`~occmap.world.octree_tiles.TiledOcTree.insert_point_cloud`)."""
+
+    MAP = TiledOcTree
+
+    def __init__(self, max_range: float = -1.0, discretize: bool = False):
+        self.max_range, self.discretize = float(max_range), bool(discretize)
+
+    def footprint(self, cloud):
+        """The sensor (3,), the corners (3,), (3,) of the box the rays can reach (within
+        ``max_range`` of the sensor when ≥ 0) and the number of finite points."""
+        origin = cloud.origin
+        finite = cloud.world_points()
+        finite = finite[np.all(np.isfinite(finite), axis=1)]
+        lo = np.minimum(finite.min(axis=0), origin) if len(finite) else origin.copy()
+        hi = np.maximum(finite.max(axis=0), origin) if len(finite) else origin.copy()
+        if self.max_range >= 0:
+            lo, hi = np.maximum(lo, origin - self.max_range), np.minimum(hi, origin + self.max_range)
+        return origin, lo, hi, len(finite)
+
+    def insert(self, part, cloud) -> dict:
+        return part.insert_point_cloud(cloud.world_points(), cloud.origin, self.max_range, self.discretize)
+
+
+class LaserScans:
+    """How a build inserts planar scans into a :class:`TiledGrid2D`, as ``occmap map2d``
+    (:func:`occmap.mapping2d.map_scans`) does: a reading at or beyond its scan's maximum range is
+    no return; beams clear space up to ``limit`` metres (the largest maximum range of the scans
+    when not given: :meth:`prepare` finds it)."""
+
+    MAP = TiledGrid2D
+
+    def __init__(self, limit: float | None = None, model=None):
+        self.limit, self.model = limit, model
+
+    def prepare(self, source) -> None:
+        if self.limit is None:
+            self.limit = max((float(source.scan(k).max_range) for k in range(len(source))), default=1.0)
+
+    def footprint(self, scan):
+        x, y = float(scan.pose[0]), float(scan.pose[1])
+        reach = np.array([self.limit, self.limit, 0.0])
+        origin = np.array([x, y, 0.0])
+        return origin, origin - reach, origin + reach, len(scan.ranges)
+
+    def insert(self, part, scan) -> dict:
+        ranges = np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
+        return part.insert_scan(scan.pose, ranges, scan.angles, max_range=self.limit, model=self.model)
+
+
+def footprint(how, source, k: int):
+    """Scan ``k``'s footprint (``how.footprint``: sensor, reach box, weight) — a Dask task."""
+    return how.footprint(source.scan(k))
 
 
 def partition(cells: np.ndarray, weights: np.ndarray, parts: int) -> list:
@@ -119,27 +164,29 @@ def _dask_progress(text: str) -> None:
     get_worker().log_event(PROGRESS_TOPIC, text)
 
 
-def build_part(path, source, scans, region, max_range: float, discretize: bool, memory_limit, threads,
-               name: int = 0, progress=None):
-    """One region's work (a Dask task): insert ``scans`` of ``source`` in order into the region's
-    tiles of the store at ``path``, write them; returns what the driver records. ``progress(text)``
-    is told how far it is every few seconds."""
+def build_part(path, how, source, scans, region, memory_limit, threads, name: int = 0, progress=None):
+    """One region's work (a Dask task): insert ``scans`` of ``source`` in order (``how``:
+    :class:`Clouds` or :class:`LaserScans`) into the region's tiles of the store at ``path``,
+    write them; returns what the driver records. ``progress(text)`` is told how far it is every
+    few seconds."""
     if threads:
         import numba
 
         numba.set_num_threads(int(threads))
     t0 = last = time.perf_counter()
-    part = TiledOcTree.build_part(path, region, memory_limit)
+    if region is not None and how.MAP is TiledGrid2D:
+        region = (region[0][:2], region[1][:2])
+    part = how.MAP.build_part(path, region, memory_limit)
     summaries = {}
     no_pose = []
     inserted = 0
     for j, k in enumerate(scans):
-        cloud = source.cloud(int(k))
-        s = part.insert_point_cloud(cloud.world_points(), cloud.origin, max_range, discretize)
+        scan = source.scan(int(k))
+        s = how.insert(part, scan)
         if s["scans"]:
             summaries[int(k)] = s
             inserted += s["points"]
-        if not cloud.has_pose:
+        if not getattr(scan, "has_pose", True):
             no_pose.append(int(k))
         now = time.perf_counter()
         if progress is not None and now - last >= PROGRESS_SECONDS:
@@ -148,16 +195,33 @@ def build_part(path, source, scans, region, max_range: float, discretize: bool, 
             progress(f"region {name}: {j + 1:,}/{len(scans):,} scans, {inserted / (now - t0):,.0f} points/s, "
                      f"{held:,} tiles in memory ({held_bytes / 2**20:,.0f} MiB), peak {_peak_rss() / 2**20:,.0f} MiB")
     tiles = part.write_tiles()
-    return {"tiles": tiles, "summaries": summaries, "no_pose": no_pose, "scans": len(scans), "points": inserted,
+    return {"tiles": tiles, "extent": part.extent, "summaries": summaries, "no_pose": no_pose, "scans": len(scans),
+            "points": inserted,
             "seconds": time.perf_counter() - t0, "peak_rss": _peak_rss()}
 
 
-def build_octree(path, source, resolution: float | None = None, tile_size: int = DEFAULT_TILE_SIZE, *,
-                 max_range: float = -1.0, discretize: bool = False, workers: int = 1, scheduler: str | None = None,
-                 memory_limit: int | None = None, progress=None, **params) -> BuildSummary:
-    """Insert the scans of ``source`` (:mod:`.sources`), in order, into the tiled octree stored at
-    ``path``: a new store (``resolution``, ``tile_size``, ``params`` as for
-    :class:`~occmap.world.octree_tiles.TiledOcTree`) or one that exists (mapping resumes).
+def build_octree(path, source, resolution: float | None = None, tile_size: int | None = None, *,
+                 max_range: float = -1.0, discretize: bool = False, **options) -> BuildSummary:
+    """Insert the point clouds of ``source`` (:mod:`.sources`), in order, into the tiled octree
+    stored at ``path`` (``max_range``, ``discretize`` as for ``insert_point_cloud``); see
+    :func:`build`."""
+    return build(path, Clouds(max_range, discretize), source, resolution, tile_size, **options)
+
+
+def build_grid(path, source, resolution: float | None = None, tile_size: int | None = None, *,
+               max_range: float | None = None, model=None, **options) -> BuildSummary:
+    """Insert the laser scans of ``source`` (:class:`.sources.CarmenScans`), in order, into the
+    tiled grid stored at ``path``, as ``occmap map2d`` does (:class:`LaserScans`); see
+    :func:`build`."""
+    return build(path, LaserScans(max_range, model), source, resolution, tile_size, **options)
+
+
+def build(path, how, source, resolution: float | None = None, tile_size: int | None = None, *, workers: int = 1,
+          scheduler: str | None = None, memory_limit: int | None = None, progress=None, **params) -> BuildSummary:
+    """Insert the scans of ``source`` (:mod:`.sources`), in order, as ``how`` says
+    (:class:`Clouds` or :class:`LaserScans`), into the tiled map stored at ``path``: a new store
+    (``resolution``, ``tile_size`` (default the map's), ``params`` as for the map's class) or one
+    that exists (mapping resumes).
 
     ``workers`` = 1 without a ``scheduler`` builds in this process; more start a local Dask
     cluster of that many worker processes; ``scheduler`` (``tcp://host:8786``) uses a running
@@ -166,23 +230,24 @@ def build_octree(path, source, resolution: float | None = None, tile_size: int =
     ``progress(text)`` is called as regions finish. The map is the same whatever the workers.
     """
     t0 = time.perf_counter()
-    store = _store(path, resolution, tile_size, params)
+    store = _store(path, how.MAP, resolution, tile_size, params)
     n = len(source)
+    if hasattr(how, "prepare"):
+        how.prepare(source)
     with store.writer():
         if workers == 1 and scheduler is None:
             regions = [None]
-            parts = [build_part(store.path, source, range(n), None, max_range, discretize, memory_limit, 0, 0,
-                                progress)]
+            parts = [build_part(store.path, how, source, range(n), None, memory_limit, 0, 0, progress)]
             if progress:
                 progress(_part_line(0, parts[0]))
         else:
-            regions, parts = _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory_limit,
-                                      progress)
+            regions, parts = _on_dask(store, how, source, n, workers, scheduler, memory_limit, progress)
         stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
         summaries = {}
         no_pose = set()
         for part in parts:
             store.tiles.update(part["tiles"])
+            store.extent = union_extent(store.extent, part["extent"])
             summaries.update(part["summaries"])
             no_pose.update(part["no_pose"])
         for s in summaries.values():
@@ -192,20 +257,22 @@ def build_octree(path, source, resolution: float | None = None, tile_size: int =
     return BuildSummary(stats, sorted(no_pose), regions, parts, time.perf_counter() - t0, len(store.tiles))
 
 
-def _store(path, resolution, tile_size, params) -> TileStore:
-    """The store to build into: opened if ``path`` is one, else created."""
+def _store(path, cls, resolution, tile_size, params) -> TileStore:
+    """The store to build into: opened if ``path`` is one (of ``cls``'s kind), else created."""
     if (os.path.isdir(path) and os.listdir(path)) or os.path.isfile(path):
-        store = TileStore.open(path, kind="octree")
+        store = TileStore.open(path, kind=cls.KIND)
         if resolution is not None and resolution != store.resolution:
             raise InvalidArgumentError(f"{path}: the store's resolution is {store.resolution:g} m, not {resolution:g}")
+        if tile_size is not None and tile_size != store.tile_size:
+            raise InvalidArgumentError(f"{path}: the store's tiles are {store.tile_size}, not {tile_size}, a side")
         return store
     if resolution is None:
         raise InvalidArgumentError(f"{path}: a new store needs a resolution")
-    template = TiledOcTree(resolution, tile_size, **params)
-    return TileStore.create(path, "octree", template.resolution, template.tile_size, template.params)
+    cls.create(path, resolution, *(() if tile_size is None else (tile_size,)), **params).close()
+    return TileStore.open(path, kind=cls.KIND)
 
 
-def _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory_limit, progress):
+def _on_dask(store, how, source, n, workers, scheduler, memory_limit, progress):
     from distributed import Client, LocalCluster, as_completed
 
     cluster = None
@@ -217,7 +284,7 @@ def _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory
         client.subscribe_topic(PROGRESS_TOPIC, lambda event: progress(event[1]))
     try:
         count = len(client.scheduler_info()["workers"]) if scheduler is not None else int(workers)
-        feet = client.gather(client.map(footprint, [source] * n, range(n), [max_range] * n, pure=False))
+        feet = client.gather(client.map(footprint, [how] * n, [source] * n, range(n), pure=False))
         origins = np.array([f[0] for f in feet]).reshape(-1, 3)
         lo = np.array([f[1] for f in feet]).reshape(-1, 3)
         hi = np.array([f[2] for f in feet]).reshape(-1, 3)
@@ -227,8 +294,8 @@ def _on_dask(store, source, n, max_range, discretize, workers, scheduler, memory
         regions = partition(cells, weights, count)
         limit = None if memory_limit is None else max(1, int(memory_limit) // len(regions))
         threads = max(1, (os.cpu_count() or 1) // len(regions)) if cluster is not None else 0
-        futures = {client.submit(build_part, str(store.path), source, reaching(r, lo, hi, side), r, max_range,
-                                 discretize, limit, threads, i, _dask_progress if progress else None, pure=False): i
+        futures = {client.submit(build_part, str(store.path), how, source, reaching(r, lo, hi, side), r, limit,
+                                 threads, i, _dask_progress if progress else None, pure=False): i
                    for i, r in enumerate(regions)}
         parts = [None] * len(regions)
         for future in as_completed(futures):

@@ -40,7 +40,7 @@ from ..logodds import occupancy_classes, occupancy_values
 from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _grid_kernels as K
 from .store import TILES, TileStore
-from .stored_map import StoredMap, region_box
+from .stored_map import StoredMap, region_box, union_extent
 from .zarr_tiles import CELL_OFFSET, ZarrTiles
 
 DEFAULT_TILE_SIZE = 256
@@ -156,6 +156,11 @@ class TiledGrid2D(StoredMap):
         P, R, A, max_range = scan_arrays(poses, ranges, angles, max_range)
         self._check_writable()
         self._check_reach(P, R, A, max_range)
+        if len(P):  # the lattice cells of the box the beams reach (OccupancyGrid2D's growth rule)
+            xmin, ymin, xmax, ymax = beam_extent(P, R, A, max_range)
+            inv = 1.0 / self.resolution
+            box = [math.floor(xmin * inv), math.floor(ymin * inv), math.floor(xmax * inv) + 1, math.floor(ymax * inv) + 1]
+            self.extent = union_extent(self.extent, box)
         d = (model.l_hit - self._template.l_prior, model.l_miss - self._template.l_prior)
         N = len(P)
         i = 0
@@ -362,7 +367,10 @@ class TiledGrid2D(StoredMap):
         """Log-odds of the cells of ``box = (xmin, ymin, xmax, ymax)`` metres (:meth:`box_cells`),
         float32 (H, W), row 0 at the box's lower edge, NaN where unknown: for a growing
         ``OccupancyGrid2D`` of the same scans and its own box, its ``log_odds()``."""
-        x0, y0, x1, y1 = self.box_cells(box)
+        return self._cells_log_odds(*self.box_cells(box))
+
+    def _cells_log_odds(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+        """:meth:`log_odds` of the cells [x0, x1) × [y0, y1)."""
         out = np.full((y1 - y0, x1 - x0), np.nan, np.float32)
         T, b = self.tile_size, self._bits
         known = set(self._slots) if self._store is None else set(self._slots) | set(self._store.tiles)
@@ -383,14 +391,17 @@ class TiledGrid2D(StoredMap):
         return occupancy_values(self.log_odds(box))
 
     def export(self, box, path_yaml, **kwargs):
-        """Write the cells of ``box`` (:meth:`box_cells`) as a ROS map_server pair whose origin is
-        the box's corner cell, so the pair sits where the box does; keyword arguments go to
-        :func:`occmap.io.mapserver.save_map`. Returns the image path."""
+        """Write the cells of ``box`` (:meth:`box_cells`; None: :attr:`extent`, the cells the scans
+        reached, which a growing ``OccupancyGrid2D`` of the same scans spans) as a ROS map_server
+        pair whose origin is the box's corner cell, so the pair sits where the box does; keyword
+        arguments go to :func:`occmap.io.mapserver.save_map`. Returns the image path."""
         from ..io.mapserver import save_map
 
-        x0, y0, _, _ = self.box_cells(box)
-        return save_map(path_yaml, self.occupancy(box), self.resolution,
-                        (x0 * self.resolution, y0 * self.resolution), **kwargs)
+        if box is None and self.extent is None:
+            raise InvalidArgumentError("the map holds no scan: nothing to export")
+        cells = self.extent if box is None else self.box_cells(box)
+        return save_map(path_yaml, occupancy_values(self._cells_log_odds(*cells)), self.resolution,
+                        (cells[0] * self.resolution, cells[1] * self.resolution), **kwargs)
 
     # ------------------------------------------------------------------ the store
 

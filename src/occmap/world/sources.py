@@ -2,9 +2,10 @@
 that any process can open by number, so Dask workers (local or remote, sharing the files) each read
 just the scans their region needs, in the same order.
 
-A source has ``len(source)``, ``source.cloud(k)``: scan ``k`` as a
+A source has ``len(source)``, ``source.scan(k)``: scan ``k`` — for octrees a
 :class:`~occmap.cloud.PointCloud` (its ``world_points()`` and ``origin`` are what a map inserts;
-``has_pose`` false where the data gave no pose), and ``source.name(k)`` to name it in messages.
+``has_pose`` false where the data gave no pose), for grids a :class:`~occmap.scan.LaserScan` —
+and ``source.name(k)`` to name it in messages.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ class CloudFiles:
     def __len__(self) -> int:
         return len(self._scans)
 
-    def cloud(self, k: int):
+    def scan(self, k: int):
         """Scan ``k`` as a :class:`occmap.cloud.PointCloud`."""
         path, node = self._scans[k]
         if node is not None:
@@ -66,7 +67,7 @@ class SimulatedDrive:
     def __len__(self) -> int:
         return self.stop
 
-    def cloud(self, k: int):
+    def scan(self, k: int):
         from ..sim.city import city_scan
 
         if not 0 <= k < self.stop:
@@ -75,3 +76,36 @@ class SimulatedDrive:
 
     def name(self, k: int) -> str:
         return f"simulated town drive scan {k}"
+
+
+class CarmenScans:
+    """The laser scans of a CARMEN log as a scan source (``read_options`` as for
+    :func:`occmap.io.carmen.read_carmen`: ``every``, ``max_range``, ``lenient``, …); each process
+    reads the log once."""
+
+    def __init__(self, path, **read_options):
+        self.path = str(path)
+        self.read_options = read_options
+        self._count = len(_carmen(self.path, tuple(sorted(read_options.items()))))
+
+    def __len__(self) -> int:
+        return self._count
+
+    def scan(self, k: int):
+        return _carmen(self.path, tuple(sorted(self.read_options.items()))).scans[k]
+
+    def name(self, k: int) -> str:
+        return f"{self.path} scan {k}"
+
+    @property
+    def stats(self):
+        """The reader's counts (:class:`occmap.io.carmen.CarmenStats`)."""
+        return _carmen(self.path, tuple(sorted(self.read_options.items()))).stats
+
+
+@lru_cache(maxsize=1)
+def _carmen(path: str, options: tuple):
+    """The last CARMEN log read in this process."""
+    from ..io.carmen import read_carmen
+
+    return read_carmen(path, **dict(options))

@@ -16,6 +16,7 @@ bounds, so a reader loads only the tiles it needs)::
      "params": {...},                # the map's sensor model and clamping (prob_hit, ...)
      "state": "complete" | "building",
      "scans": 1234,                  # scans the tiles hold, in the order they were inserted
+     "extent": [x0, y0, x1, y1],     # (grids) the cells the scans reached: [x0, x1) × [y0, y1)
      "tiles": [{"index": [tx, ty, tz], "file": "tiles/...", "min": [...], "max": [...], ...}, ...]}
 
 Tile ``(tx, ty[, tz])`` covers ``[t · tile_size · resolution, (t + 1) · tile_size · resolution)``
@@ -71,6 +72,9 @@ class TileStore:
     params : dict (the map's parameters, JSON values)
     state : str ("complete" or "building")
     scans : int
+    extent : list[int] or None
+        The box of cells the scans reached, ``[x0, y0, x1, y1]`` (half-open), where the map keeps one
+        (a grid's: what a growing ``OccupancyGrid2D`` of the same scans spans).
     tiles : dict[tuple[int, ...], dict]
         Tile index → its entry (``file``, ``min``, ``max`` in metres, and counts the map adds).
     """
@@ -83,6 +87,7 @@ class TileStore:
         self.params = index["params"]
         self.state = index["state"]
         self.scans = index["scans"]
+        self.extent = index.get("extent")
         self.tiles = {tuple(t["index"]): {k: v for k, v in t.items() if k != "index"} for t in index["tiles"]}
         self._lock_fd = None
 
@@ -146,7 +151,7 @@ class TileStore:
         tiles = [{"index": list(k), **v} for k, v in sorted(self.tiles.items())]
         index = {"format": FORMAT, "version": VERSION, "kind": self.kind, "resolution": self.resolution,
                  "tile_size": self.tile_size, "params": self.params, "state": self.state, "scans": self.scans,
-                 "tiles": tiles}
+                 "extent": self.extent, "tiles": tiles}
         write_atomic(self.path / INDEX, (json.dumps(index, indent=1) + "\n").encode())
 
     # ------------------------------------------------------------------ one writer
@@ -216,6 +221,8 @@ def _parse_index(path: Path) -> dict:
     field("params", lambda v: isinstance(v, dict), "an object")
     field("state", lambda v: v in ("complete", "building"), "\"complete\" or \"building\"")
     field("scans", lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0, "a count")
+    field("extent", lambda v: v is None or (isinstance(v, list) and len(v) == 2 * KINDS[kind] and all(
+        isinstance(i, int) and not isinstance(i, bool) for i in v)), f"null or {2 * KINDS[kind]} integers")
     tiles = field("tiles", lambda v: isinstance(v, list), "a list")
     for k, t in enumerate(tiles):
         idx = t.get("index") if isinstance(t, dict) else None

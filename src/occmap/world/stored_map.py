@@ -45,6 +45,7 @@ class StoredMap(OneCallAtATime):
         self._writer = None  # the store's writer lock while this map holds it
         self._dirty: set = set()  # tiles changed since last written
         self._written: set = set()  # tiles this map has written
+        self.extent = None  # the box of cells the scans reached, where the map keeps one (TileStore.extent)
 
     @classmethod
     def _from_store(cls, store: TileStore, region, memory_limit):
@@ -67,6 +68,7 @@ class StoredMap(OneCallAtATime):
         store = TileStore.open(path, kind=cls.KIND)
         tiled = cls._from_store(store, region, memory_limit)
         tiled.stats["scans"] = store.scans
+        tiled.extent = store.extent
         tiled._attach(store, writable)
         return tiled
 
@@ -110,6 +112,7 @@ class StoredMap(OneCallAtATime):
             return
         self.write_tiles()
         self._store.scans = self.stats["scans"]
+        self._store.extent = self.extent
         self._store.save_index()
 
     def close(self) -> None:
@@ -128,3 +131,11 @@ class StoredMap(OneCallAtATime):
         elif self._writer is not None:  # an error: the store stays marked incomplete
             writer, self._writer = self._writer, None
             writer.__exit__(kind, value, tb)
+
+
+def union_extent(a, b):
+    """The box holding two boxes ``[x0, y0, …, x1, y1, …]`` (half-open; None: none)."""
+    if a is None or b is None:
+        return b if a is None else a
+    d = len(a) // 2
+    return [min(a[i], b[i]) for i in range(d)] + [max(a[i], b[i]) for i in range(d, 2 * d)]
