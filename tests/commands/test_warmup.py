@@ -69,6 +69,9 @@ def test_commands_after_warmup_compile_nothing(tmp_path):
         ["map3d", f"{t_}/scan.pcd", "--tiles", f"{t_}/store", "--resolution", "0.2", "-o", f"{t_}/store.bt"],
         ["info", f"{t_}/store"],
         ["export", f"{t_}/store", "-o", f"{t_}/box.ot", "--box", "-5", "-5", "-1", "5", "5", "3"],
+        ["map2d", f"{t_}/office.log", "--tiles", f"{t_}/grid", "--tile-size", "64", "-o", f"{t_}/tiled.yaml"],
+        ["info", f"{t_}/grid"],
+        ["export", f"{t_}/grid", "-o", f"{t_}/corner.yaml", "--box", "0", "0", "5", "5"],
     ]
     run = subprocess.run([sys.executable, "-c", HARNESS, json.dumps(commands)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
