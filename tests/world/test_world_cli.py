@@ -65,3 +65,16 @@ def test_tile_options_need_tiles(tmp_path, inputs, capsys):
         main(["map3d", inputs[0], "--tiles", str(tmp_path / "s"), "--memory-limit", "lots"])
     with pytest.raises(SystemExit):
         main(["map3d", inputs[0], "--tiles", str(tmp_path / "s"), "--tile-size", "48"])
+
+
+def test_map3d_builds_on_a_running_scheduler(tmp_path, inputs, capsys):
+    """--scheduler ADDRESS uses a cluster that is already running, unchanged: same bytes."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                      silence_logs=40) as cluster:
+        assert main(["map3d", *inputs, "--tiles", str(tmp_path / "s"), "--tile-size", "32", "--resolution", "0.25",
+                     "--scheduler", cluster.scheduler_address, "-o", str(tmp_path / "remote.bt")]) == 0
+    assert "2 region(s)" in capsys.readouterr().out
+    assert main(["map3d", *inputs, "--resolution", "0.25", "-o", str(tmp_path / "one.bt")]) == 0
+    assert (tmp_path / "remote.bt").read_bytes() == (tmp_path / "one.bt").read_bytes()
