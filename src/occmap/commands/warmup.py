@@ -272,7 +272,8 @@ def world(folder: Path) -> None:
 
 
 def grid_tiles(folder: Path) -> None:
-    """Tiled 2D grids: insertion (on one thread and on several, a region, evicting), a store, queries."""
+    """Tiled 2D grids: insertion (on one thread and on several, a region, evicting), a store, queries,
+    a build from a log."""
     from ..world.grid_tiles import TiledGrid2D
 
     angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
@@ -285,6 +286,11 @@ def grid_tiles(folder: Path) -> None:
     grid = TiledGrid2D.open(folder / "grid_tiles")
     grid.occupancy_at(poses[:, :2])
     grid.export((-2.0, -2.0, 2.0, 2.0), folder / "grid_tiles.yaml")
+    from ..world.build import build_grid
+    from ..world.sources import CarmenScans
+
+    build_grid(folder / "grid_build", CarmenScans(_office_log(folder)), 0.05, 64)  # scan by scan, as map2d --tiles
+    TiledGrid2D.open(folder / "grid_build").export(None, folder / "grid_build.yaml")
 
 
 def city(folder: Path) -> None:
