@@ -37,5 +37,7 @@ def check_tile_options(args) -> None:
         raise InvalidArgumentError(f"--tiles {args.tiles!r} is a file: a tile store is a folder")
 
 
-def progress_line(text: str) -> None:
-    print(text, flush=True)
+def build_options(args) -> dict:
+    """The keywords of :func:`occmap.world.build.build` the options give."""
+    return {"workers": args.workers or 1, "scheduler": args.scheduler, "memory_limit": args.memory_limit,
+            "progress": lambda text: print(text, flush=True)}

@@ -49,13 +49,10 @@ def _run_tiled(args, model) -> int:
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
     _notes.carmen_assumptions("map2d", source.stats)
     summary = build_grid(args.tiles, source, args.resolution, args.tile_size, model=model,
-                         workers=args.workers or 1, scheduler=args.scheduler, memory_limit=args.memory_limit,
-                         progress=_tiles.progress_line)
+                         **_tiles.build_options(args))
     s = summary.stats
-    peak = max(part["peak_rss"] for part in summary.parts)
     print(f"{s['scans']:,} scans, beams {s['points']:,}, dropped readings {s['dropped']:,}, no-return readings "
-          f"{s['beyond_max_range']:,} into {args.tiles}: {summary.tiles:,} tiles, {len(summary.regions)} region(s), "
-          f"{summary.seconds:.1f} s, peak memory per process {peak / 2**20:,.0f} MiB")
+          f"{s['beyond_max_range']:,} into {args.tiles}: {summary.line()}")
     if args.output is not None:
         image = TiledGrid2D.open(args.tiles).export(None, args.output)
         print(f"wrote {args.output} and {image}")

@@ -50,14 +50,10 @@ def _run_tiled(args) -> int:
     source = CloudFiles(args.inputs)
     summary = build_octree(args.tiles, source, args.resolution, args.tile_size,
                            max_range=-1.0 if args.max_range is None else args.max_range, discretize=args.discretize,
-                           workers=args.workers or 1, scheduler=args.scheduler, memory_limit=args.memory_limit,
-                           progress=_tiles.progress_line)
+                           **_tiles.build_options(args))
     _notes.identity_poses("map3d", [source.name(k) for k in summary.no_pose], len(source))
     s = summary.stats
-    peak = max(part["peak_rss"] for part in summary.parts)
-    print(f"{s['scans']} scans, {s['points']:,} points ({s['dropped']:,} dropped) into {args.tiles}: "
-          f"{summary.tiles:,} tiles, {len(summary.regions)} region(s), {summary.seconds:.1f} s "
-          f"({s['points'] / max(summary.seconds, 1e-9):,.0f} points/s), peak memory per process {peak / 2**20:,.0f} MiB")
+    print(f"{s['scans']} scans, {s['points']:,} points ({s['dropped']:,} dropped) into {args.tiles}: {summary.line()}")
     if args.output is not None:
         offset = TiledOcTree.open(args.tiles).export(args.output)
         print(f"wrote {args.output}" + (f" (offset {offset.tolist()} m, in its header)" if offset.any() else ""))

@@ -56,6 +56,13 @@ class BuildSummary:
     seconds: float = 0.0
     tiles: int = 0
 
+    def line(self) -> str:
+        """Tiles, regions, time, points per second and the peak memory of the busiest process."""
+        peak = max(part["peak_rss"] for part in self.parts)
+        rate = self.stats["points"] / max(self.seconds, 1e-9)
+        return (f"{self.tiles:,} tiles, {len(self.regions)} region(s), {self.seconds:.1f} s ({rate:,.0f} points/s), "
+                f"peak memory per process {peak / 2**20:,.0f} MiB")
+
 
 class Clouds:
     """How a build inserts point clouds into a :class:`TiledOcTree` (``max_range``, ``discretize``
