@@ -41,6 +41,8 @@ UNBOUNDED = 1 << 40
 #: Seconds between a region's progress lines, and the Dask topic that carries them to the driver.
 PROGRESS_SECONDS = 5.0
 PROGRESS_TOPIC = "occmap-build-progress"
+#: Scans a footprint task reads.
+_FOOTPRINT_RUN = 64
 
 
 @dataclass
@@ -116,8 +118,14 @@ class LaserScans:
 
 
 def footprint(how, source, k: int):
-    """Scan ``k``'s footprint (``how.footprint``: sensor, reach box, weight) — a Dask task."""
+    """Scan ``k``'s footprint (``how.footprint``: sensor, reach box, weight)."""
     return how.footprint(source.scan(k))
+
+
+def footprints(how, source, ks) -> list:
+    """The footprints of scans ``ks`` (a Dask task: a run of scans, not one, so that the
+    scheduler's cost per task stays small beside the reading)."""
+    return [footprint(how, source, int(k)) for k in ks]
 
 
 def partition(cells: np.ndarray, weights: np.ndarray, parts: int) -> list:
@@ -291,7 +299,9 @@ def _on_dask(store, how, source, n, workers, scheduler, memory_limit, progress):
         client.subscribe_topic(PROGRESS_TOPIC, lambda event: progress(event[1]))
     try:
         count = len(client.scheduler_info()["workers"]) if scheduler is not None else int(workers)
-        feet = client.gather(client.map(footprint, [how] * n, [source] * n, range(n), pure=False))
+        runs = [range(a, min(n, a + _FOOTPRINT_RUN)) for a in range(0, n, _FOOTPRINT_RUN)]
+        feet = [f for run in client.gather(client.map(footprints, [how] * len(runs), [source] * len(runs), runs,
+                                                      pure=False)) for f in run]
         origins = np.array([f[0] for f in feet]).reshape(-1, 3)
         lo = np.array([f[1] for f in feet]).reshape(-1, 3)
         hi = np.array([f[2] for f in feet]).reshape(-1, 3)
