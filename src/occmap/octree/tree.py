@@ -35,7 +35,9 @@ def _depth(depth) -> int:
     return d
 
 
-def _points(name: str, points) -> np.ndarray:
+def points_array(name: str, points) -> np.ndarray:
+    """``points`` as float64 (N, 3) (one point (3,) becomes (1, 3)); :class:`ShapeError` naming
+    ``name`` otherwise."""
     P = np.asarray(points, dtype=np.float64)
     if P.ndim == 1 and P.shape == (3,):
         P = P[None, :]
@@ -180,7 +182,7 @@ class OcTree(OneCallAtATime):
     def coord_to_key(self, points) -> np.ndarray:
         """Depth-16 keys (N, 3) int64 of points (N, 3) in metres, OctoMap's ``coordToKey``
         (``floor(x / res) + 32768`` on the float64 coordinate). Raises on keys outside 0..65535."""
-        P = _points("points", points)
+        P = points_array("points", points)
         keys = coord_to_keys(P, self.resolution)
         bad = np.flatnonzero(~keys_in_range(keys))
         if bad.size:
@@ -256,7 +258,7 @@ class OcTree(OneCallAtATime):
     def _scan_voxels(self, points, origin, max_range: float, discretize: bool, threads: bool):
         """A scan's voxels, Morton-ordered packed keys with hit flags, and its summary (no change
         to the tree: scans can be traced ahead on another thread)."""
-        P = _points("points", points)
+        P = points_array("points", points)
         o32 = _origin(origin).astype(np.float32)
         self.coord_to_key(o32.astype(np.float64))  # (an origin out of range is refused)
         box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
@@ -277,9 +279,9 @@ class OcTree(OneCallAtATime):
         origin (3,) to ``ends`` (N, 3) free, each end's voxel occupied; with ``max_range > 0`` a
         longer ray is cut there and marks nothing. Unlike :meth:`insert_point_cloud`, rays are
         independent updates (a voxel crossed by two rays is updated twice)."""
-        E = _points("ends", ends)
+        E = points_array("ends", ends)
         O = np.asarray(origins, dtype=np.float64)
-        O = _points("origins", O) if O.ndim == 2 else _origin(O)[None, :]
+        O = points_array("origins", O) if O.ndim == 2 else _origin(O)[None, :]
         if O.shape[0] not in (1, E.shape[0]):
             raise ShapeError(f"origins must be (3,) or ({E.shape[0]}, 3), got {O.shape}")
         if not np.all(np.isfinite(E)) or not np.all(np.isfinite(O)):
@@ -295,12 +297,12 @@ class OcTree(OneCallAtATime):
 
     def insert_ray(self, origin, end, max_range: float = -1.0, lazy: bool = False) -> None:
         """One ray (see :meth:`insert_rays`)."""
-        self.insert_rays(_origin(origin), _points("end", end), max_range, lazy)
+        self.insert_rays(_origin(origin), points_array("end", end), max_range, lazy)
 
     def update_nodes(self, points, occupied, lazy: bool = False) -> None:
         """OctoMap's ``updateNode(point, occupied)`` for each point in turn: one hit (``occupied``
         true) or miss on the voxel holding it. ``occupied`` is a bool or one bool per point."""
-        P = _points("points", points)
+        P = points_array("points", points)
         if not np.all(np.isfinite(P)):
             raise InvalidArgumentError("points must be finite")
         occ = np.broadcast_to(np.asarray(occupied, dtype=bool), P.shape[:1])
@@ -345,7 +347,7 @@ class OcTree(OneCallAtATime):
 
     def _search(self, points, depth: int) -> np.ndarray:
         depth = _depth(depth)
-        P = _points("points", points)
+        P = points_array("points", points)
         keys = coord_to_keys(P, self.resolution)
         inside = keys_in_range(keys) & np.all(np.isfinite(P), axis=1)
         keys[~inside] = 0
@@ -373,7 +375,7 @@ class OcTree(OneCallAtATime):
         tree's border. Returns ``(hit (N,) bool, end_points (N, 3))``: the centre of the voxel where
         each ray stopped; NaN where it could not be cast (origin outside the tree, zero direction).
         """
-        O, D = _points("origins", origins), _points("directions", directions)
+        O, D = points_array("origins", origins), points_array("directions", directions)
         n = max(len(O), len(D))
         if len(O) not in (1, n) or len(D) not in (1, n):
             raise ShapeError(f"origins {O.shape} and directions {D.shape} do not match")

@@ -35,7 +35,7 @@ from ..io.octomap import decode_ot, encode_bt, encode_ot
 from ..logodds import logit32, occupancy_classes
 from ..octree import OcTree, insertion, query
 from ..octree.keys import CENTER, DEPTH, MAX_KEY, coord_to_keys, node_cells, node_centers
-from ..octree.tree import Leaves
+from ..octree.tree import Leaves, points_array
 from ..octree.pool import TOP, settle_tree
 from . import cast, graft
 from .split import split_by_tile
@@ -99,7 +99,7 @@ class TiledOcTree(StoredMap):
 
     def tile_of(self, points) -> np.ndarray:
         """Tile indices (N, 3) int64 of points (N, 3) in metres."""
-        return (coord_to_keys(_points(points), self.resolution) - CENTER) >> self._bits
+        return (coord_to_keys(points_array("points", points), self.resolution) - CENTER) >> self._bits
 
     def tile_bounds(self, index) -> tuple[np.ndarray, np.ndarray]:
         """``(min, max)`` corners in metres of tile ``index``."""
@@ -113,7 +113,7 @@ class TiledOcTree(StoredMap):
         """Integrate one scan as :meth:`occmap.octree.OcTree.insert_point_cloud` does (same
         arguments but ``lazy``; NaN/inf points dropped and counted). Returns this scan's counts
         (all 0 for a scan that cannot reach the map's region: it is not counted)."""
-        P = _points(points)
+        P = points_array("points", points)
         o = np.asarray(origin, dtype=np.float64)
         if o.shape != (3,) or not np.all(np.isfinite(o)):
             raise InvalidArgumentError(f"origin must be 3 finite numbers, got {np.asarray(origin).tolist()}")
@@ -240,7 +240,7 @@ class TiledOcTree(StoredMap):
 
     def log_odds_at(self, points) -> np.ndarray:
         """Log-odds (N,) of the voxel (or pruned node) holding each point; NaN where unknown."""
-        P = _points(points)
+        P = points_array("points", points)
         out = np.full(len(P), np.nan)
         good = np.all(np.isfinite(P), axis=1)
         keys = coord_to_keys(np.where(good[:, None], P, 0.0), self.resolution) - CENTER
@@ -269,7 +269,8 @@ class TiledOcTree(StoredMap):
         that only those two would stop — on leaving the box of the map's tiles (its border; a
         tree's is its key range). Returns ``(hit (N,), end_points (N, 3))``: the
         centre of the voxel where each ray stopped, NaN for a ray with no direction."""
-        O, D = _points(origins).astype(np.float32), _points(directions).astype(np.float32)
+        O = points_array("origins", origins).astype(np.float32)
+        D = points_array("directions", directions).astype(np.float32)
         n = max(len(O), len(D))
         if len(O) not in (1, n) or len(D) not in (1, n):
             raise ShapeError(f"origins {O.shape} and directions {D.shape} do not match")
@@ -419,16 +420,6 @@ class TiledOcTree(StoredMap):
     def __repr__(self) -> str:
         return (f"TiledOcTree({self.resolution} m, tiles of {self.tile_size} voxels, {len(self.tiles())} tiles, "
                 f"{self.stats['scans']} scans)")
-
-
-def _points(points) -> np.ndarray:
-    """(N, 3) float64 (one point (3,) becomes (1, 3))."""
-    P = np.asarray(points, dtype=np.float64)
-    if P.shape == (3,):
-        P = P[None, :]
-    if P.ndim != 2 or P.shape[1] != 3:
-        raise ShapeError(f"points must have shape (N, 3), got {P.shape}")
-    return P
 
 
 def _tile_node(nodes, depth: int) -> int:
