@@ -40,7 +40,7 @@ def _tiled(scans, res, tile_size, **kw):
 
 def _regions(tiled, parts):
     """``parts`` regions that split the map's tiles along x at their quantiles."""
-    xs = np.array(tiled.tiles())[:, 0]
+    xs = np.array(list(tiled.tiles()))[:, 0]
     cuts = [int(np.quantile(xs, q)) for q in np.linspace(0, 1, parts + 1)[1:-1]]
     edges = [-10**6] + [c + 1 for c in cuts] + [10**6 + 1]
     return [((a, -10**6, -10**6), (b - 1, 10**6, 10**6)) for a, b in zip(edges[:-1], edges[1:])]
@@ -118,7 +118,13 @@ def test_stored_resumed_and_evicted_is_the_same_map(tmp_path, drive):
         for points, origin in drive[3:]:
             tiled.insert_point_cloud(points, origin)
         assert len(tiled._tiles) < len(tiled.tiles())  # evicted tiles went to the store
+        in_memory = {i: {k: e[k] for k in ("min", "max", "nodes")} for i, e in tiled.tiles().items()}
     back = TiledOcTree.open(tmp_path / "s")
+    entries = back.tiles()
+    assert {i: {k: e[k] for k in ("min", "max", "nodes")} for i, e in entries.items()} == in_memory
+    assert all(back.tile(i).num_nodes() == e["nodes"] and (tmp_path / "s" / e["file"]).stat().st_size == e["bytes"]
+               for i, e in entries.items())
+    assert all(np.allclose(back.tile_bounds(i)[0], e["min"]) for i, e in entries.items())
     assert back.stats["scans"] == 6
     assert encode_bt(back.to_octree()) == encode_bt(ref)
     tile = next(iter((tmp_path / "s" / "tiles").iterdir()))

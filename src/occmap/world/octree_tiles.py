@@ -226,10 +226,16 @@ class TiledOcTree(StoredMap):
         """Tiles held in memory now, and the bytes their node pools take."""
         return len(self._tiles), sum(t.memory_allocated() for t in self._tiles.values())
 
-    def tiles(self) -> list[tuple[int, int, int]]:
-        """Indices of the tiles that hold nodes (in memory or in the store), sorted."""
-        stored = set(self._store.tiles) if self._store is not None else set()
-        return sorted(stored | {k for k, t in self._tiles.items() if t.num_nodes()})
+    def tiles(self) -> dict[tuple[int, int, int], dict]:
+        """The tiles holding nodes, in index order: ``(tx, ty, tz)`` → ``{"min": [x, y, z], "max":
+        [x, y, z]`` (metres), ``"nodes"}`` (and ``"file"``, its ``.ot`` in the store, and
+        ``"bytes"``, its size, for a tile as last written to a store)."""
+        out = {} if self._store is None else {i: dict(e) for i, e in self._store.tiles.items()}
+        for index, tree in self._tiles.items():
+            if index in self._dirty or index not in out:
+                lo, hi = self.tile_bounds(index)
+                out[index] = {"min": lo.tolist(), "max": hi.tolist(), "nodes": tree.num_nodes()}
+        return {i: out[i] for i in sorted(out) if out[i]["nodes"]}
 
     def tile(self, index) -> OcTree | None:
         """Tile ``index`` as an :class:`OcTree` in tile keys (voxels at ``[0, tile_size·res)``
@@ -279,7 +285,7 @@ class TiledOcTree(StoredMap):
         keys, steps, t, g, _ = cast.start_rays(O, D, self.resolution)
         status = np.full(n, cast.MOVED, np.int8)
         first = np.ones(n, np.bool_)
-        tiles = self.tiles()
+        tiles = list(self.tiles())
         T = self.tile_size
         if ignore_unknown and max_range <= 0:
             t_all = np.array(tiles or [(0, 0, 0)], np.int64)
@@ -370,7 +376,7 @@ class TiledOcTree(StoredMap):
                                  occupied_threshold=t.occupied_threshold)
 
     def _chosen(self, box) -> list:
-        indices = self.tiles()
+        indices = list(self.tiles())
         if box is not None:
             lo, hi = (np.asarray(b, np.float64) for b in box)
             if lo.shape != (3,) or hi.shape != (3,) or not np.all(lo <= hi):
