@@ -106,3 +106,16 @@ def test_map3d_says_when_it_assumes_the_identity_pose(tmp_path, capsys, clouds):
         write_pcd(pcl[-1], c.points)
     assert main(["map3d", *pcl, "-o", str(tmp_path / "p.bt"), "--resolution", "0.5"]) == 0
     assert "note: 2 of 2 point clouds carry no sensor pose" in capsys.readouterr().err
+
+
+def test_map3d_skips_points_outside_the_key_range_and_says_so(tmp_path, capsys, clouds):
+    """A stray point 50 km away skips its ray only (OctoMap's rule): the map is the one without it."""
+    c = clouds[0]
+    stray = np.concatenate([c.points[:10], [[50_000.0, 0.0, 0.0]], c.points[10:]])
+    write_pcd(tmp_path / "stray.pcd", stray, viewpoint=c.pose)
+    write_pcd(tmp_path / "clean.pcd", c.points, viewpoint=c.pose)
+    for name in ("stray", "clean"):
+        assert main(["map3d", str(tmp_path / f"{name}.pcd"), "-o", str(tmp_path / f"{name}.bt"), "--resolution", "0.5"]) == 0
+    err = capsys.readouterr().err
+    assert "note: points outside the octree's key range (±16384 m at 0.5 m) skipped: 1," in err
+    assert (tmp_path / "stray.bt").read_bytes() == (tmp_path / "clean.bt").read_bytes()

@@ -13,7 +13,7 @@ import pytest
 
 from occmap.errors import InvalidArgumentError, ShapeError
 from occmap.io.octomap import encode_ot, read_bt
-from occmap.octree import OcTree
+from occmap.octree import OcTree, marking
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -263,7 +263,7 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.2, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
     origin = np.array([0.013, -0.021, 0.034], np.float32)
     none = np.zeros(3, np.int64)
-    ends, hit, _, _ = marking.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32), none)
+    ends, hit, _, _, _ = marking.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32), none)
     corner = marking.cube_corner(origin, ends, res, none)
     sensor_block = (np.floor(origin.astype(np.float64) * (1 / res)).astype(np.int64) + 32768) >> 3
     shift = sensor_block - (np.array(unpack(corner)) >> 3)
@@ -310,6 +310,48 @@ def test_discretize_matches_octomap():
     ours.insert_point_cloud(pts, origin, discretize=True)
     ref.insertPointCloud(pts, origin, discretize=True)
     assert_same_as_octomap(ours, ref)
+
+
+def test_points_outside_the_key_range_are_skipped_as_octomap_does():
+    """OctoMap skips a ray whose end lies outside the key range (``computeRayKeys`` fails) and
+    inserts the rest; with a max range the cut end is what counts. Discretized, OctoMap's
+    unchecked key wraps around and marks a voxel far away: here those points are dropped, and the
+    tree is OctoMap's of the points in range."""
+    octomap = _octomap()
+    rng = np.random.default_rng(15)
+    pts = _room_cloud(rng, 3000)
+    far = np.array([[5000.0, 1.0, 0.5], [1.0, -4000.0, 2.0], [0.5, 0.5, 1e9]])
+    cloud = np.concatenate([pts[:1000], far, pts[1000:]])
+    origin = np.array([0.1, -0.2, 0.3])
+    for max_range in (-1.0, 4.0):
+        ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+        counts = ours.insert_point_cloud(cloud, origin, max_range)
+        ref.insertPointCloud(cloud, origin, maxrange=max_range)
+        assert encode_ot(ours) == ref.write()
+        skipped = 3 if max_range < 0 else 0  # cut at 4 m, the far rays' ends are in range
+        assert counts["outside_key_range"] == skipped and counts["dropped"] == skipped
+        assert counts["points"] == len(cloud) - skipped
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    counts = ours.insert_point_cloud(cloud, origin, discretize=True)
+    ref.insertPointCloud(pts, origin, discretize=True)
+    assert encode_ot(ours) == ref.write()
+    assert counts["outside_key_range"] == 3
+    assert ours.insert_rays(origin, far[:2]) == 0 and not ours.insert_ray(origin, far[2])
+    assert encode_ot(ours) == ref.write()
+
+
+def test_discretized_rays_are_one_per_voxel_in_first_point_order():
+    """:func:`marking.voxel_centres` against the unique keys of the float32 points, first-seen
+    order kept, NaN rows dropped and counted."""
+    rng = np.random.default_rng(16)
+    pts = np.round(rng.normal(scale=2.0, size=(5000, 3)), 1) + 0.0123
+    pts[::97] = np.nan
+    centres, non_finite, outside = marking.voxel_centres(pts, 0.2, np.zeros(3, np.int64))
+    finite = pts[np.all(np.isfinite(pts), axis=1)]
+    keys = np.floor(finite.astype(np.float32).astype(np.float64) / 0.2).astype(np.int64)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    np.testing.assert_array_equal(centres, (keys[np.sort(first)] + 0.5) * 0.2)
+    assert non_finite == len(pts) - len(finite) and outside == 0
 
 
 def test_lazy_insertion_then_update_and_prune_matches_octomap():
@@ -434,7 +476,7 @@ def test_empty_cloud_changes_nothing():
 def test_bad_input_raises_clear_errors():
     tree = OcTree(0.1)
     with pytest.raises(InvalidArgumentError, match="outside the octree's key range"):
-        tree.insert_point_cloud(np.array([[1e5, 0.0, 0.0]]), np.zeros(3))
+        tree.insert_point_cloud(np.zeros((5, 3)), np.array([1e5, 0, 0]))
     with pytest.raises(ShapeError):
         tree.insert_point_cloud(np.zeros((5, 2)), np.zeros(3))
     with pytest.raises(InvalidArgumentError, match="origin"):

@@ -77,7 +77,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     tree = OcTree(args.resolution)
     show = sys.stderr.isatty()
-    points = dropped = scans = 0
+    points = dropped = outside = scans = 0
     no_pose = []
     clock = WorkClock()
     for path, cloud in _clouds(args.inputs):
@@ -88,6 +88,7 @@ def run(args) -> int:
         scans += 1
         points += s["points"]
         dropped += s["dropped"] + cloud.dropped
+        outside += s["outside_key_range"]
         if show:
             print(f"\rscan {scans}: {points:,} points, {tree.num_nodes():,} nodes", end="", file=sys.stderr, flush=True)
     if show:
@@ -95,9 +96,13 @@ def run(args) -> int:
     if not scans:
         raise InvalidArgumentError("no point clouds given")
     _notes.identity_poses("map3d", no_pose, scans)
+    if outside:
+        _notes.note("map3d", f"points outside the octree's key range (±{32768 * args.resolution:g} m at "
+                             f"{args.resolution:g} m) skipped: {outside:,}, their rays left out as OctoMap does "
+                             "(--tiles has no such limit)")
     save_octree(tree, args.output)
     rate = points / clock.seconds if clock.seconds > 0 else float("inf")
-    print(f"{scans} scans, {points:,} points ({dropped:,} dropped: no return or not finite) at {args.resolution:g} m")
+    print(f"{scans} scans, {points:,} points ({dropped:,} dropped: no return, not finite or out of range) at {args.resolution:g} m")
     print(f"inserted in {clock.seconds:.3f} s ({rate:,.0f} points/s); {tree.num_nodes():,} nodes, "
           f"{tree.num_leaves():,} leaves, {tree.memory_usage() / 2**20:.1f} MiB")
     print(f"wrote {args.output}")

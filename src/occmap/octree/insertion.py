@@ -23,7 +23,7 @@ from .._threads import run_jobs, share
 from . import blocks as B
 from . import marking as M
 from . import pool as P
-from .keys import DEPTH, coord_to_keys, node_centers, shared_depth
+from .keys import coord_to_keys, shared_depth
 from .update import apply_voxels, subtree_split
 
 #: Scans with at least this many rays are marked by several threads, in this many runs of rays.
@@ -113,31 +113,27 @@ def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: floa
     next scan can be traced while a tree takes this one).
 
     ``points`` float64 (N, 3) and ``origin32`` float32 (3,) in metres; ``max_range`` (< 0: none);
-    ``discretize``: one ray per voxel holding points, to its centre; ``box`` float32 (2, 3), points
-    outside it are no hits ((0, 3): none); ``kbox`` (2, 3) the bounding box in local keys ((0, 3):
-    none; rays from outside it free nothing); keys local to ``shift`` (:mod:`.marking`); ``keep``
-    (2, 3) the local keys to list (default ``kbox``). Returns ``(keys, is_hit, summary, bad)``: packed keys in
-    Morton order, each once, with hit flags, the counts ``points``, ``dropped``,
-    ``beyond_max_range``, and ``bad`` = None or ``(i, point)``, the first point whose ray leaves the
-    key range (then nothing else is returned)."""
-    dropped = 0
-    if discretize and points.shape[0]:
-        finite = np.all(np.isfinite(points), axis=1)
-        dropped, points = int(np.count_nonzero(~finite)), points[finite]
-        keys = coord_to_keys(points.astype(np.float32).astype(np.float64), res)  # OctoMap keys its float32 points
-        _, first = np.unique(keys, axis=0, return_index=True)
-        kept = keys[np.sort(first)]
-        points = node_centers(kept, np.full(len(kept), DEPTH, np.int64), res)
-    ends, hit, more, bad = M.prepare_rays(points, origin32[None, :], float(max_range), res, box, shift)
-    if bad >= 0:
-        return None, None, None, (int(bad), points[bad])
+    ``discretize``: one ray per voxel holding points, to its centre (:func:`.marking.voxel_centres`);
+    ``box`` float32 (2, 3), points outside it are no hits ((0, 3): none); ``kbox`` (2, 3) the
+    bounding box in local keys ((0, 3): none; rays from outside it free nothing); keys local to
+    ``shift`` (:mod:`.marking`); ``keep`` (2, 3) the local keys to list (default ``kbox``).
+    Returns ``(keys, is_hit, summary)``: packed keys in Morton order, each once, with hit flags,
+    and the counts ``points`` (rays cast), ``dropped`` (points with NaN/inf, and those whose ray
+    ends outside the key range: OctoMap skips those rays), ``outside_key_range`` (the latter) and
+    ``beyond_max_range``."""
+    non_finite = outside = 0
+    if discretize:
+        points, non_finite, outside = M.voxel_centres(points, res, shift)
+    ends, hit, _, more, beyond_keys = M.prepare_rays(points, origin32[None, :], float(max_range), res, box, shift)
+    non_finite, outside = non_finite + more, outside + beyond_keys
     origin_key = coord_to_keys(origin32.astype(np.float64), res) - shift
     # with a box, a ray's free voxels are those before it first leaves the box: none from outside
     rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
     keys, is_hit = voxels(mark(origin32, ends, hit, res, shift, rays, threads), kbox if keep is None else keep,
                           threads)
-    summary = {"points": len(ends), "dropped": dropped + int(more), "beyond_max_range": int(np.count_nonzero(~hit))}
-    return keys, is_hit, summary, None
+    summary = {"points": len(ends), "dropped": int(non_finite + outside), "outside_key_range": int(outside),
+               "beyond_max_range": int(np.count_nonzero(~hit))}
+    return keys, is_hit, summary
 
 
 def apply(pool: P.Pool, keys: np.ndarray, is_hit: np.ndarray, rule, lazy: bool, threads: bool = False) -> None:

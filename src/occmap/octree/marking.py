@@ -33,50 +33,92 @@ from .._intrinsics import add_if_le, add_if_lt
 from .._jit import kernel
 from . import raywalk
 from .blocks import home
-from .keys import MAX_KEY, block_code, coord_to_key, field, in_block, key_in_range, pack, unpack
+from .keys import MAX_KEY, block_code, coord_to_key, field, in_block, key_in_range, key_to_coord, pack, unpack
 
 
 @kernel
 def prepare_rays(points, origins, max_range, res, box, shift):
     """The rays of a scan as ``computeUpdate`` takes them, in one pass over float64 ``points``
-    (N, 3) from float32 ``origins`` (N, 3), or (1, 3) for all: points with NaN/inf are dropped;
-    each end (float32, as OctoMap's ``point3d``) is the point itself when within ``max_range``
-    (< 0: unlimited) of its origin, else the point ``max_range`` along the ray; ``hit`` says which
-    (the end voxel is then occupied). With a bounding box ``box`` (float32 (2, 3): min, max;
-    (0, 3) for none) a point outside it is no hit. Returns (ends, hit, dropped, the first point
-    whose end's local key (OctoMap's less ``shift``) lies outside 0 .. 65535 or whose ray's float32
-    length overflows, else −1)."""
+    (N, 3) from float32 ``origins`` (N, 3), or (1, 3) for all: each end (float32, as OctoMap's
+    ``point3d``) is the point itself when within ``max_range`` (< 0: unlimited) of its origin,
+    else the point ``max_range`` along the ray; ``hit`` says which (the end voxel is then
+    occupied). With a bounding box ``box`` (float32 (2, 3): min, max; (0, 3) for none) a point
+    outside it is no hit. Dropped: points with NaN/inf, and — OctoMap's rule: ``computeRayKeys``
+    fails, the ray is skipped — rays whose end's local key (OctoMap's less ``shift``) lies outside
+    0 .. 65535 or whose float32 length overflows. Returns (ends, hit, the indices of the points
+    kept, non-finite points dropped, rays dropped outside the key range)."""
     n = points.shape[0]
     inv_res = 1.0 / res
     ends = np.empty((n, 3), np.float32)
     hit = np.empty(n, np.bool_)
+    kept = np.empty(n, np.int64)
     mr = np.float32(max_range)
     m = 0
-    bad = -1
+    non_finite = 0
     for i in range(n):
         if not (np.isfinite(points[i, 0]) and np.isfinite(points[i, 1]) and np.isfinite(points[i, 2])):
+            non_finite += 1
             continue
         j = i if origins.shape[0] > 1 else 0
         ox, oy, oz = origins[j, 0], origins[j, 1], origins[j, 2]
         px, py, pz = np.float32(points[i, 0]), np.float32(points[i, 1]), np.float32(points[i, 2])
         dx, dy, dz = px - ox, py - oy, pz - oz
         norm = math.sqrt(np.float64(dx * dx + dy * dy + dz * dz))
-        hit[m] = max_range < 0.0 or norm <= max_range
-        if not hit[m]:
+        is_hit = max_range < 0.0 or norm <= max_range
+        if not is_hit:
             s = np.float32(norm)
             px, py, pz = ox + (dx / s) * mr, oy + (dy / s) * mr, oz + (dz / s) * mr
-        ends[m, 0], ends[m, 1], ends[m, 2] = px, py, pz
-        if hit[m] and box.shape[0]:
-            hit[m] = (box[0, 0] <= px <= box[1, 0] and box[0, 1] <= py <= box[1, 1]
+        if not (norm < np.inf and key_in_range(coord_to_key(px, inv_res) - shift[0])
+                and key_in_range(coord_to_key(py, inv_res) - shift[1])
+                and key_in_range(coord_to_key(pz, inv_res) - shift[2])):
+            continue  # (an overflowing length only where a resolution of 1e34 m or more puts such ends in range)
+        if is_hit and box.shape[0]:
+            is_hit = (box[0, 0] <= px <= box[1, 0] and box[0, 1] <= py <= box[1, 1]
                       and box[0, 2] <= pz <= box[1, 2])
-        if bad < 0:
-            if not norm < np.inf:  # (only where a resolution of 1e34 m or more puts such ends in range)
-                bad = i
-            if not (key_in_range(coord_to_key(px, inv_res) - shift[0]) and key_in_range(coord_to_key(py, inv_res) - shift[1])
-                    and key_in_range(coord_to_key(pz, inv_res) - shift[2])):
-                bad = i
+        ends[m, 0], ends[m, 1], ends[m, 2] = px, py, pz
+        hit[m] = is_hit
+        kept[m] = i
         m += 1
-    return ends[:m], hit[:m], n - m, bad
+    return ends[:m], hit[:m], kept[:m], non_finite, n - non_finite - m
+
+
+@kernel
+def voxel_centres(points, res, shift):
+    """The points of OctoMap's ``computeDiscreteUpdate``: the centre of each voxel that holds
+    points of float64 ``points`` (N, 3) (each taken as float32, as OctoMap's ``point3d``), once, in
+    the order of the voxels' first points. Points with NaN/inf are dropped, and so are points whose
+    local key (OctoMap's less ``shift``) lies outside 0 .. 65535 (OctoMap's unchecked key wraps
+    around there and marks a voxel far away). Returns (centres float64 (M, 3), non-finite points
+    dropped, points dropped outside the key range)."""
+    n = points.shape[0]
+    inv_res = 1.0 / res
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    mask = size - 1
+    table = np.full(size, -1, np.int64)  # packed local keys of the voxels seen, open addressing
+    centres = np.empty((n, 3), np.float64)
+    m = 0
+    non_finite = outside = 0
+    for i in range(n):
+        if not (np.isfinite(points[i, 0]) and np.isfinite(points[i, 1]) and np.isfinite(points[i, 2])):
+            non_finite += 1
+            continue
+        kx = coord_to_key(np.float32(points[i, 0]), inv_res)
+        ky = coord_to_key(np.float32(points[i, 1]), inv_res)
+        kz = coord_to_key(np.float32(points[i, 2]), inv_res)
+        if not (key_in_range(kx - shift[0]) and key_in_range(ky - shift[1]) and key_in_range(kz - shift[2])):
+            outside += 1
+            continue
+        code = pack(kx - shift[0], ky - shift[1], kz - shift[2])
+        h = home(code, mask)
+        while table[h] != -1 and table[h] != code:
+            h = (h + 1) & mask
+        if table[h] == -1:
+            table[h] = code
+            centres[m, 0], centres[m, 1], centres[m, 2] = key_to_coord(kx, res), key_to_coord(ky, res), key_to_coord(kz, res)
+            m += 1
+    return centres[:m], non_finite, outside
 
 
 @kernel

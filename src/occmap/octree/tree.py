@@ -114,7 +114,7 @@ class OcTree(OneCallAtATime):
         self._l_max = logit32(self.clamp[1])
         self._l_occ = logit32(self.occupied_threshold)
         self._rule = (self._l_hit, self._l_miss, self._l_min, self._l_max)  # what insertion.apply takes
-        self.stats = {"scans": 0, "points": 0, "dropped": 0}
+        self.stats = {"scans": 0, "points": 0, "dropped": 0, "outside_key_range": 0, "beyond_max_range": 0}
         self._bbx = None
         self.clear()
 
@@ -186,14 +186,9 @@ class OcTree(OneCallAtATime):
         keys = coord_to_keys(P, self.resolution)
         bad = np.flatnonzero(~keys_in_range(keys))
         if bad.size:
-            raise self._out_of_range("point", int(bad[0]), P[bad[0]])
+            raise InvalidArgumentError(f"point {int(bad[0])} {P[bad[0]].tolist()} lies outside the octree's key range "
+                                       f"(±{CENTER * self.resolution:g} m at resolution {self.resolution:g} m)")
         return keys
-
-    def _out_of_range(self, what: str, i: int, p, ray: bool = False) -> InvalidArgumentError:
-        also = ", or its ray from the origin is too long for OctoMap's float32 arithmetic" if ray else ""
-        return InvalidArgumentError(
-            f"{what} {i} {np.asarray(p).tolist()} lies outside the octree's key range "
-            f"(±{CENTER * self.resolution:g} m at resolution {self.resolution:g} m){also}")
 
     @no_lock
     def key_to_coord(self, keys, depth: int = 16) -> np.ndarray:
@@ -215,12 +210,14 @@ class OcTree(OneCallAtATime):
         (< 0: no limit) clears free space up to ``max_range`` and marks nothing. ``discretize``
         merges points that fall in one voxel first (one ray per voxel, from the voxel centre).
         ``lazy`` skips updating inner nodes and pruning (call :meth:`update_inner_occupancy` and
-        :meth:`prune` when done). NaN/inf points are dropped and counted. Returns this scan's counts:
-        ``scans``, ``points``, ``dropped``, ``beyond_max_range`` (``docs/architecture.md``).
+        :meth:`prune` when done). NaN/inf points are dropped and counted, and so are points whose ray
+        ends outside the key range (OctoMap skips such a ray and inserts the rest). Returns this
+        scan's counts: ``scans``, ``points``, ``dropped``, ``beyond_max_range``
+        (``docs/architecture.md``), and ``outside_key_range`` (of ``dropped``).
         """
         keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
         insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=True)
-        return {"scans": 1, **self._count(summary)}
+        return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
                             lazy: bool = False) -> dict:
@@ -237,7 +234,7 @@ class OcTree(OneCallAtATime):
             if len(O) != len(clouds):
                 raise ShapeError(f"{len(clouds)} clouds but {len(O)} origins")
             pairs = list(zip(clouds, O))
-        total = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+        total = dict.fromkeys(self.stats, 0)
         pending = None
         ahead = thread_count() >= 2
         for k in range(len(pairs)):
@@ -249,10 +246,8 @@ class OcTree(OneCallAtATime):
             keys, is_hit, summary = current
             # (the second core traces the next scan)
             insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=pending is None)
-            self._count(summary)
-            total["scans"] += 1
-            for name in ("points", "dropped", "beyond_max_range"):
-                total[name] += summary[name]
+            for name, value in self._count(summary).items():
+                total[name] += value
         return total
 
     def _scan_voxels(self, points, origin, max_range: float, discretize: bool, threads: bool):
@@ -262,23 +257,23 @@ class OcTree(OneCallAtATime):
         o32 = _origin(origin).astype(np.float32)
         self.coord_to_key(o32.astype(np.float64))  # (an origin out of range is refused)
         box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
-        keys, is_hit, summary, bad = insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, box,
-                                                            self._bbx_keys(), NO_SHIFT, threads)
-        if bad is not None:
-            raise self._out_of_range("point", *bad, ray=True)
-        return keys, is_hit, summary
+        return insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, box, self._bbx_keys(), NO_SHIFT,
+                                      threads)
 
     def _count(self, summary: dict) -> dict:
-        self.stats["scans"] += 1
-        self.stats["points"] += summary["points"]
-        self.stats["dropped"] += summary["dropped"]
-        return summary
+        """This scan's counts (``scans`` = 1 and the summary's), added to :attr:`stats`."""
+        counts = {"scans": 1, **summary}
+        for name, value in counts.items():
+            self.stats[name] += value
+        return counts
 
-    def insert_rays(self, origins, ends, max_range: float = -1.0, lazy: bool = False) -> None:
+    def insert_rays(self, origins, ends, max_range: float = -1.0, lazy: bool = False) -> int:
         """OctoMap's ``insertRay`` for each ray in turn: the voxels from ``origins`` (N, 3) or one
         origin (3,) to ``ends`` (N, 3) free, each end's voxel occupied; with ``max_range > 0`` a
         longer ray is cut there and marks nothing. Unlike :meth:`insert_point_cloud`, rays are
-        independent updates (a voxel crossed by two rays is updated twice)."""
+        independent updates (a voxel crossed by two rays is updated twice). A ray whose (cut) end
+        lies outside the key range is skipped, as OctoMap's ``insertRay`` does. Returns the number
+        of rays inserted."""
         E = points_array("ends", ends)
         O = np.asarray(origins, dtype=np.float64)
         O = points_array("origins", O) if O.ndim == 2 else _origin(O)[None, :]
@@ -288,16 +283,15 @@ class OcTree(OneCallAtATime):
             raise InvalidArgumentError("ray origins and ends must be finite")
         O32 = O.astype(np.float32)
         self.coord_to_key(O32.astype(np.float64))
-        E32, with_end, _, bad = prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
-                                               np.empty((0, 3), np.float32), NO_SHIFT)
-        if bad >= 0:
-            raise self._out_of_range("ray end", bad, E[bad], ray=True)
-        keys, is_hit = ray_voxels(O32, E32, with_end, self.resolution)
+        E32, with_end, kept, _, _ = prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
+                                                 np.empty((0, 3), np.float32), NO_SHIFT)
+        keys, is_hit = ray_voxels(O32 if len(O32) == 1 else O32[kept], E32, with_end, self.resolution)
         insertion.apply(self._pool, keys, is_hit, self._rule, lazy)
+        return len(kept)
 
-    def insert_ray(self, origin, end, max_range: float = -1.0, lazy: bool = False) -> None:
-        """One ray (see :meth:`insert_rays`)."""
-        self.insert_rays(_origin(origin), points_array("end", end), max_range, lazy)
+    def insert_ray(self, origin, end, max_range: float = -1.0, lazy: bool = False) -> bool:
+        """One ray (see :meth:`insert_rays`); false where it was skipped."""
+        return self.insert_rays(_origin(origin), points_array("end", end), max_range, lazy) == 1
 
     def update_nodes(self, points, occupied, lazy: bool = False) -> None:
         """OctoMap's ``updateNode(point, occupied)`` for each point in turn: one hit (``occupied``

@@ -266,8 +266,8 @@ def build(path, how, source, resolution: float | None = None, tile_size: int | N
             summaries.update(part["summaries"])
             no_pose.update(part["no_pose"])
         for s in summaries.values():
-            for key in stats:
-                stats[key] += s[key]
+            for key, value in s.items():
+                stats[key] = stats.get(key, 0) + value
         store.scans += n
     return BuildSummary(stats, sorted(no_pose), regions, parts, time.perf_counter() - t0, len(store.tiles))
 

@@ -83,7 +83,7 @@ class TiledOcTree(StoredMap):
         self._bits = tile_size.bit_length() - 1
         self.region = None if region is None else region_box(region, 3)
         self.memory_limit = None if memory_limit is None else checks.count("memory_limit", memory_limit, minimum=1)
-        self.stats = {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+        self.stats = {"scans": 0, "points": 0, "dropped": 0, "outside_key_range": 0, "beyond_max_range": 0}
         self._tiles: OrderedDict[tuple[int, int, int], OcTree] = OrderedDict()  # in memory, least recent first
         self._no_store()
         self._l_occ = logit32(self._template.occupied_threshold)
@@ -111,8 +111,10 @@ class TiledOcTree(StoredMap):
 
     def insert_point_cloud(self, points, origin, max_range: float = -1.0, discretize: bool = False) -> dict:
         """Integrate one scan as :meth:`occmap.octree.OcTree.insert_point_cloud` does (same
-        arguments but ``lazy``; NaN/inf points dropped and counted). Returns this scan's counts
-        (all 0 for a scan that cannot reach the map's region: it is not counted)."""
+        arguments but ``lazy``; NaN/inf points dropped and counted, and so are — in
+        ``outside_key_range`` — points more than ``32768 − tile_size/2`` voxels from the sensor
+        along an axis: beyond one ray's keys). Returns this scan's counts (all 0 for a scan that
+        cannot reach the map's region: it is not counted)."""
         P = points_array("points", points)
         o = np.asarray(origin, dtype=np.float64)
         if o.shape != (3,) or not np.all(np.isfinite(o)):
@@ -127,15 +129,10 @@ class TiledOcTree(StoredMap):
             lo = self.region[0] * T + CENTER - shift
             hi = (self.region[1] + 1) * T - 1 + CENTER - shift
             if np.any(hi < 0) or np.any(lo > MAX_KEY) or not self._may_reach(P, o, max_range, lo, hi, shift):
-                return {"scans": 0, "points": 0, "dropped": 0, "beyond_max_range": 0}
+                return dict.fromkeys(self.stats, 0)
             keep = np.stack([np.maximum(lo, 0), np.minimum(hi, MAX_KEY)])
-        keys, is_hit, summary, bad = insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, _NO_BOX,
-                                                            _NO_KEYS, shift, True, keep)
-        if bad is not None:
-            i, p = bad
-            raise InvalidArgumentError(
-                f"point {i} {np.asarray(p).tolist()} is more than {CENTER - T // 2} voxels "
-                f"({(CENTER - T // 2) * self.resolution:g} m) from the sensor at {o.tolist()}: too far for one ray")
+        keys, is_hit, summary = insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, _NO_BOX,
+                                                       _NO_KEYS, shift, True, keep)
         self._apply(keys, is_hit, shift)
         return self._record(summary)
 
