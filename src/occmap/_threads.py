@@ -176,8 +176,10 @@ def share(task, threads: int | None = None) -> list:
     thread's call returns is cancelled, so no call waits for a thread the scheduler has not run.
     """
     n = thread_count() if threads is None else threads
-    helpers = pool("workers", max(_max_threads() - 1, 1))
-    futures = [helpers.submit(task) for _ in range(n - 1)]
+    futures = []
+    if n > 1:
+        helpers = pool("workers", max(_max_threads() - 1, 1))
+        futures = [helpers.submit(task) for _ in range(n - 1)]
     results = [task()]
     results += [f.result() for f in futures if not f.cancel()]
     return results

@@ -285,6 +285,31 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         np.testing.assert_array_equal(is_hit[order], unique_hit)
 
 
+def test_one_numba_thread_means_no_worker_thread(monkeypatch):
+    """With ``numba.set_num_threads(1)`` a large scan is marked, listed and applied on the calling
+    thread alone (no pool of workers is asked for), and the tree is the one two threads build."""
+    from occmap import _threads
+
+    rng = np.random.default_rng(17)
+    clouds = [(_room_cloud(rng, 30_000, half=8.0), rng.uniform(-0.5, 0.5, 3)) for _ in range(3)]
+    two = OcTree(0.1)
+    two.insert_point_clouds([c for c, _ in clouds], [o for _, o in clouds])
+
+    def no_pool(*args):
+        raise AssertionError("a worker thread was asked for")
+
+    monkeypatch.setattr(_threads, "pool", no_pool)
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        one = OcTree(0.1)
+        one.insert_point_cloud(*clouds[0])
+        one.insert_point_clouds([c for c, _ in clouds[1:]], [o for _, o in clouds[1:]])
+    finally:
+        numba.set_num_threads(before)
+    assert encode_ot(one) == encode_ot(two)
+
+
 def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
     """The tree updated on two threads with slot ranges far too small: each thread stops where
     its range is full and the rest is applied on one thread; the tree is still OctoMap's."""

@@ -139,8 +139,9 @@ def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: floa
 def apply(pool: P.Pool, keys: np.ndarray, is_hit: np.ndarray, rule, lazy: bool, threads: bool = False) -> None:
     """Update the voxels ``keys`` (packed) of ``pool`` in order, each with a hit or a miss under
     ``rule`` = (l_hit, l_miss, l_min, l_max) (float32 log-odds); with ``threads`` (the keys of
-    one scan: each once, in Morton order) many voxels on two threads."""
-    if threads and len(keys) >= _PARALLEL_VOXELS and _apply_halves(pool, keys, is_hit, rule, lazy):
+    one scan: each once, in Morton order) many voxels on two threads when Numba's count allows."""
+    if (threads and len(keys) >= _PARALLEL_VOXELS and _threads.thread_count() >= 2
+            and _apply_halves(pool, keys, is_hit, rule, lazy)):
         return
     _apply_range(pool, keys, is_hit, rule, lazy, 0, len(keys))
 
@@ -194,7 +195,7 @@ def _apply_halves(pool: P.Pool, keys, is_hit, rule, lazy: bool) -> bool:
                              top + room_a, shared + 1),
         lambda: apply_voxels(pool.value, pool.child, meta_b, keys, is_hit, split, *rule, not lazy,
                              pool.value.shape[0], shared + 1)], threads=2)
-    P.join_pools(pool.child, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
+    P.join_pools(pool.value, pool.child, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
     changed = changed_a or changed_b
     if end_a < split:  # a range ran out of slots: the rest here
         changed |= _apply_range(pool, keys, is_hit, rule, lazy, end_a, split)

@@ -26,15 +26,15 @@ TOP, FREE, SIZE = 0, 1, 2
 @kernel
 def grow(value, child, capacity):
     """The slot arrays with room for ``capacity`` slots, at least twice as many as now, contents
-    kept, new slots unused."""
+    kept. The new slots are left as they come (:func:`alloc_block` sets a block when it hands it
+    out, and nothing reads past ``meta[TOP]``), so the memory they take is only reserved: the
+    process's resident memory follows the slots in use, not the room."""
     n = value.shape[0]
     m = max(2 * n, capacity)
     v = np.empty(m, np.float32)
     c = np.empty(m, np.int32)
     v[:n] = value
     c[:n] = child
-    v[n:] = np.nan
-    c[n:] = -1
     return v, c
 
 
@@ -95,12 +95,16 @@ def free_slots(child, head, limit):
 
 
 @kernel
-def join_pools(child, meta, meta_a, meta_b, gap_lo, gap_hi):
+def join_pools(value, child, meta, meta_a, meta_b, gap_lo, gap_hi):
     """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``, with the pool's free
     list) and [gap_hi, ·) (``meta_b``): one pool again, the first range's unused blocks
-    [gap_lo, gap_hi) and the blocks the second freed on the free list, node counts added."""
+    [gap_lo, gap_hi) (made empty slots, as freed blocks are) and the blocks the second freed on
+    the free list, node counts added."""
     free = meta_a[FREE]
     for c in range(gap_lo, gap_hi, 8):
+        for j in range(c, c + 8):
+            value[j] = np.nan
+            child[j] = -1
         child[c] = free
         free = c
     c = meta_b[FREE]
