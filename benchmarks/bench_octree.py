@@ -1,25 +1,34 @@
-"""3D occupancy octree against OctoMap itself (octomap-python, the PyPI wheel of OctoMap 1.10).
+"""3D occupancy octree against OctoMap itself (octomap-python, the PyPI wheel of OctoMap 1.10) and,
+per core, against Bonxai's ``ProbabilisticMap`` (C++).
 
-For each dataset and resolution both libraries insert the same clouds from the same sensor
-origins (alternating rounds, medians); the table gives points per second, the speed-up, whether
-the two trees agree (node count, and the share of finest-level voxels known to either that both
-classify alike), and memory (occmap's node arrays against OctoMap's ``memoryUsage()``). Then
-batched ray casting against a loop of OctoMap's ``castRay``, and ``.bt`` reading and writing.
-Last, one scan per call as a robot streams (``insert_point_cloud`` of one simulated HDL-32E scan
-into a growing map), with the default threads and on one thread, idle and beside a process that
-keeps one core busy.
+For each dataset, resolution and maximum range (none, 30 m) every mapper inserts the same clouds
+from the same sensor origins (alternating rounds, medians): occmap on two threads, occmap on one
+core (a process pinned to one CPU, :mod:`_peers`), Bonxai on the same core, and, with no maximum
+range, OctoMap (single-threaded). The table gives points per second, the per-core and two-thread
+ratios with their targets, Bonxai's free voxels against OctoMap's (Bonxai is not exact), and, in
+the OctoMap rows, the speed-up, whether the two trees agree (node count, and the share of
+finest-level voxels known to either that both classify alike), and memory (occmap's node arrays
+against OctoMap's ``memoryUsage()``). Then batched ray casting against a loop of OctoMap's
+``castRay``, and ``.bt`` reading and writing. Last, one scan per call as a robot streams
+(``insert_point_cloud`` of one simulated HDL-32E scan into a growing map), with the default
+threads and on one thread, idle and beside a process that keeps one core busy.
+
+Bonxai runs as a program given with ``--bonxai`` (default: the environment variable
+``BONXAI_INSERT``) that speaks the protocol of :mod:`_peers`; this repository neither holds nor
+builds one. Without it the table quotes issue 16's measurement of Bonxai and says so.
 
 Datasets (from ../shared/data, skipped without it): the OctoMap sample scan (scan.dat), the three
 Osnabrück scans with their registered poses, the Velodyne HDL-32E pair; and always a simulated
 Velodyne HDL-32E drive of 50 scans through :mod:`occmap.sim.world3d`'s default town block (a
 1.28° azimuth step, 9,000 beams a scan, to keep OctoMap's share of the run in minutes).
 
-    python benchmarks/bench_octree.py [--quick] [--no-write]
+    python benchmarks/bench_octree.py [--quick] [--no-write] [--bonxai PROGRAM]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import tempfile
@@ -29,8 +38,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _peers import OneCoreOccmap, pinned_cpu, run_native, write_scans  # noqa: E402
 from _report import median_times, per_call_table, write_section  # noqa: E402
 
+import numba  # noqa: E402
 import octomap  # noqa: E402
 
 from occmap._data import find_shared_data  # noqa: E402
@@ -64,9 +75,17 @@ def datasets(data: Path | None, quick: bool) -> dict[str, list[tuple[np.ndarray,
     return sets
 
 
-def build_occmap(scans, res):
+#: Bonxai's ProbabilisticMap on one thread, points/s, as issue 16 measured it in another run (with
+#: occmap then on two threads): (dataset's first word, resolution) → points/s.
+ISSUE_16_BONXAI = {("scan.dat", 0.2): 6.18e6, ("Osnabrück", 0.2): 6.87e6, ("HDL-32E", 0.2): 5.76e6,
+                   ("Osnabrück", 0.1): 1.79e6, ("HDL-32E", 0.1): 1.45e6, ("scan.dat", 0.05): 0.29e6}
+#: Targets: occmap on one core at least as fast as Bonxai on one; two threads this much faster than one core.
+PER_CORE_TARGET, TWO_THREADS_TARGET = 1.0, 1.7
+
+
+def build_occmap(scans, res, max_range=-1.0):
     tree = OcTree(res)
-    tree.insert_point_clouds([p for p, _ in scans], [o for _, o in scans])
+    tree.insert_point_clouds([p for p, _ in scans], [o for _, o in scans], max_range=max_range)
     return tree
 
 
@@ -75,6 +94,13 @@ def build_octomap(scans, res):
     for pts, origin in scans:
         tree.insertPointCloud(pts, np.asarray(origin, dtype=np.float64))
     return tree
+
+
+def free_voxels(tree: OcTree) -> int:
+    """Finest-level voxels the tree holds free (a pruned leaf of edge s counts (s / resolution)³)."""
+    lv = tree.leaves()
+    edges = np.rint(lv.sizes[lv.log_odds < 0] / tree.resolution).astype(np.int64)
+    return int(np.sum(edges ** 3))
 
 
 def agreement(ours: OcTree, ref, res: float) -> float:
@@ -100,28 +126,79 @@ def timed(fn):
     return time.perf_counter() - t0, out
 
 
-def insertion_rows(sets, resolutions, repeat):
-    """Alternating rounds (occmap, OctoMap) after one warm-up of occmap (Numba compilation); the
-    trees of the last round are compared."""
+def insertion_rows(sets, resolutions, max_ranges, repeat, bonxai: Path | None, workdir: Path):
+    """One row a dataset, resolution and max range (< 0: none), from alternating rounds of occmap
+    on two threads, occmap on one core, Bonxai on that core (with a program) and, with no max
+    range, OctoMap; occmap's first warm-up here is one scan (the one-core process warms up by
+    itself). The trees of the last round are compared. OctoMap's free voxels are counted in
+    occmap's tree, which is OctoMap's (the agreement column, and the tests with a max range)."""
     rows = []
-    for name, scans in sets.items():
-        points = sum(len(p) for p, _ in scans)
-        for res in resolutions:
-            build_occmap(scans[:1], res)
-            t_ours, t_ref = [], []
-            for _ in range(repeat):
-                t, ours = timed(lambda: build_occmap(scans, res))
-                t_ours.append(t)
-                t, ref = timed(lambda: build_octomap(scans, res))
-                t_ref.append(t)
-            t_ours, t_ref = statistics.median(t_ours), statistics.median(t_ref)
-            agree = agreement(ours, ref, res)
-            rows.append((name, res, points / t_ours, points / t_ref, t_ref / t_ours, ours.num_nodes(), ref.size(),
-                         agree, ours.memory_usage(), ref.memoryUsage()))
-            print(f"{name} @ {res:g} m: occmap {points / t_ours:,.0f} pts/s, OctoMap {points / t_ref:,.0f} pts/s "
-                  f"({t_ref / t_ours:.1f}x); nodes {ours.num_nodes():,} / {ref.size():,}; agreement {agree:.5f}; "
-                  f"memory {ours.memory_usage() / 2**20:.1f} / {ref.memoryUsage() / 2**20:.1f} MiB", flush=True)
+    cpu = pinned_cpu()
+    one_core = OneCoreOccmap(cpu)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+    try:
+        for i, (name, scans) in enumerate(sets.items()):
+            points = sum(len(p) for p, _ in scans)
+            path = workdir / f"scans-{i}.bin"  # (a new name: the one-core process keeps the file it read last)
+            write_scans(path, scans)
+            for res in resolutions:
+                for max_range in max_ranges:
+                    row = {"name": name, "res": res, "max_range": max_range, "points": points}
+                    build_occmap(scans[:1], res, max_range)
+                    times = {"two": [], "one": [], "bonxai": [], "octomap": []}
+                    for _ in range(repeat):
+                        t, ours = timed(lambda: build_occmap(scans, res, max_range))
+                        times["two"].append(t)
+                        times["one"].append(one_core.seconds(path, res, max_range))
+                        if bonxai is not None:
+                            native = run_native(bonxai, path, res, max_range, cpu)
+                            times["bonxai"].append(native["seconds"])
+                        if max_range < 0:
+                            t, ref = timed(lambda: build_octomap(scans, res))
+                            times["octomap"].append(t)
+                    row.update({k: statistics.median(v) if v else None for k, v in times.items()})
+                    row["free"] = free_voxels(ours)
+                    if bonxai is not None:
+                        row["bonxai_free"] = native["free"]
+                    else:
+                        quoted = ISSUE_16_BONXAI.get((name.split()[0], res)) if max_range < 0 else None
+                        row["bonxai"] = None if quoted is None else points / quoted
+                    if max_range < 0:
+                        row.update(agree=agreement(ours, ref, res), nodes=(ours.num_nodes(), ref.size()),
+                                   memory=(ours.memory_usage(), ref.memoryUsage()))
+                    rows.append(row)
+                    print(row_line(row, bonxai is None), flush=True)
+    finally:
+        numba.set_num_threads(threads)
+        one_core.close()
     return rows
+
+
+def row_line(row, quoted: bool) -> str:
+    """The table's row for an :func:`insertion_rows` row (Bonxai's figure ``quoted`` or measured)."""
+    n = row["points"]
+    max_range = "none" if row["max_range"] < 0 else f"{row['max_range']:g}"
+    cells = [row["name"], f"{row['res']:g}", max_range, f"{n / row['two']:,.0f}", f"{n / row['one']:,.0f}"]
+    scaling = row["one"] / row["two"]
+    per_core = None if row["bonxai"] is None else row["bonxai"] / row["one"]
+    if per_core is None:
+        cells += ["—", "—"]
+    else:
+        cells += [f"{n / row['bonxai']:,.0f}" + (" (quoted)" if quoted else ""), f"**{per_core:.2f}×**"]
+    cells.append(f"{scaling:.2f}×")
+    cells.append(f"{row['bonxai_free'] / 1e6:.2f} M / {row['free'] / 1e6:.2f} M" if "bonxai_free" in row else
+                 f"— / {row['free'] / 1e6:.2f} M")
+    cells.append("; ".join(f"{what}: {'—' if ratio is None else 'met' if ratio >= target else '**not met**'}"
+                           for what, ratio, target in (("one core", per_core, PER_CORE_TARGET),
+                                                       ("two threads", scaling, TWO_THREADS_TARGET))))
+    if row["octomap"] is None:
+        cells += ["—"] * 5
+    else:
+        (no, nr), (mo, mr) = row["nodes"], row["memory"]
+        cells += [f"{n / row['octomap']:,.0f}", f"{row['octomap'] / row['two']:.1f}×", f"{no:,} / {nr:,}",
+                  f"{row['agree']:.5f}", f"{mo / 2**20:.1f} / {mr / 2**20:.1f}"]
+    return "| " + " | ".join(cells) + " |"
 
 
 def raycast_rows(scans, res, n_rays=20_000):
@@ -165,27 +242,51 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a short drive and fewer rounds (a smoke run)")
     ap.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    ap.add_argument("--bonxai", type=Path, default=os.environ.get("BONXAI_INSERT"), metavar="PROGRAM",
+                    help="a program inserting scans with Bonxai's ProbabilisticMap, called as benchmarks/_peers.py "
+                         "describes (default: $BONXAI_INSERT; without it, issue 16's figures are quoted)")
     args = ap.parse_args()
+    if args.bonxai is not None and not os.access(args.bonxai, os.X_OK):
+        ap.error(f"--bonxai {args.bonxai}: not an executable file")
     data = find_shared_data()
     sets = datasets(data, args.quick)
-    resolutions = (0.2, 0.1, 0.05)
-    rows = insertion_rows(sets, resolutions, repeat=1 if args.quick else 3)
+    with tempfile.TemporaryDirectory() as workdir:
+        rows = insertion_rows(sets, (0.2, 0.1, 0.05), (-1.0, 30.0), 1 if args.quick else 3, args.bonxai, Path(workdir))
 
+    if args.bonxai is None:
+        bonxai = ("Bonxai was not run (no `--bonxai` program): its figures are **quoted** from issue 16's "
+                  "measurement (another run: Bonxai on one thread, occmap then on two), in the rows with no max "
+                  "range where it has them; this run's anchor for them is OctoMap, single-threaded, in those rows.")
+    else:
+        bonxai = (f"Bonxai: `ProbabilisticMap::insertPointCloud` (C++, `{args.bonxai.name}` compiled with `-O3 "
+                  "-march=native` outside this repository) in a process of its own on the same CPU as occmap's "
+                  "one-core process, a fresh map each round, time of the insertion alone; with no max range it is "
+                  "given an infinite one.")
     lines = [
-        "## 3D occupancy octree vs OctoMap (`benchmarks/bench_octree.py`)",
+        "## 3D occupancy octree vs OctoMap and Bonxai (`benchmarks/bench_octree.py`)",
         "",
-        "OctoMap 1.10 through octomap-python (its PyPI wheel), same clouds, same origins, default parameters "
-        "(hit 0.7, miss 0.4, clamping 0.1192/0.971), eager updates; medians of alternating rounds. Agreement: share "
+        "Same clouds, same origins, fresh maps each round, medians of alternating rounds (occmap on two threads, "
+        "occmap on one core, Bonxai, OctoMap). occmap on one core: a process with `NUMBA_NUM_THREADS=1` pinned to "
+        "one CPU (`sched_setaffinity`), so that every thread it starts shares that core. " + bonxai,
+        "",
+        "OctoMap 1.10 through octomap-python (its PyPI wheel, single-threaded), default parameters "
+        "(hit 0.7, miss 0.4, clamping 0.1192/0.971), eager updates; it runs only in the rows with no max range "
+        "(its 0.05 m rows take minutes). Speed-up: OctoMap's time over occmap's on two threads. Agreement: share "
         "of leaves known to either tree that both classify alike (1 = identical trees). Memory: occmap's node "
-        "arrays against OctoMap's `memoryUsage()`. Targets: insertion ≥ 10× OctoMap, agreement ≥ 0.999, "
-        "memory ≤ OctoMap's.",
+        "arrays against OctoMap's `memoryUsage()`. Free voxels: finest-level voxels held free, Bonxai's against "
+        "OctoMap's (counted in occmap's tree, which is OctoMap's; Bonxai is not exact: its rays walk other voxels).",
         "",
-        "| dataset | resolution (m) | occmap (points/s) | OctoMap (points/s) | speed-up | nodes occmap / OctoMap | agreement | memory occmap / OctoMap (MiB) |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|",
+        f"Targets: occmap on one core at least as fast as Bonxai on one (Bonxai's time / occmap's ≥ "
+        f"{PER_CORE_TARGET:g}), two threads ≥ {TWO_THREADS_TARGET:g}× one core; against OctoMap, insertion ≥ 10×, "
+        "agreement ≥ 0.999, memory ≤ OctoMap's.",
+        "",
+        "| dataset | resolution (m) | max range (m) | occmap, 2 threads (points/s) | occmap, one core (points/s) "
+        "| Bonxai, one core (points/s) | Bonxai time / occmap one-core time | 2 threads / one core "
+        "| free voxels Bonxai / OctoMap | targets | OctoMap (points/s) | speed-up vs OctoMap "
+        "| nodes occmap / OctoMap | agreement | memory occmap / OctoMap (MiB) |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|",
     ]
-    for name, res, po, pr, sp, no, nr, ag, mo, mr in rows:
-        lines.append(f"| {name} | {res:g} | {po:,.0f} | {pr:,.0f} | {sp:.1f}× | {no:,} / {nr:,} | {ag:.5f} | "
-                     f"{mo / 2**20:.1f} / {mr / 2**20:.1f} |")
+    lines += [row_line(row, args.bonxai is None) for row in rows]
     first = next(iter(sets.values()))
     for max_range, ours, theirs, ratio, hits in raycast_rows(first, 0.1):
         lines += ["", f"Ray casting, {next(iter(sets))} at 0.1 m, 20,000 rays, max range {max_range:g} m: occmap "
