@@ -4,9 +4,8 @@
 little-endian float64 ``origin[3]``, int64 ``n``, float64 ``points[n][3]`` (metres, map frame).
 
 **occmap on one core** (:class:`OneCoreOccmap`): a Python process started with
-``NUMBA_NUM_THREADS=1`` and its CPU affinity set to one CPU before it runs anything, so that every
-thread occmap may start (Numba's, its worker pools') shares that one core: ``numba.set_num_threads(1)``
-alone does not hold them all to one thread.
+``NUMBA_NUM_THREADS=1`` (occmap then runs every kernel on the calling thread) and its CPU affinity
+set to one CPU before it runs anything, so that any thread at all shares that one core.
 
 **A native peer** (:func:`run_native`): a program called as ``PROGRAM SCANS RESOLUTION MAX_RANGE
 ROUNDS`` (MAX_RANGE ``inf``: none) that inserts every scan, in order, into a fresh map each round

@@ -28,8 +28,10 @@ Velodyne HDL-32E drive of 50 scans through :mod:`occmap.sim.world3d`'s default t
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -238,6 +240,68 @@ def bt_rows(path: Path):
     return (t_read, t_read_ref), (t_write, t_write_ref), tree.num_nodes()
 
 
+#: A long drive streamed scan by scan in a fresh process: the scans are simulated one at a time
+#: (not held), so resident memory is the interpreter, the kernels, one scan and the tree.
+DRIVE = """
+import json, resource, sys, time
+import numpy as np
+from occmap.geometry import SE3
+from occmap.octree import OcTree
+from occmap.sim.world3d import VELODYNE_HDL32, World3D, simulate_lidar
+n, res, chunk = (float(a) for a in sys.argv[1:4])
+n, chunk = int(n), int(chunk)
+model = VELODYNE_HDL32.with_azimuth_step(np.radians(1.28))
+world = World3D.default()
+poses = world.default_trajectory(n, 1.8)
+rng = np.random.default_rng(1)
+warm = simulate_lidar(world, SE3(poses[0]), model, rng=np.random.default_rng(0))
+OcTree(res).insert_point_cloud(warm.world_points(), warm.origin)  # kernels loaded: the baseline
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+base = rss()
+tree = OcTree(res)
+chunks, seconds, points = [], 0.0, 0
+for i, T in enumerate(poses):
+    cloud = simulate_lidar(world, SE3(T), model, rng=rng)
+    p, o = cloud.world_points(), cloud.origin
+    t0 = time.perf_counter()
+    points += tree.insert_point_cloud(p, o)["points"]
+    seconds += time.perf_counter() - t0
+    if (i + 1) % chunk == 0:
+        chunks.append(points / seconds)
+        seconds = points = 0
+print(json.dumps({"base": base, "peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "end": rss(),
+                  "usage": tree.memory_usage(), "allocated": tree.memory_allocated(), "rates": chunks,
+                  "nodes": tree.num_nodes()}))
+"""
+
+
+def drive_memory(n_scans: int, res: float, chunk: int) -> dict:
+    """Peak resident memory and throughput of a drive of ``n_scans`` streamed into one tree
+    (:data:`DRIVE`, in a fresh process)."""
+    out = subprocess.run([sys.executable, "-c", DRIVE, str(n_scans), str(res), str(chunk)], check=True,
+                         stdout=subprocess.PIPE, text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def drive_lines(n_scans: int, res: float) -> list[str]:
+    chunk = max(1, n_scans // 8)
+    d = drive_memory(n_scans, res, chunk)
+    mib = 2 ** 20
+    growth = d["peak"] - d["base"]
+    rates = d["rates"]
+    return ["", f"Memory and throughput over a long drive: {n_scans} simulated HDL-32E scans at {res:g} m (9,000 "
+            f"beams a scan, one `insert_point_cloud` a scan, scans simulated one at a time in a fresh process). "
+            f"Baseline (interpreter, NumPy, Numba, occmap's kernels loaded) {d['base'] / mib:,.0f} MiB; peak "
+            f"resident {d['peak'] / mib:,.0f} MiB: growth **{growth / mib:,.1f} MiB** for a tree of "
+            f"{d['nodes']:,} nodes whose memory figure (`memory_usage()`, OctoMap's count) is "
+            f"{d['usage'] / mib:,.1f} MiB (**{growth / d['usage']:.1f}×**; target ≤ 3×) and whose pool reserves "
+            f"{d['allocated'] / mib:,.1f} MiB. Points/s per {chunk} scans: "
+            + ", ".join(f"{r / 1e6:.2f} M" for r in rates)
+            + f" (last / first {rates[-1] / rates[0]:.2f}: flat when near 1)."]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a short drive and fewer rounds (a smoke run)")
@@ -312,6 +376,8 @@ def main() -> int:
                   per_call_table([(f"`insert_point_cloud` at {res:g} m", one_scan)], number=4,
                                  repeat=3 if args.quick else 7)]
         print(lines[-1])
+    lines += drive_lines(100 if args.quick else 800, 0.2)
+    print(lines[-1])
     if not args.no_write and not args.quick:
         write_section("bench_octree", "\n".join(lines))
     return 0

@@ -116,11 +116,11 @@ def _mark_share(source) -> float:
     for k in range(min(20, len(source))):
         cloud = source.scan(k)
         t0 = time.perf_counter()
-        keys, is_hit, _ = insertion.cloud_voxels(cloud.world_points(), cloud.origin.astype(np.float32), MAX_RANGE,
-                                                 False, RES, np.empty((0, 3), np.float32),
-                                                 np.empty((0, 3), np.int64), NO_SHIFT, True)
+        keys, depths, is_hit, _ = insertion.cloud_voxels(cloud.world_points(), cloud.origin.astype(np.float32),
+                                                         MAX_RANGE, False, RES, np.empty((0, 3), np.float32),
+                                                         np.empty((0, 3), np.int64), NO_SHIFT, True)
         t1 = time.perf_counter()
-        tree.update_voxels(keys, is_hit, threads=True)
+        tree.update_voxels(keys, is_hit, threads=True, depths=depths)
         if k:  # (the first touches fresh memory)
             walk += t1 - t0
             apply += time.perf_counter() - t1

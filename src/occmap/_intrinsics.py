@@ -7,21 +7,36 @@ from numba import types
 from numba.extending import intrinsic
 
 
-@intrinsic
-def bit_length(typingctx, x):
-    """Number of bits needed to write the non-negative integer ``x`` (0 for 0): Python's
-    ``int.bit_length``, one ``lzcnt`` instead of a loop."""
-    if not isinstance(x, types.Integer):
-        return None
+def _bit_count(name: str, doc: str):
+    """An intrinsic on one integer that counts bits with LLVM's ``llvm.NAME`` (one instruction
+    on x86-64): ``cttz`` trailing zeros, ``ctpop`` set bits, ``bit_length`` its width less
+    ``ctlz``'s leading zeros. Zero is defined: ``cttz`` and ``ctlz`` give the width."""
 
-    def codegen(context, builder, signature, args):
-        ty = args[0].type
-        fnty = ir.FunctionType(ty, [ty, ir.IntType(1)])
-        fn = builder.module.declare_intrinsic("llvm.ctlz", (ty,), fnty)
-        zeros = builder.call(fn, [args[0], ir.Constant(ir.IntType(1), 0)])  # defined for 0: the width
-        return builder.sub(ir.Constant(ty, ty.width), zeros)
+    @intrinsic
+    def count(typingctx, x):
+        if not isinstance(x, types.Integer):
+            return None
 
-    return x(x), codegen
+        def codegen(context, builder, signature, args):
+            ty = args[0].type
+            llvm = "ctlz" if name == "bit_length" else name
+            if llvm == "ctpop":
+                fn = builder.module.declare_intrinsic("llvm.ctpop", (ty,), ir.FunctionType(ty, [ty]))
+                return builder.call(fn, [args[0]])
+            fn = builder.module.declare_intrinsic(f"llvm.{llvm}", (ty,), ir.FunctionType(ty, [ty, ir.IntType(1)]))
+            n = builder.call(fn, [args[0], ir.Constant(ir.IntType(1), 0)])
+            return builder.sub(ir.Constant(ty, ty.width), n) if name == "bit_length" else n
+
+        return x(x), codegen
+
+    count.__doc__ = doc
+    return count
+
+
+bit_length = _bit_count("bit_length", "Number of bits needed to write the non-negative integer ``x`` (0 for 0): "
+                                      "Python's ``int.bit_length``, one ``lzcnt`` instead of a loop.")
+trailing_zeros = _bit_count("cttz", "Index of the lowest set bit of ``x`` (its width for 0).")
+popcount = _bit_count("ctpop", "Number of set bits of ``x``.")
 
 
 def _add_if(op: str, doc: str):

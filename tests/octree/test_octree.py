@@ -278,8 +278,9 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
     # keys local to a shift (the tiled maps' 64-bit key space) are the same voxels, less the shift
     for shift, threads in [(none, False), (none, True), (np.array([8 * 300, -8 * 1000, 8], np.int64), True)]:
-        keys, is_hit = blocks.block_voxels(*insertion.mark(origin, ends, hit, res, shift, True, threads),
-                                           np.empty((0, 3), np.int64))
+        keys, depths, is_hit = blocks.block_voxels(*insertion.mark(origin, ends, hit, res, shift, True, threads),
+                                                   np.empty((0, 3), np.int64), False)
+        assert np.all(depths == 16)
         order = np.argsort(keys)
         np.testing.assert_array_equal(keys[order] + pack_keys(shift), unique)
         np.testing.assert_array_equal(is_hit[order], unique_hit)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._intrinsics import bit_length
+from .._intrinsics import bit_length, popcount, trailing_zeros
 from .._jit import kernel
 from .keys import block_key, morton, pack, unpack
 
@@ -98,65 +98,90 @@ def merge_blocks(codes, hits, frees):
     return c2[:m + 1], h2[:m + 1], f2[:m + 1]
 
 
-_DEBRUIJN = np.array([
-    0, 47, 1, 56, 48, 27, 2, 60, 57, 49, 41, 37, 28, 16, 3, 61, 54, 58, 35, 52, 50, 42, 21, 44,
-    38, 32, 29, 23, 17, 11, 4, 62, 46, 55, 26, 59, 40, 36, 15, 53, 34, 51, 20, 43, 31, 22, 10, 45,
-    25, 39, 14, 33, 19, 30, 9, 24, 13, 18, 8, 12, 7, 6, 5, 63], np.int64)
+#: A block's voxels in Morton order: voxel ``lx + 8·ly + 64·lz`` is the ``_TO_MORTON[·]``-th, and
+#: the ``z``-th lies ``_MORTON_OFFSET[z]`` (a packed key) from the block's first voxel.
+_TO_MORTON = np.array([morton.py_func(i & 7, (i >> 3) & 7, i >> 6, 3) for i in range(512)], np.int64)
+_MORTON_OFFSET = np.array([pack.py_func(i & 7, (i >> 3) & 7, i >> 6) for i in np.argsort(_TO_MORTON)], np.int64)
 
 
 @kernel
-def _lowest_bit(word):
-    """Index of the lowest set bit of a nonzero int64 (de Bruijn multiplication)."""
-    return _DEBRUIJN[(((word ^ (word - 1)) * 0x03F79D71B4CB0A89) >> 58) & 63]
+def _inside(kbox, key, size):
+    """Whether the cube of ``size`` voxels a side from packed key ``key`` lies in ``kbox``
+    ((0, 3): everywhere)."""
+    if kbox.shape[0] == 0:
+        return True
+    kx, ky, kz = unpack(key)
+    return (kbox[0, 0] <= kx and kx + size - 1 <= kbox[1, 0] and kbox[0, 1] <= ky and ky + size - 1 <= kbox[1, 1]
+            and kbox[0, 2] <= kz and kz + size - 1 <= kbox[1, 2])
 
 
 @kernel
-def _compact(m):
-    """Every third bit of m from bit 0, packed: one axis of a 9-bit :func:`.keys.morton` code."""
-    return (m & 1) | ((m >> 2) & 2) | ((m >> 4) & 4)
+def _uniform(marked, hit, size):
+    """Whether ``size`` (8, 64) voxels' bits of ``marked`` are all set and their ``hit`` bits
+    all alike (bits from 0; words of int64)."""
+    full = np.int64(-1) if size == 64 else (np.int64(1) << size) - 1
+    return marked & full == full and (hit & full == 0 or hit & full == full)
 
 
 @kernel
-def block_voxels(codes, hits, frees, kbox):
-    """The marked voxels of Morton-sorted blocks as packed keys (:func:`.keys.pack`) in Morton
-    order, with a flag for the hit voxels (a voxel both hit and crossed is a hit); only those
-    within the key box ``kbox`` (int64 (2, 3): min, max; (0, 3) for none)."""
+def block_voxels(codes, hits, frees, kbox, merge):
+    """The marked voxels of Morton-sorted blocks as updates in Morton order: packed keys
+    (:func:`.keys.pack`) of their first voxels, depths, and a flag for the hits (a voxel both hit
+    and crossed is a hit); only voxels within the key box ``kbox`` (int64 (2, 3): min, max;
+    (0, 3) for none). With ``merge``, a node of a block (depth 13, 14 or 15) whose voxels are all
+    marked alike is one update at its depth (see :func:`.update.apply_voxels`), else each voxel is
+    one at depth 16."""
     n = 0
     for b in range(codes.shape[0]):
         for w in range(8):
-            word = hits[b, w] | frees[b, w]
-            while word != 0:
-                word &= word - 1
-                n += 1
+            n += popcount(hits[b, w] | frees[b, w])
     keys = np.empty(n, np.int64)
+    depths = np.empty(n, np.int8)
     is_hit = np.empty(n, np.bool_)
-    order = np.empty(8, np.int64)  # the block's bits re-laid in Morton order
+    marked = np.empty(8, np.int64)  # the block's marked and hit bits re-laid in Morton order
+    hit = np.empty(8, np.int64)
     n = 0
     for b in range(codes.shape[0]):
-        order[:] = 0
+        marked[:] = 0
+        hit[:] = 0
         for w in range(8):
-            word = hits[b, w] | frees[b, w]
+            h = hits[b, w]
+            word = h | frees[b, w]
             while word != 0:
-                bit = _lowest_bit(word)
+                bit = trailing_zeros(word)
                 word &= word - 1
-                m = (w << 6) | bit
-                z = morton(m & 7, (m >> 3) & 7, m >> 6, 3)
-                order[z >> 6] |= np.int64(1) << (z & 63)
+                z = _TO_MORTON[(w << 6) | bit]
+                marked[z >> 6] |= np.int64(1) << (z & 63)
+                hit[z >> 6] |= ((h >> bit) & 1) << (z & 63)
         base = block_key(codes[b])
-        bx, by, bz = unpack(base)
-        for w in range(8):
-            word = order[w]
-            while word != 0:
-                bit = _lowest_bit(word)
-                word &= word - 1
-                z = (w << 6) | bit
-                lx, ly, lz = _compact(z), _compact(z >> 1), _compact(z >> 2)
-                if kbox.shape[0]:
-                    if not (kbox[0, 0] <= bx + lx <= kbox[1, 0] and kbox[0, 1] <= by + ly <= kbox[1, 1]
-                            and kbox[0, 2] <= bz + lz <= kbox[1, 2]):
-                        continue
-                keys[n] = base + pack(lx, ly, lz)
-                linear = lx | (ly << 3) | (lz << 6)
-                is_hit[n] = (hits[b, linear >> 6] >> (linear & 63)) & 1 == 1
+        if merge and _inside(kbox, base, 8):
+            whole = True
+            for w in range(8):
+                whole = whole and _uniform(marked[w], hit[w], 64) and hit[w] == hit[0]
+            if whole:
+                keys[n], depths[n], is_hit[n] = base, 13, hit[0] != 0
                 n += 1
-    return keys[:n], is_hit[:n]
+                continue
+        for w in range(8):
+            first = base + _MORTON_OFFSET[w << 6]
+            if merge and _uniform(marked[w], hit[w], 64) and _inside(kbox, first, 4):
+                keys[n], depths[n], is_hit[n] = first, 14, hit[w] != 0
+                n += 1
+                continue
+            for byte in range(8):
+                shift = 8 * byte
+                m, hm = marked[w] >> shift, hit[w] >> shift
+                node = base + _MORTON_OFFSET[(w << 6) | shift]
+                if merge and _uniform(m, hm, 8) and _inside(kbox, node, 2):
+                    keys[n], depths[n], is_hit[n] = node, 15, hm & 1 != 0
+                    n += 1
+                    continue
+                word = m & 0xFF
+                while word != 0:
+                    bit = trailing_zeros(word)
+                    word &= word - 1
+                    key = base + _MORTON_OFFSET[(w << 6) | (shift + bit)]
+                    if _inside(kbox, key, 1):
+                        keys[n], depths[n], is_hit[n] = key, 16, (hm >> bit) & 1 != 0
+                        n += 1
+    return keys[:n], depths[:n], is_hit[:n]

@@ -42,6 +42,10 @@ _ROOM_MARGIN = 8 * 16 * 8
 #: occmap.octree.marking.CUBE).
 _CUBE_RAYS = 4096
 
+#: Depths for updates that are all voxels (:func:`apply`).
+VOXELS = np.zeros(0, np.int8)
+
+
 def pipeline():
     """The thread that traces the next scan of OcTree.insert_point_clouds while the tree takes
     the current one."""
@@ -95,20 +99,21 @@ def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
     return B.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
 
 
-def voxels(blocks, kbox, threads: bool):
-    """:func:`occmap.octree.blocks.block_voxels` of Morton-sorted blocks; with ``threads``, many
-    blocks are listed by several threads, in runs (Morton order kept)."""
+def voxels(blocks, kbox, merge: bool, threads: bool):
+    """:func:`occmap.octree.blocks.block_voxels` of Morton-sorted blocks: updates (keys, depths,
+    hit flags); with ``threads``, many blocks are listed by several threads, in runs (Morton order
+    kept)."""
     n = len(blocks[0])
     if not threads or n < _PARALLEL_BLOCKS:
-        return B.block_voxels(*blocks, kbox)
+        return B.block_voxels(*blocks, kbox, merge)
     bounds = np.linspace(0, n, _LIST_RUNS + 1).astype(np.int64).tolist()
-    parts = run_jobs([lambda a=a, z=z: B.block_voxels(*(b[a:z] for b in blocks), kbox)
+    parts = run_jobs([lambda a=a, z=z: B.block_voxels(*(b[a:z] for b in blocks), kbox, merge)
                       for a, z in zip(bounds[:-1], bounds[1:])])
-    return np.concatenate([k for k, _ in parts]), np.concatenate([h for _, h in parts])
+    return tuple(np.concatenate(arrays) for arrays in zip(*parts))
 
 
 def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: float, box, kbox, shift,
-                 threads: bool, keep=None):
+                 threads: bool, keep=None, merge: bool = True):
     """A scan's voxels as OctoMap's ``insertPointCloud`` finds them, the tree left alone (so the
     next scan can be traced while a tree takes this one).
 
@@ -116,9 +121,10 @@ def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: floa
     ``discretize``: one ray per voxel holding points, to its centre (:func:`.marking.voxel_centres`);
     ``box`` float32 (2, 3), points outside it are no hits ((0, 3): none); ``kbox`` (2, 3) the
     bounding box in local keys ((0, 3): none; rays from outside it free nothing); keys local to
-    ``shift`` (:mod:`.marking`); ``keep`` (2, 3) the local keys to list (default ``kbox``).
-    Returns ``(keys, is_hit, summary)``: packed keys in Morton order, each once, with hit flags,
-    and the counts ``points`` (rays cast), ``dropped`` (points with NaN/inf, and those whose ray
+    ``shift`` (:mod:`.marking`); ``keep`` (2, 3) the local keys to list (default ``kbox``);
+    ``merge``: nodes whose voxels are all marked alike as one update (not for lazy updates).
+    Returns ``(keys, depths, is_hit, summary)``: the updates (:func:`.blocks.block_voxels`) in
+    Morton order, each voxel in one, and the counts ``points`` (rays cast), ``dropped`` (points with NaN/inf, and those whose ray
     ends outside the key range: OctoMap skips those rays), ``outside_key_range`` (the latter) and
     ``beyond_max_range``."""
     non_finite = outside = 0
@@ -129,30 +135,32 @@ def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: floa
     origin_key = coord_to_keys(origin32.astype(np.float64), res) - shift
     # with a box, a ray's free voxels are those before it first leaves the box: none from outside
     rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
-    keys, is_hit = voxels(mark(origin32, ends, hit, res, shift, rays, threads), kbox if keep is None else keep,
-                          threads)
+    keys, depths, is_hit = voxels(mark(origin32, ends, hit, res, shift, rays, threads),
+                                  kbox if keep is None else keep, merge, threads)
     summary = {"points": len(ends), "dropped": int(non_finite + outside), "outside_key_range": int(outside),
                "beyond_max_range": int(np.count_nonzero(~hit))}
-    return keys, is_hit, summary
+    return keys, depths, is_hit, summary
 
 
-def apply(pool: P.Pool, keys: np.ndarray, is_hit: np.ndarray, rule, lazy: bool, threads: bool = False) -> None:
-    """Update the voxels ``keys`` (packed) of ``pool`` in order, each with a hit or a miss under
-    ``rule`` = (l_hit, l_miss, l_min, l_max) (float32 log-odds); with ``threads`` (the keys of
-    one scan: each once, in Morton order) many voxels on two threads when Numba's count allows."""
+def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray, rule, lazy: bool,
+          threads: bool = False) -> None:
+    """Apply the updates ``keys`` (packed first voxels) at ``depths`` ((0,): voxels) to ``pool`` in
+    order, each a hit or a miss under ``rule`` = (l_hit, l_miss, l_min, l_max) (float32 log-odds;
+    :func:`.update.apply_voxels`); with ``threads`` (one scan's updates: each voxel in one, in
+    Morton order) many updates on two threads when Numba's count allows."""
     if (threads and len(keys) >= _PARALLEL_VOXELS and _threads.thread_count() >= 2
-            and _apply_halves(pool, keys, is_hit, rule, lazy)):
+            and _apply_halves(pool, keys, depths, is_hit, rule, lazy)):
         return
-    _apply_range(pool, keys, is_hit, rule, lazy, 0, len(keys))
+    _apply_range(pool, keys, depths, is_hit, rule, lazy, 0, len(keys))
 
 
-def _apply_range(pool: P.Pool, keys, is_hit, rule, lazy: bool, start: int, stop: int) -> bool:
-    """Voxels ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
-    keys, is_hit = keys[:stop], is_hit[:stop]
+def _apply_range(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool, start: int, stop: int) -> bool:
+    """Updates ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
+    keys, depths, is_hit = keys[:stop], depths[:stop], is_hit[:stop]
     top = int(pool.meta[P.TOP])
     changed = False
     while True:
-        start, ch = apply_voxels(pool.value, pool.child, pool.meta, keys, is_hit, start, *rule, not lazy,
+        start, ch = apply_voxels(pool.value, pool.child, pool.meta, keys, depths, is_hit, start, *rule, not lazy,
                                  pool.value.shape[0], 0)
         changed |= ch
         if start == len(keys):
@@ -163,7 +171,7 @@ def _apply_range(pool: P.Pool, keys, is_hit, rule, lazy: bool, start: int, stop:
         pool.grow(used + 1.25 * rate * (len(keys) - start))
 
 
-def _apply_halves(pool: P.Pool, keys, is_hit, rule, lazy: bool) -> bool:
+def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     """The voxels on two threads, when the path to the node all of them share exists down to
     its children: each thread updates whole subtrees below that node, allocating slots from
     its own range, and the shared path is settled afterwards. False (nothing done) where the
@@ -172,7 +180,7 @@ def _apply_halves(pool: P.Pool, keys, is_hit, rule, lazy: bool) -> bool:
     path = P.path_to(pool.value, pool.child, keys[0], shared)
     first = 0
     if not len(path):  # make it: the first voxel's update creates (or expands) the nodes on its way
-        _apply_range(pool, keys, is_hit, rule, lazy, 0, 1)
+        _apply_range(pool, keys, depths, is_hit, rule, lazy, 0, 1)
         path, first = P.path_to(pool.value, pool.child, keys[0], shared), 1
         if not len(path):
             return False
@@ -191,16 +199,16 @@ def _apply_halves(pool: P.Pool, keys, is_hit, rule, lazy: bool) -> bool:
     meta_a = np.array([top, pool.meta[P.FREE], 0], np.int64)
     meta_b = np.array([top + room_a, -1, 0], np.int64)
     (end_a, changed_a), (end_b, changed_b) = run_jobs([
-        lambda: apply_voxels(pool.value, pool.child, meta_a, keys[:split], is_hit[:split], first, *rule, not lazy,
-                             top + room_a, shared + 1),
-        lambda: apply_voxels(pool.value, pool.child, meta_b, keys, is_hit, split, *rule, not lazy,
+        lambda: apply_voxels(pool.value, pool.child, meta_a, keys[:split], depths[:split], is_hit[:split], first,
+                             *rule, not lazy, top + room_a, shared + 1),
+        lambda: apply_voxels(pool.value, pool.child, meta_b, keys, depths, is_hit, split, *rule, not lazy,
                              pool.value.shape[0], shared + 1)], threads=2)
     P.join_pools(pool.value, pool.child, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
     changed = changed_a or changed_b
     if end_a < split:  # a range ran out of slots: the rest here
-        changed |= _apply_range(pool, keys, is_hit, rule, lazy, end_a, split)
+        changed |= _apply_range(pool, keys, depths, is_hit, rule, lazy, end_a, split)
     if end_b < len(keys):
-        changed |= _apply_range(pool, keys, is_hit, rule, lazy, end_b, len(keys))
+        changed |= _apply_range(pool, keys, depths, is_hit, rule, lazy, end_b, len(keys))
     if changed and not lazy:
         P.settle_path(pool.value, pool.child, pool.meta, path)
     return True

@@ -16,8 +16,8 @@ with the unshifted key, so its voxels are OctoMap's to the bit wherever the scan
    instead, placed where the scan's steps are (:func:`cube_corner`) and turned into blocks at
    the end (:func:`cube_blocks`). Disjoint ranges of rays can be marked in parallel threads and
    merged (:func:`.blocks.merge_blocks`).
-2. :func:`.blocks.block_voxels` lists the marked voxels in Morton order and
-   :func:`.update.apply_voxels` updates them in that order.
+2. :func:`.blocks.block_voxels` lists the marked voxels in Morton order — a node whose voxels are
+   all marked alike as one update — and :func:`.update.apply_voxels` applies them in that order.
 
 :func:`ray_voxels` is the plain form for OctoMap's ``insertRay``: every ray's voxels in turn, no
 merging.

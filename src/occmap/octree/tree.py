@@ -215,8 +215,8 @@ class OcTree(OneCallAtATime):
         scan's counts: ``scans``, ``points``, ``dropped``, ``beyond_max_range``
         (``docs/architecture.md``), and ``outside_key_range`` (of ``dropped``).
         """
-        keys, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, threads=True)
-        insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=True)
+        keys, depths, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, lazy, threads=True)
+        insertion.apply(self._pool, keys, depths, is_hit, self._rule, lazy, threads=True)
         return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
@@ -240,25 +240,26 @@ class OcTree(OneCallAtATime):
         for k in range(len(pairs)):
             if pending is not None and pending.cancel():
                 pending = None
-            current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, True)
-            pending = (insertion.pipeline().submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, False)
+            current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, lazy, True)
+            pending = (insertion.pipeline().submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, lazy, False)
                        if ahead and k + 1 < len(pairs) else None)
-            keys, is_hit, summary = current
+            keys, depths, is_hit, summary = current
             # (the second core traces the next scan)
-            insertion.apply(self._pool, keys, is_hit, self._rule, lazy, threads=pending is None)
+            insertion.apply(self._pool, keys, depths, is_hit, self._rule, lazy, threads=pending is None)
             for name, value in self._count(summary).items():
                 total[name] += value
         return total
 
-    def _scan_voxels(self, points, origin, max_range: float, discretize: bool, threads: bool):
-        """A scan's voxels, Morton-ordered packed keys with hit flags, and its summary (no change
-        to the tree: scans can be traced ahead on another thread)."""
+    def _scan_voxels(self, points, origin, max_range: float, discretize: bool, lazy: bool, threads: bool):
+        """A scan's updates (:func:`.insertion.cloud_voxels`: Morton-ordered keys, depths, hit
+        flags; voxels only for ``lazy`` updates) and its summary (no change to the tree: scans can
+        be traced ahead on another thread)."""
         P = points_array("points", points)
         o32 = _origin(origin).astype(np.float32)
         self.coord_to_key(o32.astype(np.float64))  # (an origin out of range is refused)
         box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
         return insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, box, self._bbx_keys(), NO_SHIFT,
-                                      threads)
+                                      threads, merge=not lazy)
 
     def _count(self, summary: dict) -> dict:
         """This scan's counts (``scans`` = 1 and the summary's), added to :attr:`stats`."""
@@ -286,7 +287,7 @@ class OcTree(OneCallAtATime):
         E32, with_end, kept, _, _ = prepare_rays(E, O32, float(max_range) if max_range > 0 else -1.0, self.resolution,
                                                  np.empty((0, 3), np.float32), NO_SHIFT)
         keys, is_hit = ray_voxels(O32 if len(O32) == 1 else O32[kept], E32, with_end, self.resolution)
-        insertion.apply(self._pool, keys, is_hit, self._rule, lazy)
+        insertion.apply(self._pool, keys, insertion.VOXELS, is_hit, self._rule, lazy)
         return len(kept)
 
     def insert_ray(self, origin, end, max_range: float = -1.0, lazy: bool = False) -> bool:
@@ -301,15 +302,17 @@ class OcTree(OneCallAtATime):
             raise InvalidArgumentError("points must be finite")
         occ = np.broadcast_to(np.asarray(occupied, dtype=bool), P.shape[:1])
         k = self.coord_to_key(P.astype(np.float32).astype(np.float64))
-        insertion.apply(self._pool, pack_keys(k), np.ascontiguousarray(occ), self._rule, lazy)
+        insertion.apply(self._pool, pack_keys(k), insertion.VOXELS, np.ascontiguousarray(occ), self._rule, lazy)
 
-    def update_voxels(self, keys, is_hit, threads: bool = False) -> None:
+    def update_voxels(self, keys, is_hit, threads: bool = False, depths=None) -> None:
         """Update voxels given as packed keys (int64, :func:`occmap.octree.keys.pack` of depth-16
         keys), each with one hit (``is_hit``) or miss, as one scan updates them: each key once, in
-        Morton order when ``threads`` (then many voxels go on two threads). The path by which tiled
-        maps (:mod:`occmap.world`) apply a scan's voxels to their tiles."""
-        insertion.apply(self._pool, np.ascontiguousarray(keys, np.int64), np.ascontiguousarray(is_hit, np.bool_),
-                        self._rule, False, threads)
+        Morton order when ``threads`` (then many voxels go on two threads). With ``depths`` (int8),
+        ``keys[i]`` is the first voxel of the node at ``depths[i]``, all of whose voxels take the
+        update. The path by which tiled maps (:mod:`occmap.world`) apply a scan to their tiles."""
+        depths = insertion.VOXELS if depths is None else np.ascontiguousarray(depths, np.int8)
+        insertion.apply(self._pool, np.ascontiguousarray(keys, np.int64), depths,
+                        np.ascontiguousarray(is_hit, np.bool_), self._rule, False, threads)
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""

@@ -45,13 +45,59 @@ def subtree_split(keys, depth, first):
 
 
 @kernel
-def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, top):
-    """Update voxels ``start..`` (packed keys) in order, each as OctoMap's ``updateNode`` with a hit
-    or a miss. Returns (the number of voxels, or the one at which the slots below ``limit`` ran
-    out — nothing of it applied yet: the caller makes room and resumes there; whether any value
-    changed). With ``settle_nodes`` false (OctoMap's lazy evaluation) inner nodes are neither
-    updated nor pruned. Nodes above depth ``top`` are only passed through, never settled: two
-    threads can update the subtrees below one node side by side (see :func:`.insertion.apply`).
+def update_subtree(value, child, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
+    """Every voxel below inner ``node`` takes one hit (``hit``) or miss, leaving what OctoMap's
+    ``updateNode`` on each of them, in any order, leaves: a leaf below it (a pruned one too:
+    expanded, updated and pruned again it is itself updated) takes the update unless saturated
+    (the early abort); a child missing below an inner node (unknown space) becomes a leaf with the
+    update of a new node; nodes with a change below them are settled, deepest first (pruned where
+    their children came out alike). Allocates nothing. Returns whether any value changed."""
+    stack = np.empty(DEPTH + 1, np.int64)
+    next_child = np.zeros(DEPTH + 1, np.int64)
+    below = np.zeros(DEPTH + 1, np.bool_)  # below[s]: a value changed below stack[s]
+    stack[0] = node
+    sp = 0
+    while True:
+        c = child[stack[sp]]
+        i = next_child[sp]
+        if i < 8:
+            next_child[sp] = i + 1
+            j = c + i
+            if child[j] >= 0:
+                sp += 1
+                stack[sp] = j
+                next_child[sp] = 0
+                below[sp] = False
+                continue
+            if np.isnan(value[j]):  # (a slot of a child block with no node in it)
+                value[j] = 0.0
+                meta[SIZE] += 1
+            if not saturated(value[j], hit, lo, hi):
+                value[j] = updated(value[j], hit, l_hit, l_miss, lo, hi)
+                below[sp] = True
+            continue
+        if below[sp] and settle_nodes:
+            settle(value, child, meta, stack[sp], True, True)
+        if sp == 0:
+            return below[0]
+        below[sp - 1] |= below[sp]
+        sp -= 1
+
+
+@kernel
+def apply_voxels(value, child, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, top):
+    """Apply updates ``start..`` in order, each as OctoMap's ``updateNode`` with a hit or a miss on
+    every voxel of the node at ``depths[i]`` (int8; (0,): all 16, voxels) whose first voxel has
+    packed key ``keys[i]``. Returns (the number of updates, or the one at which the slots below
+    ``limit`` ran out — nothing of it applied yet: the caller makes room and resumes there;
+    whether any value changed). With ``settle_nodes`` false (OctoMap's lazy evaluation) inner
+    nodes are neither updated nor pruned (give voxels then: a node update settles its subtree).
+    Nodes above depth ``top`` are only passed through, never settled: two threads can update the
+    subtrees below one node side by side (see :func:`.insertion.apply`).
+
+    A node update is the updates of its voxels at once: a leaf (a new node, or a pruned one) takes
+    it as one voxel would, since its voxels would come out alike and be pruned back into it; an
+    inner node passes it to its subtree (:func:`update_subtree`).
 
     The walk to a voxel restarts from the deepest node shared with the previous voxel's path, so
     voxels in Morton order cost a level or two instead of sixteen; an inner node is settled once
@@ -73,6 +119,7 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
         key = keys[i]
         kx, ky, kz = unpack(key)
         hit = is_hit[i]
+        target = depths[i] if depths.shape[0] else DEPTH
         # ---- leave the previous voxel's path up to the node both share
         d = 0
         if known >= 0:
@@ -92,7 +139,7 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
             meta[SIZE] += 1
             created = True
         absorbed = False
-        while d < DEPTH:
+        while d < target:
             c = child[node]
             if c < 0:
                 if not created:
@@ -114,6 +161,11 @@ def apply_voxels(value, child, meta, keys, is_hit, start, l_hit, l_miss, lo, hi,
             path[d] = node
         known = d
         if absorbed:
+            continue
+        if child[node] >= 0:
+            if update_subtree(value, child, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
+                dirty = DEPTH
+                changed = True
             continue
         if saturated(value[node], hit, lo, hi):
             continue

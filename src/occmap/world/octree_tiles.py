@@ -131,9 +131,9 @@ class TiledOcTree(StoredMap):
             if np.any(hi < 0) or np.any(lo > MAX_KEY) or not self._may_reach(P, o, max_range, lo, hi, shift):
                 return dict.fromkeys(self.stats, 0)
             keep = np.stack([np.maximum(lo, 0), np.minimum(hi, MAX_KEY)])
-        keys, is_hit, summary = insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, _NO_BOX,
-                                                       _NO_KEYS, shift, True, keep)
-        self._apply(keys, is_hit, shift)
+        keys, depths, is_hit, summary = insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, _NO_BOX,
+                                                               _NO_KEYS, shift, True, keep)
+        self._apply(keys, depths, is_hit, shift)
         return self._record(summary)
 
     def _may_reach(self, P, o, max_range, lo, hi, shift) -> bool:
@@ -148,12 +148,13 @@ class TiledOcTree(StoredMap):
         k_hi = coord_to_keys(b_hi, self.resolution) - shift + 1
         return bool(np.all(k_hi >= lo) and np.all(k_lo <= hi))
 
-    def _apply(self, keys, is_hit, shift) -> None:
-        """Give each tile its part of a scan's voxels (Morton order kept within a tile)."""
-        tiles, starts, local, hits = split_by_tile(keys, is_hit, shift, self._bits)
+    def _apply(self, keys, depths, is_hit, shift) -> None:
+        """Give each tile its part of a scan's updates (Morton order kept within a tile; a node
+        update lies in one tile: tiles are whole nodes of 8 voxels a side or more)."""
+        tiles, starts, local, levels, hits = split_by_tile(keys, depths, is_hit, shift, self._bits)
         for i, index in enumerate(map(tuple, tiles.tolist())):
             a, b = starts[i], starts[i + 1]
-            self._tile(index, create=True).update_voxels(local[a:b], hits[a:b], threads=True)
+            self._tile(index, create=True).update_voxels(local[a:b], hits[a:b], threads=True, depths=levels[a:b])
             self._dirty.add(index)
         self._evict()
 

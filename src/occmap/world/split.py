@@ -1,5 +1,5 @@
-"""A scan's voxels dealt out to tiles: one pass to find each voxel's tile and its tile key, a
-counting sort to group them (each tile's voxels keep their Morton order)."""
+"""A scan's updates dealt out to tiles: one pass to find each update's tile and its tile key, a
+counting sort to group them (each tile's updates keep their Morton order)."""
 
 from __future__ import annotations
 
@@ -12,11 +12,13 @@ _MASK = (1 << FIELD) - 1
 
 
 @kernel
-def split_by_tile(keys, is_hit, shift, bits):
-    """Voxels as packed keys local to ``shift`` (:mod:`occmap.octree.marking`) → ``(tiles (m, 3),
-    starts (m + 1,), tile_keys, hits)``: the tiles they fall in (tile index ``(key − 32768) >> bits``
-    of the global key), and per tile ``i`` its voxels ``starts[i]:starts[i + 1]`` as packed tile
-    keys (``((key − 32768) mod 2^bits) + 32768``) with their hit flags, in their given order."""
+def split_by_tile(keys, depths, is_hit, shift, bits):
+    """Updates (:func:`occmap.octree.insertion.apply`: packed keys local to ``shift``
+    (:mod:`occmap.octree.marking`), depths, hit flags; each within one tile) → ``(tiles (m, 3),
+    starts (m + 1,), tile_keys, depths, hits)``: the tiles they fall in (tile index
+    ``(key − 32768) >> bits`` of the global key), and per tile ``i`` its updates
+    ``starts[i]:starts[i + 1]`` as packed tile keys (``((key − 32768) mod 2^bits) + 32768``) with
+    their depths and hit flags, in their given order."""
     n = keys.shape[0]
     size = 1 << bits
     lo = np.full(3, np.iinfo(np.int64).max, np.int64)
@@ -35,7 +37,7 @@ def split_by_tile(keys, is_hit, shift, bits):
             packed |= ((g & (size - 1)) + CENTER) << (FIELD * a)
         local[i] = packed
     if n == 0:
-        return np.empty((0, 3), np.int64), np.zeros(1, np.int64), local, is_hit[:0].copy()
+        return np.empty((0, 3), np.int64), np.zeros(1, np.int64), local, depths[:0].copy(), is_hit[:0].copy()
     nx, ny = hi[0] - lo[0] + 1, hi[1] - lo[1] + 1
     cells = nx * ny * (hi[2] - lo[2] + 1)
     count = np.zeros(cells + 1, np.int64)
@@ -61,11 +63,13 @@ def split_by_tile(keys, is_hit, shift, bits):
             j += 1
     starts[m] = n
     out_keys = np.empty(n, np.int64)
+    out_depths = np.empty(n, np.int8)
     out_hit = np.empty(n, np.bool_)
     fill = count[:cells].copy()
     for i in range(n):
         c = code[i]
         out_keys[fill[c]] = local[i]
+        out_depths[fill[c]] = depths[i]
         out_hit[fill[c]] = is_hit[i]
         fill[c] += 1
-    return tiles, starts, out_keys, out_hit
+    return tiles, starts, out_keys, out_depths, out_hit
