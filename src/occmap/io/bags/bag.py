@@ -1,0 +1,262 @@
+"""Open a ROS bag of any kind and stream its messages, decoded.
+
+Kinds, told apart by their first bytes (a folder by its ``metadata.yaml``):
+
+* ROS 1 ``.bag`` (format 2.0), read with ``rosbags``; when ``rosbags`` rejects the bag's index,
+  with :class:`~occmap.io.bags.ros1_chunks.Ros1Chunks`, which reads the chunks without it;
+* ROS 2 bag folders (``metadata.yaml`` beside ``.db3`` or ``.mcap`` files), and a lone ``.db3``
+  (SQLite) or ``.mcap`` file.
+
+Messages are decoded with the type definitions the bag carries (ROS 1 connections, MCAP schemas,
+ROS 2 metadata); a ROS 2 bag without them is decoded with the standard ROS 2 types ``rosbags``
+knows. Type names are in ROS 2 form, ``sensor_msgs/msg/LaserScan``, for ROS 1 bags too. Times are
+float seconds since the epoch: :attr:`Message.time` is when the message was recorded (not its
+header stamp, which the decoders read).
+
+Memory: a message is decoded when the loop reaches it; the readers hold one chunk of the file
+(768 KiB by default in ROS 1, 4 MiB in MCAP) and the bag's index, never the bag.
+
+Every problem with the file — not a bag, truncated, corrupt, a type it does not define — raises
+:class:`~occmap.errors.FormatError` naming the file; asking for a topic the bag does not have, or
+for a message type a topic does not hold, raises :class:`~occmap.errors.InvalidArgumentError`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable, Iterator, NamedTuple
+
+from ...errors import FormatError, InvalidArgumentError, MissingFileError
+from .ros1_chunks import Ros1Chunks
+
+__all__ = ["Bag", "Message", "Topic", "open_bag"]
+
+_ROS1_MAGIC = b"#ROSBAG V"
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+class Topic(NamedTuple):
+    """A topic of a bag: its name, message type (``pkg/msg/Name``) and number of messages."""
+
+    name: str
+    msgtype: str
+    count: int
+
+
+class Message(NamedTuple):
+    """One decoded message: its topic and type, when it was recorded (seconds), and the message
+    (a ``rosbags`` dataclass whose fields carry the ROS names)."""
+
+    topic: str
+    msgtype: str
+    time: float
+    msg: object
+
+
+def open_bag(path) -> Bag:
+    """Open a ROS 1 ``.bag``, a ROS 2 bag folder, or a lone ``.db3`` / ``.mcap`` file (see
+    :mod:`occmap.io.bags.bag`). Use it as a context manager, or call :meth:`Bag.close`."""
+    return Bag(path)
+
+
+class Bag:
+    """An open bag: its topics, its time span, and its messages streamed in time order.
+
+    Attributes
+    ----------
+    path : Path
+    kind : str
+        ``"ROS 1"``, ``"ROS 2"`` (a bag folder), ``"ROS 2 sqlite3"`` or ``"ROS 2 MCAP"`` (a lone
+        file).
+    note : str
+        Empty, or how the bag was read when the usual way failed (a ROS 1 index ``rosbags``
+        rejects).
+    topics : dict[str, Topic]
+        Every topic, by name, sorted by name.
+    start, end : float or None
+        Record times of the first and the last message in seconds; None for an empty bag.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.note = ""
+        self.kind, suffix = _kind(self.path)
+        if self.kind == "ROS 1":
+            try:
+                self._source = _Rosbags(self.path, self.kind)
+            except FormatError as e:
+                self._source = _Ros1FromChunks(self.path)
+                self.note = f"read from its chunk records: rosbags rejects it ({e.args[0].split(': ', 1)[-1]})"
+        else:
+            if suffix is not None and self.path.suffix != suffix:
+                raise FormatError(self.path, f"holds {self.kind} data; name it *{suffix} to read it")
+            self._source = _Rosbags(self.path, self.kind)
+        self.topics = dict(sorted((t.name, t) for t in self._source.topics()))
+        self.start, self.end = self._source.span()
+
+    def messages(self, topics: str | Iterable[str] | None = None, msgtype: str | None = None) -> Iterator[Message]:
+        """Decoded messages of ``topics`` (a name, several, or None for all) in time order (in
+        the order recorded, for a ROS 1 bag read from its chunks).
+
+        ``msgtype`` (e.g. ``"sensor_msgs/msg/LaserScan"``), when given, must be the type of every
+        topic asked for. Raises :class:`InvalidArgumentError` for a topic the bag lacks or holding
+        another type, :class:`FormatError` for a message that does not decode.
+        """
+        names = list(self.topics) if topics is None else [topics] if isinstance(topics, str) else list(topics)
+        for name in names:
+            topic = self.topics.get(name)
+            if topic is None:
+                raise InvalidArgumentError(f"{self.path}: no topic {name!r}; its topics: "
+                                           f"{', '.join(self.topics) or '(none)'}")
+            if msgtype is not None and topic.msgtype != msgtype:
+                raise InvalidArgumentError(f"{self.path}: topic {name!r} holds {topic.msgtype}, not {msgtype}")
+        for topic, kind, time_ns, raw in self._source.raw(set(names)):
+            try:
+                msg = self._source.decode(raw, kind)
+            except Exception as e:  # whatever rosbags' decoder raises on bytes that do not fit the type
+                raise FormatError(self.path, f"topic {topic!r}, message recorded at {time_ns / 1e9:.9f} s: "
+                                  f"does not decode as {kind} ({type(e).__name__}: {e})") from e
+            yield Message(topic, kind, time_ns / 1e9, msg)
+
+    def close(self) -> None:
+        self._source.close()
+
+    def __enter__(self) -> Bag:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"Bag({str(self.path)!r}, {self.kind}, {len(self.topics)} topics)"
+
+
+def _kind(path: Path) -> tuple[str, str | None]:
+    """The bag's kind from its content, and the file suffix ``rosbags`` needs to read it."""
+    if path.is_dir():
+        if not (path / "metadata.yaml").is_file():
+            raise FormatError(path, "a folder, but not a ROS 2 bag (no metadata.yaml in it)")
+        return "ROS 2", None
+    if not path.exists():
+        raise MissingFileError(path, "no such file")
+    with open(path, "rb") as f:
+        magic = f.read(16)
+    if magic.startswith(_ROS1_MAGIC):
+        if not magic.startswith(_ROS1_MAGIC + b"2.0\n"):
+            raise FormatError(path, f"ROS bag version {magic[9:12].decode(errors='replace')!r}; only 2.0 is read", offset=0)
+        return "ROS 1", None
+    if magic.startswith(_MCAP_MAGIC):
+        return "ROS 2 MCAP", ".mcap"
+    if magic.startswith(_SQLITE_MAGIC):
+        return "ROS 2 sqlite3", ".db3"
+    raise FormatError(path, "not a bag: expected a ROS 1 .bag, a ROS 2 bag folder, or a .db3 / .mcap file", offset=0)
+
+
+class _Rosbags:
+    """A bag read through ``rosbags``' ``AnyReader``; its errors become :class:`FormatError`."""
+
+    def __init__(self, path: Path, kind: str):
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = path
+        try:
+            self._reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+            self._reader.open()
+        except Exception as e:  # rosbags raises ReaderError, AssertionError, struct.error, ... on bad files
+            raise FormatError(path, f"not a readable {kind} bag ({type(e).__name__}: {e})") from e
+
+    def topics(self) -> list[Topic]:
+        return [Topic(name, info.msgtype or "(mixed types)", info.msgcount) for name, info in self._reader.topics.items()]
+
+    def span(self) -> tuple[float | None, float | None]:
+        if self._reader.message_count == 0:
+            return None, None
+        # rosbags' end time is one nanosecond after the last message
+        return self._reader.start_time / 1e9, (self._reader.end_time - 1) / 1e9
+
+    def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
+        connections = [c for c in self._reader.connections if c.topic in topics]
+        if not connections:
+            return
+        stream = self._reader.messages(connections=connections)
+        while True:
+            try:
+                item = next(stream, None)
+            except Exception as e:
+                raise FormatError(self.path, f"cannot read the messages ({type(e).__name__}: {e})") from e
+            if item is None:
+                return
+            connection, time_ns, raw = item
+            yield connection.topic, connection.msgtype, time_ns, raw
+
+    def decode(self, raw: bytes, msgtype: str) -> object:
+        return self._reader.deserialize(raw, msgtype)
+
+    def close(self) -> None:
+        self._reader.close()
+
+
+class _Ros1FromChunks:
+    """A ROS 1 bag read by :class:`Ros1Chunks`, its types from the connections' definitions."""
+
+    def __init__(self, path: Path):
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        self.path = path
+        self._file = open(path, "rb")
+        try:
+            self._bag = Ros1Chunks(path, self._file)
+            self._types: dict[int, str] = {}
+            defined = {}
+            for conn in self._bag.connections.values():
+                kind = _ros2_name(conn.msgtype)
+                self._types[conn.id] = kind
+                try:
+                    defined.update(get_types_from_msg(conn.definition, kind))
+                except Exception as e:
+                    raise FormatError(path, f"connection {conn.id} ({conn.topic!r}): the definition of "
+                                      f"{conn.msgtype} does not parse ({type(e).__name__}: {e})") from e
+            # Bags from before ROS C Turtle (2010) define Header as roslib/Header; "Header" in a
+            # definition means std_msgs/Header to rosbags.
+            if "roslib/msg/Header" in defined:
+                defined.setdefault("std_msgs/msg/Header", defined["roslib/msg/Header"])
+            self._typestore = get_typestore(Stores.EMPTY)
+            self._typestore.register(defined)
+        except BaseException:
+            self._file.close()
+            raise
+
+    def topics(self) -> list[Topic]:
+        counts = self._bag.counts()
+        by_name: dict[str, Topic] = {}
+        for conn in self._bag.connections.values():
+            kind = self._types[conn.id]
+            old = by_name.get(conn.topic)
+            n = counts.get(conn.id, 0) + (old.count if old else 0)
+            by_name[conn.topic] = Topic(conn.topic, kind if old is None or old.msgtype == kind else "(mixed types)", n)
+        return list(by_name.values())
+
+    def span(self) -> tuple[float | None, float | None]:
+        chunks = [c for c in self._bag.chunks if c.counts]
+        if not chunks:
+            return None, None
+        return min(c.start for c in chunks) / 1e9, max(c.end for c in chunks) / 1e9
+
+    def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
+        conns = {c.id: c for c in self._bag.connections.values() if c.topic in topics}
+        for conn, time_ns, raw in self._bag.messages(set(conns)):
+            yield conns[conn].topic, self._types[conn], time_ns, raw
+
+    def decode(self, raw: bytes, msgtype: str) -> object:
+        return self._typestore.deserialize_ros1(raw, msgtype)
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def _ros2_name(msgtype: str) -> str:
+    """``pkg/Name`` → ``pkg/msg/Name`` (ROS 1 names in the ROS 2 form rosbags uses)."""
+    parts = msgtype.split("/")
+    return "/".join((parts[0], "msg", parts[1])) if len(parts) == 2 else msgtype
