@@ -29,7 +29,7 @@ from typing import Iterable, Iterator, NamedTuple
 from ...errors import FormatError, InvalidArgumentError, MissingFileError
 from .ros1_chunks import Ros1Chunks
 
-__all__ = ["Bag", "Message", "Topic", "open_bag"]
+__all__ = ["Bag", "Message", "Topic", "is_bag", "open_bag"]
 
 _ROS1_MAGIC = b"#ROSBAG V"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -87,7 +87,7 @@ class Bag:
                 self._source = _Rosbags(self.path, self.kind)
             except FormatError as e:
                 self._source = _Ros1FromChunks(self.path)
-                self.note = f"read from its chunk records: rosbags rejects it ({e.args[0].split(': ', 1)[-1]})"
+                self.note = f"rosbags rejects its index ({_describe(e.__cause__)}); read from its chunk records"
         else:
             if suffix is not None and self.path.suffix != suffix:
                 raise FormatError(self.path, f"holds {self.kind} data; name it *{suffix} to read it")
@@ -116,7 +116,7 @@ class Bag:
                 msg = self._source.decode(raw, kind)
             except Exception as e:  # whatever rosbags' decoder raises on bytes that do not fit the type
                 raise FormatError(self.path, f"topic {topic!r}, message recorded at {time_ns / 1e9:.9f} s: "
-                                  f"does not decode as {kind} ({type(e).__name__}: {e})") from e
+                                  f"does not decode as {kind} ({_describe(e)})") from e
             yield Message(topic, kind, time_ns / 1e9, msg)
 
     def close(self) -> None:
@@ -130,6 +130,16 @@ class Bag:
 
     def __repr__(self) -> str:
         return f"Bag({str(self.path)!r}, {self.kind}, {len(self.topics)} topics)"
+
+
+def is_bag(path) -> bool:
+    """Whether ``path`` looks like a bag (a folder with ``metadata.yaml``, or a file starting as a
+    ROS 1 bag, an MCAP or an SQLite file does); it may still fail to open."""
+    try:
+        _kind(Path(path))
+    except FormatError:
+        return False
+    return True
 
 
 def _kind(path: Path) -> tuple[str, str | None]:
@@ -165,7 +175,7 @@ class _Rosbags:
             self._reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
             self._reader.open()
         except Exception as e:  # rosbags raises ReaderError, AssertionError, struct.error, ... on bad files
-            raise FormatError(path, f"not a readable {kind} bag ({type(e).__name__}: {e})") from e
+            raise FormatError(path, f"not a readable {kind} bag ({_describe(e)})") from e
 
     def topics(self) -> list[Topic]:
         return [Topic(name, info.msgtype or "(mixed types)", info.msgcount) for name, info in self._reader.topics.items()]
@@ -185,7 +195,7 @@ class _Rosbags:
             try:
                 item = next(stream, None)
             except Exception as e:
-                raise FormatError(self.path, f"cannot read the messages ({type(e).__name__}: {e})") from e
+                raise FormatError(self.path, f"cannot read the messages ({_describe(e)})") from e
             if item is None:
                 return
             connection, time_ns, raw = item
@@ -217,7 +227,7 @@ class _Ros1FromChunks:
                     defined.update(get_types_from_msg(conn.definition, kind))
                 except Exception as e:
                     raise FormatError(path, f"connection {conn.id} ({conn.topic!r}): the definition of "
-                                      f"{conn.msgtype} does not parse ({type(e).__name__}: {e})") from e
+                                      f"{conn.msgtype} does not parse ({_describe(e)})") from e
             # Bags from before ROS C Turtle (2010) define Header as roslib/Header; "Header" in a
             # definition means std_msgs/Header to rosbags.
             if "roslib/msg/Header" in defined:
@@ -260,3 +270,10 @@ def _ros2_name(msgtype: str) -> str:
     """``pkg/Name`` → ``pkg/msg/Name`` (ROS 1 names in the ROS 2 form rosbags uses)."""
     parts = msgtype.split("/")
     return "/".join((parts[0], "msg", parts[1])) if len(parts) == 2 else msgtype
+
+
+def _describe(e: BaseException | None) -> str:
+    """An exception from inside rosbags in a few words: its type, and its message if it has one."""
+    if e is None:
+        return "no reason given"
+    return f"{type(e).__name__}: {e}" if str(e) else type(e).__name__

@@ -1,0 +1,53 @@
+"""``sensor_msgs/LaserScan`` → :class:`~occmap.scan.LaserScan` in the sensor's own frame.
+
+Beam ``i`` points at ``angle_min + i * angle_increment`` (radians, counter-clockwise about the
+sensor's z axis); ``range_max`` becomes ``LaserScan.max_range``. Readings follow REP 117 as
+occmap's maps read them: ``+inf`` (no return) and readings at or beyond ``range_max`` clear the
+beam up to the maximum range and mark nothing; NaN (a failed reading) and ``-inf`` (too close)
+are kept for the map to drop and count; a finite reading below ``range_min`` is invalid by REP
+117 and becomes NaN, so it is dropped as well. ``intensities`` are not kept.
+
+The message does not say where the sensor was: the scan's ``pose`` is ``(0, 0, 0)``, the sensor
+frame itself, and :class:`ScanMessage` carries the frame name and the stamp that place it in the
+world through tf.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ...errors import FormatError
+from ...scan import LaserScan
+from ._header import frame_name, stamp_seconds
+
+__all__ = ["ScanMessage", "decode_laser_scan"]
+
+
+class ScanMessage(NamedTuple):
+    """A decoded LaserScan: the scan (pose zero: the sensor frame) and the sensor's frame."""
+
+    scan: LaserScan
+    frame_id: str
+
+
+def decode_laser_scan(msg, where: str = "LaserScan") -> ScanMessage:
+    """Decode a ``sensor_msgs/LaserScan`` (any object with its fields). Ranges and angles are
+    float64; ``stamp`` is the header stamp in seconds. ``where`` names the message in errors.
+
+    Raises :class:`~occmap.errors.FormatError` for a non-finite or non-positive ``range_max``,
+    or non-finite ``angle_min`` / ``angle_increment``.
+    """
+    max_range, lowest = float(msg.range_max), float(msg.range_min)
+    start, step = float(msg.angle_min), float(msg.angle_increment)
+    if not (np.isfinite(max_range) and max_range > 0):
+        raise FormatError(where, f"range_max is {max_range}, not a positive finite number of metres")
+    if not (np.isfinite(start) and np.isfinite(step)):
+        raise FormatError(where, f"angle_min {start} and angle_increment {step} must be finite")
+    ranges = np.array(msg.ranges, dtype=np.float64)
+    ranges[np.isfinite(ranges) & (ranges < lowest)] = np.nan
+    angles = start + step * np.arange(ranges.shape[0], dtype=np.float64)
+    scan = LaserScan(np.zeros(3), ranges, angles, max_range, stamp_seconds(msg.header.stamp))
+    return ScanMessage(scan, frame_name(msg.header.frame_id))
+

@@ -1,0 +1,119 @@
+"""``sensor_msgs/PointCloud2`` → points (N, 3) float64 and the other fields, with array views.
+
+A PointCloud2 is ``height`` rows of ``width`` points; a point is ``point_step`` bytes holding its
+fields (``PointField``: ``name``, byte ``offset`` in the point, ``datatype`` 1..8 = INT8, UINT8,
+INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64, and ``count`` values), in the byte order
+``is_bigendian`` says; a row is ``row_step`` bytes (``width * point_step`` or more). Unorganised
+clouds have ``height == 1``; organised ones (a depth camera, a LiDAR's rings) keep a place for
+every beam and mark the ones with no return by NaN coordinates (``is_dense`` false).
+
+The decoder builds one NumPy structured dtype from the fields (offsets and ``itemsize =
+point_step``, so padding is skipped) and views the message's bytes through it with the row and
+point strides: nothing is done per point in Python, and each field is read with one strided copy.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ...errors import FormatError
+from ._header import frame_name, stamp_seconds
+
+__all__ = ["CloudMessage", "decode_point_cloud2"]
+
+# PointField.datatype → NumPy type (sensor_msgs/PointField constants).
+_DATATYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+
+
+class CloudMessage(NamedTuple):
+    """A decoded PointCloud2.
+
+    Attributes
+    ----------
+    points : ndarray (N, 3) float64
+        ``x, y, z`` in the frame ``frame_id``, metres; row-major over the organised cloud.
+    fields : dict[str, ndarray]
+        Every other named field (``intensity``, ``ring``, ``time``, ...) as an array (N,) — (N,
+        count) for a field of ``count`` > 1 — in its own type, native byte order, one entry per
+        point of ``points``.
+    frame_id : str
+        The sensor frame, without ROS 1's leading slash.
+    stamp : float
+        The header stamp, seconds.
+    shape : tuple[int, int]
+        ``(height, width)`` of the message.
+    dropped : int
+        Points left out for a non-finite coordinate (0 when they are kept).
+    """
+
+    points: np.ndarray
+    fields: dict[str, np.ndarray]
+    frame_id: str
+    stamp: float
+    shape: tuple[int, int]
+    dropped: int
+
+
+def point_dtype(fields, point_step: int, big_endian: bool, where: str = "PointCloud2") -> np.dtype:
+    """The structured dtype of one point: named ``fields`` at their offsets in ``point_step``
+    bytes. Fields named ``""`` or ``"_"`` (PCL's padding) are left out."""
+    order = ">" if big_endian else "<"
+    names, formats, offsets = [], [], []
+    for f in fields:
+        if f.name in ("", "_"):
+            continue
+        code = _DATATYPES.get(f.datatype)
+        if code is None:
+            raise FormatError(where, f"field {f.name!r} has datatype {f.datatype}, not one of 1..8 (INT8..FLOAT64)")
+        if f.name in names:
+            raise FormatError(where, f"field {f.name!r} appears twice")
+        kind = np.dtype(order + code) if f.count == 1 else np.dtype((order + code, (f.count,)))
+        if f.count < 1 or f.offset + kind.itemsize > point_step:
+            raise FormatError(where, f"field {f.name!r} (offset {f.offset}, {f.count} × {np.dtype(code).name}) "
+                              f"does not fit in point_step {point_step}")
+        names.append(f.name)
+        formats.append(kind)
+        offsets.append(f.offset)
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
+
+
+def decode_point_cloud2(msg, finite_only: bool = True, where: str = "PointCloud2") -> CloudMessage:
+    """Decode a ``sensor_msgs/PointCloud2`` (any object with its fields, e.g. from
+    :meth:`Bag.messages <occmap.io.bags.Bag.messages>`).
+
+    ``finite_only`` (default) leaves out points with a NaN or infinite coordinate (and their
+    other fields), counting them in ``dropped``; with it false every one of the ``height *
+    width`` points is kept, in row-major order. ``where`` names the message in errors.
+
+    Raises :class:`~occmap.errors.FormatError` when ``x``, ``y`` or ``z`` is missing, a field does
+    not fit in ``point_step``, a datatype is unknown, or ``data`` is shorter than the rows need.
+    """
+    height, width, step, row_step = int(msg.height), int(msg.width), int(msg.point_step), int(msg.row_step)
+    dtype = point_dtype(msg.fields, step, bool(msg.is_bigendian), where)
+    for axis in "xyz":
+        if axis not in dtype.names:
+            raise FormatError(where, f"no {axis!r} field; fields: {', '.join(dtype.names) or '(none)'}")
+    data = msg.data if isinstance(msg.data, np.ndarray) else np.frombuffer(msg.data, dtype=np.uint8)
+    if height * width and (row_step < width * step or data.nbytes < (height - 1) * row_step + width * step):
+        raise FormatError(where, f"{data.nbytes} data bytes cannot hold {height} rows of {width} points of "
+                          f"{step} bytes with row_step {row_step}")
+    grid = np.ndarray((height, width), dtype=dtype, buffer=data, strides=(row_step, step)) if height * width \
+        else np.zeros((0, 0), dtype=dtype)
+    points = np.empty((height * width, 3), dtype=np.float64)
+    for k, axis in enumerate("xyz"):
+        points[:, k] = grid[axis].reshape(-1)
+    keep = np.isfinite(points).all(axis=1) if finite_only else None
+    dropped = 0 if keep is None else int(keep.size - np.count_nonzero(keep))
+    if dropped:
+        points = points[keep]
+    fields = {}
+    for name in dtype.names:
+        if name in ("x", "y", "z"):
+            continue
+        values = grid[name].reshape((height * width,) + dtype[name].shape)
+        values = values.astype(values.dtype.newbyteorder("="))
+        fields[name] = values[keep] if dropped else values
+    return CloudMessage(points, fields, frame_name(msg.header.frame_id), stamp_seconds(msg.header.stamp),
+                        (height, width), dropped)
