@@ -168,9 +168,10 @@ class Ros1Chunks:
         size = self._read(pos + 4 + len(header), 4)
         data = self._read(pos + 8 + len(header), _U32.unpack(size)[0])
         fields = _fields(self.path, header, pos)
-        if fields.get(b"op") != bytes([op]):
-            raise FormatError(self.path, f"expected a record with op 0x{op:02x}, found op "
-                              f"{fields.get(b'op', b'(none)').hex() or '(empty)'}", offset=pos)
+        found = fields.get(b"op")
+        if found != bytes([op]):
+            what = "no op field" if found is None else f"op 0x{found.hex()}"
+            raise FormatError(self.path, f"expected a record with op 0x{op:02x}, found {what}", offset=pos)
         return fields, data, pos + 8 + len(header) + len(data)
 
     def _read(self, pos: int, n: int) -> bytes:
