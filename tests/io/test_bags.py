@@ -336,6 +336,43 @@ def test_shared_bag_read_despite_its_index(data_dir):
     assert np.all(np.diff(stamps) > 0) and np.all(np.abs(stamps - times) < 0.5)
 
 
+@pytest.mark.parametrize("compression", [None, "BZ2", "LZ4"])
+def test_chunk_reader_agrees_with_rosbags(tmp_path, carmen_scans, compression):
+    """The index-free ROS 1 reader yields what rosbags' indexed reader yields (bytes, times,
+    topics, counts), for plain, bz2 and lz4 chunks, several chunks per bag."""
+    from rosbags.rosbag1 import Reader as Reader1
+
+    from occmap.io.bags.ros1_chunks import Ros1Chunks
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    m = Msgs(ts)
+    path = tmp_path / "c.bag"
+    writer = Writer1(path)
+    if compression:
+        writer.set_compression(getattr(Writer1.CompressionFormat, compression))
+    writer.chunk_threshold = 4096  # several chunks (rosbags has no setter for it)
+    with writer:
+        scan_c = writer.add_connection("/scan", SCAN, typestore=ts)
+        odom_c = writer.add_connection("/odom", ODOM, typestore=ts)
+        for s in carmen_scans:
+            writer.write(scan_c, round(s.stamp * 1e9), ts.serialize_ros1(
+                m.laser_scan(s.stamp, "laser", s.ranges, -1.5, 0.0175, 0.0, 81.0), SCAN))
+            writer.write(odom_c, round(s.stamp * 1e9) + 1, ts.serialize_ros1(
+                m.odometry(s.stamp, "odom", "base_link", (1.0, 2.0, 0.0), (0, 0, 0, 1)), ODOM))
+    with Reader1(path) as reference, open(path, "rb") as f:
+        chunks = Ros1Chunks(path, f)
+        assert len(chunks.chunks) > 3
+        topics = {c.id: c.topic for c in chunks.connections.values()}
+        assert sorted(topics.values()) == ["/odom", "/scan"]
+        assert {c.msgtype for c in chunks.connections.values()} == {"sensor_msgs/LaserScan", "nav_msgs/Odometry"}
+        ours = [(topics[c], t, bytes(raw)) for c, t, raw in chunks.messages(set(topics))]
+        theirs = [(c.topic, t, bytes(raw)) for c, t, raw in reference.messages()]
+        assert ours == theirs and len(ours) == 2 * len(carmen_scans)
+        assert {topics[c]: n for c, n in chunks.counts().items()} == {"/scan": 25, "/odom": 25}
+        only_odom = [t for _, t, _ in chunks.messages({c for c, name in topics.items() if name == "/odom"})]
+        assert only_odom == [t for name, t, _ in theirs if name == "/odom"]
+
+
 def test_shared_bag_truncated(data_dir, tmp_path):
     raw = (data_dir / SHARED_BAG).read_bytes()
     for cut in (len(raw) - 100, len(raw) // 2, 30):
