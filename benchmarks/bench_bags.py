@@ -1,0 +1,163 @@
+"""Reading ROS bags: PointCloud2 decoding against a plain NumPy decode, and a whole bag streamed.
+
+* Decoding one HDL-32E scan (the shared ``hdl32_pair`` scan, 69,088 points) packed as a
+  Velodyne driver does (``x y z`` float32, ``intensity`` float32, ``ring`` uint16, ``time``
+  float32 in a 32-byte point; also big-endian, and organised 32 × 2,159 with padded rows) by
+  :func:`occmap.io.bags.decode_point_cloud2`, against the plain NumPy decode a user writes for a
+  layout known in advance (``np.frombuffer`` with the structured dtype, ``x y z`` stacked into
+  float64, the other fields copied). Both give the same arrays; GB/s count the message's data bytes.
+* A bag of clouds written with rosbags (ROS 1, ROS 2 sqlite3, ROS 2 MCAP), read start to end:
+  open, every message deserialised by rosbags and decoded into points and fields; beside it the
+  decoding alone of the same messages, so the difference is what reading the bag costs.
+
+    python benchmarks/bench_bags.py [--clouds N] [--no-write]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import median_times, write_section  # noqa: E402
+
+from occmap._data import find_shared_data  # noqa: E402
+from occmap.io.bags import decode_point_cloud2, open_bag, point_dtype  # noqa: E402
+from occmap.io.pointclouds import read_pcd  # noqa: E402
+
+CLOUD = "sensor_msgs/msg/PointCloud2"
+FIELDS = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 16, 7), ("ring", 20, 4), ("time", 24, 7)]
+
+
+def velodyne_message(typestore, pts, big_endian=False, height=1, row_pad=0):
+    """The scan as a PointCloud2 of ``typestore`` (32-byte points, the fields of FIELDS)."""
+    T = typestore.types
+    n = len(pts) // height * height
+    order = ">" if big_endian else "<"
+    dt = np.dtype({"names": [f[0] for f in FIELDS],
+                   "formats": [order + c for c in ("f4", "f4", "f4", "f4", "u2", "f4")],
+                   "offsets": [f[1] for f in FIELDS], "itemsize": 32})
+    rec = np.zeros(n, dtype=dt)
+    for k, axis in enumerate("xyz"):
+        rec[axis] = pts[:n, k]
+    rec["intensity"] = np.linalg.norm(pts[:n], axis=1)
+    rec["ring"] = np.arange(n) % 32
+    rec["time"] = np.linspace(0.0, 0.1, n)
+    width = n // height
+    data = np.frombuffer(rec.tobytes(), np.uint8).reshape(height, width * 32)
+    if row_pad:
+        data = np.concatenate([data, np.zeros((height, row_pad), np.uint8)], axis=1)
+    header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=1, nanosec=0), frame_id="velodyne",
+                                      **({"seq": 0} if "seq" in typestore.fielddefs["std_msgs/msg/Header"][1][0] else {}))
+    F = T["sensor_msgs/msg/PointField"]
+    return T[CLOUD](header=header, height=height, width=width,
+                    fields=[F(name=a, offset=o, datatype=d, count=1) for a, o, d in FIELDS],
+                    is_bigendian=big_endian, point_step=32, row_step=width * 32 + row_pad,
+                    data=data.reshape(-1), is_dense=True)
+
+
+def plain_numpy(msg):
+    """The decode a user writes for this one layout: one structured view, xyz stacked, fields copied."""
+    dt = point_dtype(msg.fields, msg.point_step, msg.is_bigendian)
+    if msg.row_step != msg.width * msg.point_step:
+        rows = msg.data.reshape(msg.height, msg.row_step)[:, : msg.width * msg.point_step]
+        a = np.ascontiguousarray(rows).view(dt).reshape(-1)
+    else:
+        a = np.frombuffer(msg.data, dtype=dt)
+    xyz = np.stack([a["x"], a["y"], a["z"]], axis=1).astype(np.float64)
+    return xyz, {name: a[name].astype(a[name].dtype.newbyteorder("=")) for name in ("intensity", "ring", "time")}
+
+
+def decoding_rows(pts, repeat):
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.LATEST)
+    rows = ["| layout | bytes | occmap | plain NumPy | occmap / NumPy time |", "|---|---:|---:|---:|---:|"]
+    cases = {"32-byte points, little-endian": velodyne_message(ts, pts),
+             "32-byte points, big-endian": velodyne_message(ts, pts, big_endian=True),
+             "organised 32 rows, rows padded by 16 bytes": velodyne_message(ts, pts, height=32, row_pad=16)}
+    for label, msg in cases.items():
+        ours, theirs = decode_point_cloud2(msg, finite_only=False), plain_numpy(msg)
+        assert np.array_equal(ours.points, theirs[0]) and all(np.array_equal(ours.fields[k], v) for k, v in theirs[1].items())
+        t_ours, t_numpy = median_times([lambda: decode_point_cloud2(msg, finite_only=False), lambda: plain_numpy(msg)],
+                                       number=20, repeat=repeat)
+        size = msg.data.nbytes
+        rows.append(f"| {label} | {size:,} | {size / t_ours / 1e9:.2f} GB/s ({t_ours * 1e3:.2f} ms) | "
+                    f"{size / t_numpy / 1e9:.2f} GB/s ({t_numpy * 1e3:.2f} ms) | {t_ours / t_numpy:.2f}× |")
+    return "\n".join(rows)
+
+
+def bag_rows(pts, clouds, repeat):
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+    from rosbags.typesys import Stores, get_typestore
+
+    rows = ["| bag | size | read + decode | decode alone | reading's share |", "|---|---:|---:|---:|---:|"]
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in ("ROS 1", "ROS 2 sqlite3", "ROS 2 MCAP"):
+            ts = get_typestore(Stores.ROS1_NOETIC if kind == "ROS 1" else Stores.LATEST)
+            msg = velodyne_message(ts, pts)
+            if kind == "ROS 1":
+                path, writer, raw = Path(tmp) / "b.bag", Writer1(Path(tmp) / "b.bag"), ts.serialize_ros1(msg, CLOUD)
+            else:
+                path = Path(tmp) / kind.replace(" ", "_")
+                plugin = StoragePlugin.MCAP if "MCAP" in kind else StoragePlugin.SQLITE3
+                writer, raw = Writer2(path, version=9, storage_plugin=plugin), ts.serialize_cdr(msg, CLOUD)
+            with writer:
+                c = writer.add_connection("/points", CLOUD, typestore=ts)
+                for k in range(clouds):
+                    writer.write(c, (k + 1) * 100_000_000, raw)
+            size = sum(f.stat().st_size for f in ([path] if path.is_file() else path.iterdir()))
+
+            def read_all():
+                n = 0
+                with open_bag(path) as bag:
+                    for m in bag.messages("/points", msgtype=CLOUD):
+                        n += len(decode_point_cloud2(m.msg).points)
+                assert n == clouds * len(pts)
+
+            def decode_only():
+                for _ in range(clouds):
+                    decode_point_cloud2(msg)
+
+            t_read, t_decode = median_times([read_all, decode_only], number=1, repeat=repeat)
+            rows.append(f"| {kind}, {clouds} clouds | {size / 2**20:.0f} MiB | {t_read:.3f} s ({size / t_read / 1e9:.2f} GB/s) | "
+                        f"{t_decode:.3f} s | {(t_read - t_decode) / t_read:.0%} |")
+    return "\n".join(rows)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--clouds", type=int, default=40, help="clouds per bag (default 40)")
+    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--no-write", action="store_true", help="print, do not rewrite BENCHMARKS.md")
+    args = ap.parse_args()
+    data = find_shared_data(Path(__file__).resolve().parent)
+    if data is None:
+        sys.exit("the shared data is needed: set OCCMAP_DATA or place it at ../shared/data")
+    pts = read_pcd(data / "scans3d" / "hdl32_pair" / "251370668.pcd", drop_origin=False).points.astype(np.float32)
+    t0 = time.perf_counter()
+    body = "\n\n".join([
+        "## ROS bags: PointCloud2 decoding and bags read (`benchmarks/bench_bags.py`)",
+        f"One HDL-32E scan ({len(pts):,} points) as a Velodyne driver packs it (x y z, intensity float32, ring "
+        "uint16, time float32 in 32-byte points). `decode_point_cloud2` works for any layout; the plain NumPy "
+        "decode is what one writes for this layout alone (one structured view, x y z stacked into float64, the "
+        "fields copied). Both give the same arrays. Medians of alternating rounds.",
+        decoding_rows(pts, args.repeat),
+        f"A bag of {args.clouds} such clouds, written by rosbags, read start to end (open, rosbags deserialises "
+        "each message, then `decode_point_cloud2`), beside decoding the same messages alone.",
+        bag_rows(pts, args.clouds, args.repeat),
+    ])
+    print(body)
+    print(f"\n({time.perf_counter() - t0:.0f} s)")
+    if not args.no_write:
+        write_section("bench_bags", body)
+
+
+if __name__ == "__main__":
+    main()
