@@ -27,7 +27,7 @@ from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
 from rosbags.rosbag2 import StoragePlugin, Writer as Writer2  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 
-KINDS = ("ros1", "sqlite3", "mcap")
+KINDS = ("ros1", "ros1_chunks", "sqlite3", "mcap")  # ros1_chunks: a ROS 1 bag read without rosbags' index
 SCAN, CLOUD, ODOM, TF, TF_STATIC = ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/PointCloud2",
                                     "nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage", "tf2_msgs/msg/TFMessage")
 SHARED_BAG = "rosbag/laser_scan_matcher_demo.bag"
@@ -89,7 +89,7 @@ class Msgs:
 
 def write_bag(tmp_path, kind, build, name="test"):
     """Write a bag of ``kind`` whose messages ``build(Msgs)`` returns as (topic, type, time s, msg)."""
-    if kind == "ros1":
+    if kind.startswith("ros1"):
         ts = get_typestore(Stores.ROS1_NOETIC)  # holds no tf2_msgs: add TFMessage as ROS defines it
         ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", TF))
         msgs = Msgs(ts)
@@ -107,6 +107,26 @@ def write_bag(tmp_path, kind, build, name="test"):
                 connections[topic] = writer.add_connection(topic, msgtype, typestore=msgs.ts)
             writer.write(connections[topic], round(time * 1e9), serialize(msg, msgtype))
     return path
+
+
+@pytest.fixture
+def reader_for(monkeypatch):
+    """``reader_for(kind)``: for ``ros1_chunks``, make rosbags refuse ROS 1 bags as it refuses the
+    shared bag's index, so that ROS 1 bags are read from their chunk records."""
+    from occmap.io.bags import bag as bag_module
+
+    def use(kind):
+        if kind == "ros1_chunks":
+            real = bag_module._Rosbags
+
+            def refuse_ros1(path, what):
+                if what == "ROS 1":
+                    raise FormatError(path, "refused in this test") from AssertionError()
+                return real(path, what)
+
+            monkeypatch.setattr(bag_module, "_Rosbags", refuse_ros1)
+
+    return use
 
 
 def quat_xyzw_of_yaw(theta):
@@ -146,10 +166,11 @@ def ros_stamp(stamp):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_carmen_scans_tf_and_odometry_round_trip(tmp_path, carmen_scans, kind):
+def test_carmen_scans_tf_and_odometry_round_trip(tmp_path, carmen_scans, kind, reader_for):
     path = write_bag(tmp_path, kind, carmen_bag(carmen_scans))
+    reader_for(kind)
     with open_bag(path) as bag:
-        assert bag.note == ""
+        assert ("chunk records" in bag.note) == (kind == "ros1_chunks")
         assert {n: (t.msgtype, t.count) for n, t in bag.topics.items()} == {
             "/scan": (SCAN, 25), "/tf": (TF, 25), "/tf_static": (TF, 1), "/odom": (ODOM, 25)}
         assert bag.start == pytest.approx(carmen_scans[0].stamp - 0.5, abs=1e-6)
@@ -264,8 +285,9 @@ def cloud_layouts(hdl):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_point_cloud2_layouts_round_trip(tmp_path, hdl, kind):
+def test_point_cloud2_layouts_round_trip(tmp_path, hdl, kind, reader_for):
     layouts = cloud_layouts(hdl)
+    reader_for(kind)
 
     def build(m):
         for k, (topic, (kw, _, _)) in enumerate(layouts.items()):
@@ -310,6 +332,33 @@ def test_point_cloud2_bad_layouts():
             decode_point_cloud2(m.cloud(0.0, "s", **{**ok, **change}), where="cloud 7")
     empty = decode_point_cloud2(m.cloud(0.0, "s", **{**ok, "width": 0, "row_step": 0, "data": b""}))
     assert empty.points.shape == (0, 3) and empty.dropped == 0
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_memory_is_bounded_by_a_chunk_not_the_bag(tmp_path, hdl, kind, reader_for):
+    """Streaming a 20 MiB bag of 64 clouds holds a few of them at a time, not the bag."""
+    import tracemalloc
+
+    columns = [(a, 4 * k, "f4", hdl["xyz"][:10_000, k]) for k, a in enumerate("xyz")]
+    data = packed(columns, 32, "<")
+    fields = [(a, 4 * k, 7, 1) for k, a in enumerate("xyz")]
+
+    def build(m):
+        for k in range(64):
+            yield "/points", CLOUD, 1.0 + k, m.cloud(1.0 + k, "velodyne", 1, 10_000, fields, 32, 320_000, data, False, True)
+
+    path = write_bag(tmp_path, kind, build)
+    size = sum(f.stat().st_size for f in ([path] if path.is_file() else path.iterdir()))
+    reader_for(kind)
+    with open_bag(path) as bag:
+        tracemalloc.start()  # after opening: the index and the compiled decoders are a fixed cost
+        try:
+            count = sum(len(decode_point_cloud2(m.msg).points) for m in bag.messages("/points"))
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+    assert count == 64 * 10_000 and size > 20e6
+    assert peak < size / 4, f"peak {peak:,} bytes for a bag of {size:,}"
 
 
 # ---------------------------------------------------------------------- the shared ROS 1 bag
@@ -392,9 +441,10 @@ def small_bag(m):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_truncated_and_corrupt_bags(tmp_path, kind):
+def test_truncated_and_corrupt_bags(tmp_path, kind, reader_for):
     path = write_bag(tmp_path, kind, small_bag)
-    file = path if kind == "ros1" else next(path.glob("*.db3" if kind == "sqlite3" else "*.mcap"))
+    reader_for(kind)
+    file = path if kind.startswith("ros1") else next(path.glob("*.db3" if kind == "sqlite3" else "*.mcap"))
     raw = file.read_bytes()
     for label, damaged in {"truncated": raw[: len(raw) * 2 // 3],
                            "zeroed": raw[:200] + bytes(len(raw) - 400) + raw[-200:]}.items():
