@@ -314,6 +314,34 @@ def test_point_cloud2_layouts_round_trip(tmp_path, hdl, kind, reader_for):
     np.testing.assert_array_equal(everything.fields["ring"], extra["ring"])
 
 
+def test_point_cloud2_every_datatype_and_counts(rng):
+    """All eight PointField datatypes, a field of count 3, both byte orders, and a padded row."""
+    m = Msgs(get_typestore(Stores.LATEST))
+    n = 50
+    values = {"x": rng.normal(size=n), "y": rng.normal(size=n).astype(np.float32), "z": rng.integers(-9, 9, n).astype(np.int16),
+              "a": rng.integers(-128, 127, n).astype(np.int8), "b": rng.integers(0, 255, n).astype(np.uint8),
+              "c": rng.integers(0, 60000, n).astype(np.uint16), "d": rng.integers(-2**31, 2**31 - 1, n).astype(np.int32),
+              "e": rng.integers(0, 2**32 - 1, n).astype(np.uint32), "normal": rng.normal(size=(n, 3)).astype(np.float32)}
+    layout = [("x", 0, 8), ("y", 8, 7), ("z", 12, 3), ("a", 14, 1), ("b", 15, 2), ("c", 16, 4), ("d", 20, 5),
+              ("e", 24, 6), ("normal", 28, 7)]
+    for order in "<>":
+        dt = np.dtype({"names": [f[0] for f in layout],
+                       "formats": [(values[f[0]].dtype.newbyteorder(order), values[f[0]].shape[1:]) for f in layout],
+                       "offsets": [f[1] for f in layout], "itemsize": 48})
+        rec = np.zeros(n, dtype=dt)
+        for name in values:
+            rec[name] = values[name]
+        rows = np.frombuffer(rec.tobytes(), np.uint8).reshape(2, 25 * 48)
+        data = np.concatenate([rows, np.zeros((2, 5), np.uint8)], axis=1).tobytes()
+        fields = [(name, off, kind, 3 if name == "normal" else 1) for name, off, kind in layout]
+        got = decode_point_cloud2(m.cloud(0.0, "s", 2, 25, fields, 48, 25 * 48 + 5, data, order == ">", True))
+        np.testing.assert_array_equal(got.points, np.c_[values["x"], values["y"], values["z"]])
+        assert sorted(got.fields) == ["a", "b", "c", "d", "e", "normal"]
+        for name, field in got.fields.items():
+            assert field.dtype == values[name].dtype and field.dtype.isnative
+            np.testing.assert_array_equal(field, values[name])
+
+
 def test_point_cloud2_bad_layouts():
     m = Msgs(get_typestore(Stores.LATEST))
     data = np.zeros(4 * 12, np.uint8).tobytes()
