@@ -502,9 +502,9 @@ def test_not_a_bag(tmp_path):
 def test_wrong_topic_or_type(tmp_path):
     with open_bag(write_bag(tmp_path, "mcap", small_bag)) as bag:
         with pytest.raises(InvalidArgumentError, match="no topic '/points'.*/scan"):
-            list(bag.messages("/points"))
+            bag.messages("/points")  # at the call, not at the first message
         with pytest.raises(InvalidArgumentError, match="holds sensor_msgs/msg/LaserScan, not .*PointCloud2"):
-            list(bag.messages("/scan", msgtype=CLOUD))
+            bag.messages("/scan", msgtype=CLOUD)
         with pytest.raises(FormatError, match="holds sensor_msgs/msg/LaserScan"):
             read_frame_tree(bag, ["/scan"])
 

@@ -92,8 +92,12 @@ class Bag:
             if suffix is not None and self.path.suffix != suffix:
                 raise FormatError(self.path, f"holds {self.kind} data; name it *{suffix} to read it")
             self._source = _Rosbags(self.path, self.kind)
-        self.topics = dict(sorted((t.name, t) for t in self._source.topics()))
-        self.start, self.end = self._source.span()
+        try:
+            self.topics = dict(sorted((t.name, t) for t in self._source.topics()))
+            self.start, self.end = self._source.span()
+        except BaseException:
+            self._source.close()
+            raise
 
     def messages(self, topics: str | Iterable[str] | None = None, msgtype: str | None = None) -> Iterator[Message]:
         """Decoded messages of ``topics`` (a name, several, or None for all) in time order (in
@@ -111,7 +115,10 @@ class Bag:
                                            f"{', '.join(self.topics) or '(none)'}")
             if msgtype is not None and topic.msgtype != msgtype:
                 raise InvalidArgumentError(f"{self.path}: topic {name!r} holds {topic.msgtype}, not {msgtype}")
-        for topic, kind, time_ns, raw in self._source.raw(set(names)):
+        return self._stream(set(names))
+
+    def _stream(self, names: set[str]) -> Iterator[Message]:
+        for topic, kind, time_ns, raw in self._source.raw(names):
             try:
                 msg = self._source.decode(raw, kind)
             except Exception as e:  # whatever rosbags' decoder raises on bytes that do not fit the type

@@ -46,7 +46,6 @@ class Connection(NamedTuple):
     topic: str
     msgtype: str
     definition: str
-    md5sum: str
 
 
 class ChunkInfo(NamedTuple):
@@ -93,7 +92,6 @@ class Ros1Chunks:
                 fields.get(b"topic", b"").decode(errors="replace"),
                 info.get(b"type", b"").decode(errors="replace"),
                 info.get(b"message_definition", b"").decode(errors="replace"),
-                info.get(b"md5sum", b"").decode(errors="replace"),
             )
         for _ in range(chunk_count):
             start = pos
