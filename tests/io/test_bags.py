@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from occmap.cli import main
-from occmap.errors import FormatError, InvalidArgumentError
+from occmap.errors import FormatError, InvalidArgumentError, OccmapError
 from occmap.geometry.se3 import SE3
 from occmap.io.bags import (
     decode_laser_scan,
@@ -482,6 +482,41 @@ def test_truncated_and_corrupt_bags(tmp_path, kind, reader_for):
             with open_bag(bad) as bag:
                 for m in bag.messages():
                     decode_laser_scan(m.msg)
+
+
+def test_corrupt_shared_bag_raises_only_occmap_errors(data_dir, tmp_path):
+    """Bytes changed at random, mostly in the bag header, the connection records and the index:
+    the bag reads, or an OccmapError names the file; never an error from inside the readers."""
+    raw = (data_dir / SHARED_BAG).read_bytes()
+    rng = np.random.default_rng(2)
+    structure = np.r_[0:4200, len(raw) - 6000: len(raw)]
+    failures = 0
+    for i in range(60):
+        damaged = bytearray(raw)
+        for _ in range(rng.integers(1, 6)):
+            damaged[structure[rng.integers(len(structure))]] = rng.integers(0, 256)
+        path = tmp_path / f"corrupt{i}.bag"
+        path.write_bytes(damaged)
+        try:
+            with open_bag(path) as bag:
+                for m in bag.messages():
+                    decode_laser_scan(m.msg, where=f"{path}: {m.topic}")
+        except OccmapError as e:
+            failures += 1
+            assert str(path) in str(e)
+        path.unlink()
+    assert failures > 10
+
+
+def test_message_missing_a_field():
+    from types import SimpleNamespace
+
+    header = SimpleNamespace(stamp=SimpleNamespace(sec=1, nanosec=0), frame_id="laser")
+    broken = SimpleNamespace(header=header, angle_min=0.0, range_min=0.0, range_max=5.0, ranges=[1.0])
+    with pytest.raises(FormatError, match="scan 3: not a sensor_msgs/LaserScan.*angle_increment"):
+        decode_laser_scan(broken, where="scan 3")
+    with pytest.raises(FormatError, match="not a sensor_msgs/PointCloud2"):
+        decode_point_cloud2(broken)
 
 
 def test_not_a_bag(tmp_path):

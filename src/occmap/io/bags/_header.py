@@ -1,6 +1,11 @@
-"""What every stamped message shares: its frame and its stamp."""
+"""What every decoder shares: a message's frame and stamp, and a clear error for a message whose
+definition lacks a field the decoder reads."""
 
 from __future__ import annotations
+
+from contextlib import contextmanager
+
+from ...errors import FormatError, OccmapError
 
 
 def stamp_seconds(stamp) -> float:
@@ -11,3 +16,15 @@ def stamp_seconds(stamp) -> float:
 def frame_name(frame_id: str) -> str:
     """A frame id without ROS 1's leading slash (``/laser`` → ``laser``), as tf2 strips it."""
     return frame_id.lstrip("/")
+
+
+@contextmanager
+def fields_of(where, msgtype: str):
+    """Turn a missing field or a field of the wrong kind (a bag whose definition of ``msgtype`` is
+    not ROS's) into a :class:`FormatError` naming ``where``."""
+    try:
+        yield
+    except (AttributeError, TypeError, ValueError) as e:
+        if isinstance(e, OccmapError):
+            raise
+        raise FormatError(where, f"not a {msgtype} as ROS defines it ({type(e).__name__}: {e})") from e

@@ -20,7 +20,7 @@ import numpy as np
 
 from ...errors import FormatError
 from ...scan import LaserScan
-from ._header import frame_name, stamp_seconds
+from ._header import fields_of, frame_name, stamp_seconds
 
 __all__ = ["ScanMessage", "decode_laser_scan"]
 
@@ -39,15 +39,16 @@ def decode_laser_scan(msg, where: str = "LaserScan") -> ScanMessage:
     Raises :class:`~occmap.errors.FormatError` for a non-finite or non-positive ``range_max``,
     or non-finite ``angle_min`` / ``angle_increment``.
     """
-    max_range, lowest = float(msg.range_max), float(msg.range_min)
-    start, step = float(msg.angle_min), float(msg.angle_increment)
+    with fields_of(where, "sensor_msgs/LaserScan"):
+        max_range, lowest = float(msg.range_max), float(msg.range_min)
+        start, step = float(msg.angle_min), float(msg.angle_increment)
+        ranges = np.array(msg.ranges, dtype=np.float64)
+        stamp, frame = stamp_seconds(msg.header.stamp), frame_name(msg.header.frame_id)
     if not (np.isfinite(max_range) and max_range > 0):
         raise FormatError(where, f"range_max is {max_range}, not a positive finite number of metres")
     if not (np.isfinite(start) and np.isfinite(step)):
         raise FormatError(where, f"angle_min {start} and angle_increment {step} must be finite")
-    ranges = np.array(msg.ranges, dtype=np.float64)
     ranges[np.isfinite(ranges) & (ranges < lowest)] = np.nan
     angles = start + step * np.arange(ranges.shape[0], dtype=np.float64)
-    scan = LaserScan(np.zeros(3), ranges, angles, max_range, stamp_seconds(msg.header.stamp))
-    return ScanMessage(scan, frame_name(msg.header.frame_id))
+    return ScanMessage(LaserScan(np.zeros(3), ranges, angles, max_range, stamp), frame)
 

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...errors import FormatError
-from ._header import frame_name, stamp_seconds
+from ._header import fields_of, frame_name, stamp_seconds
 
 __all__ = ["CloudMessage", "decode_point_cloud2"]
 
@@ -90,12 +90,14 @@ def decode_point_cloud2(msg, finite_only: bool = True, where: str = "PointCloud2
     Raises :class:`~occmap.errors.FormatError` when ``x``, ``y`` or ``z`` is missing, a field does
     not fit in ``point_step``, a datatype is unknown, or ``data`` is shorter than the rows need.
     """
-    height, width, step, row_step = int(msg.height), int(msg.width), int(msg.point_step), int(msg.row_step)
-    dtype = point_dtype(msg.fields, step, bool(msg.is_bigendian), where)
+    with fields_of(where, "sensor_msgs/PointCloud2"):
+        height, width, step, row_step = int(msg.height), int(msg.width), int(msg.point_step), int(msg.row_step)
+        dtype = point_dtype(msg.fields, step, bool(msg.is_bigendian), where)
+        data = msg.data if isinstance(msg.data, np.ndarray) else np.frombuffer(msg.data, dtype=np.uint8)
+        stamp, frame = stamp_seconds(msg.header.stamp), frame_name(msg.header.frame_id)
     for axis in "xyz":
         if axis not in dtype.names:
             raise FormatError(where, f"no {axis!r} field; fields: {', '.join(dtype.names) or '(none)'}")
-    data = msg.data if isinstance(msg.data, np.ndarray) else np.frombuffer(msg.data, dtype=np.uint8)
     if height * width and (row_step < width * step or data.nbytes < (height - 1) * row_step + width * step):
         raise FormatError(where, f"{data.nbytes} data bytes cannot hold {height} rows of {width} points of "
                           f"{step} bytes with row_step {row_step}")
@@ -116,5 +118,4 @@ def decode_point_cloud2(msg, finite_only: bool = True, where: str = "PointCloud2
         values = grid[name].reshape((height * width,) + dtype[name].shape)
         values = values.astype(values.dtype.newbyteorder("="))
         fields[name] = values[keep] if dropped else values
-    return CloudMessage(points, fields, frame_name(msg.header.frame_id), stamp_seconds(msg.header.stamp),
-                        (height, width), dropped)
+    return CloudMessage(points, fields, frame, stamp, (height, width), dropped)

@@ -19,7 +19,7 @@ from ...errors import FormatError, TransformError
 from ...geometry.frames import FrameTree
 from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
-from ._header import frame_name, stamp_seconds
+from ._header import fields_of, frame_name, stamp_seconds
 
 __all__ = ["Odometry", "TF_TYPES", "decode_odometry", "read_frame_tree", "read_odometry", "ros_poses"]
 
@@ -56,9 +56,10 @@ def ros_poses(translations, quaternions_xyzw, where: str = "pose") -> SE3:
 def decode_odometry(msg, where: str = "Odometry") -> tuple[float, SE3]:
     """``(stamp in seconds, pose)`` of one ``nav_msgs/Odometry``; the pose is
     ``T_{header.frame_id}_{child_frame_id}`` of shape ()."""
-    p, o = msg.pose.pose.position, msg.pose.pose.orientation
-    pose = ros_poses([p.x, p.y, p.z], [o.x, o.y, o.z, o.w], where)
-    return stamp_seconds(msg.header.stamp), SE3(pose.matrix[0])
+    with fields_of(where, "nav_msgs/Odometry"):
+        p, o = msg.pose.pose.position, msg.pose.pose.orientation
+        t, q, stamp = [p.x, p.y, p.z], [o.x, o.y, o.z, o.w], stamp_seconds(msg.header.stamp)
+    return stamp, SE3(ros_poses(t, q, where).matrix[0])
 
 
 def read_odometry(bag, topic: str) -> Odometry:
@@ -67,16 +68,17 @@ def read_odometry(bag, topic: str) -> Odometry:
     stamps, trans, quats, frames = [], [], [], None
     for m in bag.messages(topic, msgtype=ODOMETRY):
         msg = m.msg
-        pair = (frame_name(msg.header.frame_id), frame_name(msg.child_frame_id))
+        with fields_of(f"{bag.path}: topic {topic!r} at {m.time:.9f} s", "nav_msgs/Odometry"):
+            pair = (frame_name(msg.header.frame_id), frame_name(msg.child_frame_id))
+            p, o = msg.pose.pose.position, msg.pose.pose.orientation
+            stamps.append(stamp_seconds(msg.header.stamp))
+            trans.append((p.x, p.y, p.z))
+            quats.append((o.x, o.y, o.z, o.w))
         if frames is None:
             frames = pair
         elif pair != frames:
             raise FormatError(bag.path, f"topic {topic!r}: odometry of {pair[0]!r} -> {pair[1]!r} at "
                               f"{m.time:.9f} s, earlier messages were {frames[0]!r} -> {frames[1]!r}")
-        p, o = msg.pose.pose.position, msg.pose.pose.orientation
-        stamps.append(stamp_seconds(msg.header.stamp))
-        trans.append((p.x, p.y, p.z))
-        quats.append((o.x, o.y, o.z, o.w))
     if frames is None:
         return Odometry(np.zeros(0), SE3.identity(0), "", "")
     return Odometry(np.array(stamps), ros_poses(trans, quats, f"{bag.path}: topic {topic!r}"), *frames)
@@ -101,13 +103,14 @@ def read_frame_tree(bag, topics=None) -> FrameTree:
     links: dict[tuple[str, str, bool], tuple[list, list, list]] = {}
     for m in bag.messages(topics):
         static = m.topic.endswith("tf_static")
-        for ts in m.msg.transforms:
-            key = (frame_name(ts.header.frame_id), frame_name(ts.child_frame_id), static)
-            stamps, trans, quats = links.setdefault(key, ([], [], []))
-            tr, q = ts.transform.translation, ts.transform.rotation
-            stamps.append(stamp_seconds(ts.header.stamp))
-            trans.append((tr.x, tr.y, tr.z))
-            quats.append((q.x, q.y, q.z, q.w))
+        with fields_of(f"{bag.path}: topic {m.topic!r} at {m.time:.9f} s", "tf2_msgs/TFMessage"):
+            for ts in m.msg.transforms:
+                key = (frame_name(ts.header.frame_id), frame_name(ts.child_frame_id), static)
+                stamps, trans, quats = links.setdefault(key, ([], [], []))
+                tr, q = ts.transform.translation, ts.transform.rotation
+                stamps.append(stamp_seconds(ts.header.stamp))
+                trans.append((tr.x, tr.y, tr.z))
+                quats.append((q.x, q.y, q.z, q.w))
     span = 0.0 if bag.start is None else bag.end - bag.start
     tree = FrameTree(cache_time=max(10.0, span + 1.0))
     for (parent, child, static), (stamps, trans, quats) in sorted(links.items(), key=lambda kv: not kv[0][2]):
