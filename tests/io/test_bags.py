@@ -171,6 +171,7 @@ def test_carmen_scans_tf_and_odometry_round_trip(tmp_path, carmen_scans, kind, r
     reader_for(kind)
     with open_bag(path) as bag:
         assert ("chunk records" in bag.note) == (kind == "ros1_chunks")
+        assert bag.kind == {"sqlite3": "ROS 2 sqlite3", "mcap": "ROS 2 MCAP"}.get(kind, "ROS 1")
         assert {n: (t.msgtype, t.count) for n, t in bag.topics.items()} == {
             "/scan": (SCAN, 25), "/tf": (TF, 25), "/tf_static": (TF, 1), "/odom": (ODOM, 25)}
         assert bag.start == pytest.approx(carmen_scans[0].stamp - 0.5, abs=1e-6)
@@ -532,6 +533,11 @@ def test_not_a_bag(tmp_path):
             open_bag(path)
     with pytest.raises(FileNotFoundError):
         open_bag(tmp_path / "absent.bag")
+    mcap = next(write_bag(tmp_path, "mcap", small_bag).glob("*.mcap"))
+    renamed = mcap.rename(tmp_path / "recording.bin")
+    assert is_bag(renamed)
+    with pytest.raises(FormatError, match="holds ROS 2 MCAP data; name it \\*.mcap"):
+        open_bag(renamed)
 
 
 def test_wrong_topic_or_type(tmp_path):
@@ -577,7 +583,7 @@ def test_info_command(tmp_path, carmen_scans, data_dir, capsys):
     path = write_bag(tmp_path, "mcap", carmen_bag(carmen_scans))
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
-    for expect in ("ROS 2 bag", "/scan", SCAN, "frame laser", "/odom", ODOM, "tf frames       3",
+    for expect in ("ROS 2 MCAP bag", "/scan", SCAN, "frame laser", "/odom", ODOM, "tf frames       3",
                    "odom", "base_link", "laser", "messages        76"):
         assert expect in out, expect
     assert main(["info", str(data_dir / SHARED_BAG)]) == 0

@@ -67,8 +67,8 @@ class Bag:
     ----------
     path : Path
     kind : str
-        ``"ROS 1"``, ``"ROS 2"`` (a bag folder), ``"ROS 2 sqlite3"`` or ``"ROS 2 MCAP"`` (a lone
-        file).
+        ``"ROS 1"``, ``"ROS 2 sqlite3"`` or ``"ROS 2 MCAP"`` (a ROS 2 bag folder or a lone file
+        of that storage).
     note : str
         Empty, or how the bag was read when the usual way failed (a ROS 1 index ``rosbags``
         rejects).
@@ -154,7 +154,8 @@ def _kind(path: Path) -> tuple[str, str | None]:
     if path.is_dir():
         if not (path / "metadata.yaml").is_file():
             raise FormatError(path, "a folder, but not a ROS 2 bag (no metadata.yaml in it)")
-        return "ROS 2", None
+        storage = {f.suffix for f in path.iterdir()} & {".db3", ".mcap"}
+        return "ROS 2 " + " + ".join(sorted("MCAP" if s == ".mcap" else "sqlite3" for s in storage)), None
     if not path.exists():
         raise MissingFileError(path, "no such file")
     with open(path, "rb") as f:
