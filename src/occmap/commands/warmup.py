@@ -240,7 +240,9 @@ def octree(folder: Path) -> None:
     tree.expand()
     tree.to_max_likelihood()
     write_pcd(folder / "c.pcd", clouds[0].points[:100], viewpoint=clouds[0].pose)
-    read_cloud(folder / "c.pcd")
+    read = read_cloud(folder / "c.pcd")
+    for discretize in (False, True):  # as map3d inserts a cloud it read
+        OcTree(0.2).insert_point_cloud(read.world_points(), read.origin, 20.0, discretize)
     world = World3D.default()
     for n in (10, 100_000):  # one thread and many
         world.cast(np.zeros((n, 3)) + [5.0, 5.0, 1.8], np.repeat([[1.0, 0.2, 0.0]], n, axis=0))
