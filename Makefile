@@ -12,7 +12,7 @@ CLEAR_KERNEL_CACHE := find src -type d -path '*/__pycache__/occmap-*' -prune -ex
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	touch $(STAMP)
 
 # Compiled kernels are kept per digest of all the sources (occmap._jit), so a change anywhere

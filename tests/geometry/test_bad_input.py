@@ -112,6 +112,8 @@ CASES = [
     # ---- NaN / inf: NonFiniteError naming the argument and the element
     pytest.param(lambda: quat_multiply(with_bad(Q1, (1,), NAN), Q1), NonFiniteError, r"q1\[1\] = .* is not finite", id="quat_multiply-nan"),
     pytest.param(lambda: quat_multiply(Q1, with_bad(Q1, (0, 2), INF)), NonFiniteError, r"q2\[0, 2\] = .* is not finite", id="quat_multiply-inf-2d"),
+    pytest.param(lambda: quat_multiply(with_bad(Q1, (2,), NAN), with_bad(Q1, (1,), INF)), NonFiniteError, r"q2\[1\] = .* is not finite", id="quat_multiply-first-bad-row"),
+    pytest.param(lambda: quat_multiply(Q1, [0.0, NAN, 0.0, 0.0]), NonFiniteError, r"q2 = .* is not finite", id="quat_multiply-single-nan"),
     pytest.param(lambda: quat_to_matrix(with_bad(Q1, (2,), NAN)), NonFiniteError, r"q\[2\] = .* is not finite", id="quat_to_matrix-nan"),
     pytest.param(lambda: quat_conjugate([NAN, 0, 0, 0]), NonFiniteError, r"q = .* is not finite", id="quat_conjugate-nan"),
     pytest.param(lambda: quat_normalize(with_bad(Q1, (3,), INF)), NonFiniteError, r"q\[3\]", id="quat_normalize-inf"),

@@ -409,6 +409,20 @@ def test_broadcasting(rng):
     assert rv.shape == (3, 4, 3)
 
 
+def test_single_elements_equal_batch_elements(rng):
+    """Single calls run kernels of their own (``quat_multiply_one``, ``quat_slerp_one``): each gives
+    the bits of that element in a batch, whatever form ``t`` takes."""
+    a, b = quat_normalize(rng.standard_normal((2, 64, 4)))
+    b[0], b[1] = a[0], -a[1]  # equal quaternions (normalised lerp), and q against −q
+    t = rng.uniform(-0.5, 1.5, 64)
+    products, slerps = quat_multiply(a, b), quat_slerp(a, b, t)
+    for i in range(64):
+        np.testing.assert_array_equal(quat_multiply(a[i], b[i]), products[i])
+        for ti in (float(t[i]), t[i], np.array(t[i])):  # float, NumPy float64, 0-d array
+            np.testing.assert_array_equal(quat_slerp(a[i], b[i], ti), slerps[i])
+    np.testing.assert_array_equal(quat_slerp(a[2], b[2], 1), quat_slerp(a[2:3], b[2:3], 1.0)[0])
+
+
 def test_empty_batch():
     assert quat_to_matrix(np.zeros((0, 4))).shape == (0, 3, 3)
     assert matrix_to_quat(np.zeros((0, 3, 3))).shape == (0, 4)

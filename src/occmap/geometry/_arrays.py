@@ -20,7 +20,7 @@ from ._kernels import UNIT_TOL, Rejected
 
 _F64 = np.dtype(np.float64)
 # bound once: single calls are counted in tenths of a microsecond
-_asarray, _empty, _ndarray = np.asarray, np.empty, np.ndarray
+_asarray, _empty = np.asarray, np.empty
 
 #: Largest accepted Frobenius norm of RᵀR − I for a rotation matrix.
 ROTATION_TOL = 1e-6
@@ -112,18 +112,24 @@ def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (
     return out
 
 
-def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (), otherwise=None, floats=None):
+def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (), otherwise=None, one=None):
     """The Python face of ``kernel``: a function of the operand values, each operand described by
     ``(trailing, name, kind)`` as in :func:`run`.
 
     A single element (every operand exactly its trailing shape) takes a path unrolled for one,
     two or three operands: a conversion and a comparison each, the output allocated, the kernel
-    called — half the overhead of the loops in :func:`run`. With three operands (slerp's ``t``,
-    Euler angles, planar poses: scalars that are usually floats) Python floats go to the kernel
-    as they are, which costs less than a 0-d array each; three floats (NumPy's float64 too, a
-    subclass) go to ``floats(x, y, z, out)`` when given, a kernel for scalars that skips the array
-    handling altogether (and takes no ``args``). Anything else — batches, rejected input — goes to ``otherwise`` (by
-    default :func:`run`, which names what is wrong).
+    called — half the overhead of the loops in :func:`run`. Three operands are three scalars
+    (Euler angles, planar poses) or two arrays and a scalar (slerp's ``t``); floats among them
+    (Python's, or NumPy's float64) go to the kernel as they are, which costs less than a 0-d
+    array each, and three floats skip the array handling altogether.
+
+    ``one``, when given, is the kernel's single-element form, which that path calls instead:
+    with the same operands, but without ``args`` (each argument costs a call ~40 ns) and, with
+    three operands, with floats for scalars only. It reads its operands as they are, without the
+    reshapes and broadcast steps of the row loops (tens of ns each).
+
+    Anything else — batches, rejected input — goes to ``otherwise`` (by default :func:`run`,
+    which names what is wrong).
     """
 
     def general(*values):
@@ -131,6 +137,7 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
 
     otherwise = otherwise or general
     bound = partial(kernel, *args) if args else kernel
+    single = one or bound
     trailing = [op[0] for op in operands]
     if len(operands) == 1:
         (t1,) = trailing
@@ -140,7 +147,7 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
             if a.shape == t1:
                 out = _empty(out_trailing)
                 try:
-                    bound(a, out)
+                    single(a, out)
                     return out
                 except Rejected:
                     pass
@@ -154,28 +161,23 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
             if a.shape == t1 and b.shape == t2:
                 out = _empty(out_trailing)
                 try:
-                    bound(a, b, out)
+                    single(a, b, out)
                     return out
                 except Rejected:
                     pass
             return otherwise(x, y)
 
-    else:
-        t1, t2, t3 = trailing
-        scalars = floats if not (t1 or t2 or t3) else None
+    elif not any(trailing):
 
         def call(x, y, z):
-            f = scalars
+            f = one
             if f is None or not (isinstance(x, float) and isinstance(y, float) and isinstance(z, float)):
                 f = bound
                 x = x if type(x) is float else _asarray(x, _F64, "C")
                 y = y if type(y) is float else _asarray(y, _F64, "C")
                 z = z if type(z) is float else _asarray(z, _F64, "C")
-                if not (
-                    (x.shape == t1 if type(x) is _ndarray else not t1)
-                    and (y.shape == t2 if type(y) is _ndarray else not t2)
-                    and (z.shape == t3 if type(z) is _ndarray else not t3)
-                ):
+                if not ((type(x) is float or x.shape == ()) and (type(y) is float or y.shape == ())
+                        and (type(z) is float or z.shape == ())):
                     return otherwise(x, y, z)
             out = _empty(out_trailing)
             try:
@@ -184,6 +186,22 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
             except Rejected:
                 return otherwise(x, y, z)  # converted values name the same element
 
+    elif trailing[0] and trailing[1] and not trailing[2]:
+        t1, t2, _ = trailing
+
+        def call(x, y, z):
+            a, b = _asarray(x, _F64, "C"), _asarray(y, _F64, "C")
+            if a.shape == t1 and b.shape == t2 and isinstance(z, float):
+                out = _empty(out_trailing)
+                try:
+                    single(a, b, z, out)
+                    return out
+                except Rejected:
+                    pass
+            return otherwise(x, y, z)
+
+    else:
+        raise ValueError(f"three operands are three scalars or two arrays and a scalar, not {trailing}")
     return call
 
 

@@ -18,7 +18,7 @@ from ._arrays import entry, unstack
 
 _to_matrix = entry(
     K.matrix_of_three, (3, 3), ((), "yaw", "finite"), ((), "pitch", "finite"), ((), "roll", "finite"),
-    args=(K.EULER_ZYX,), floats=K.euler_zyx_to_matrix_one,
+    args=(K.EULER_ZYX,), one=K.euler_zyx_to_matrix_one,
 )
 _to_euler = entry(K.matrix_to_euler_zyx, (3,), ((3, 3), "R", "rotation"))
 

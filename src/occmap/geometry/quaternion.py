@@ -13,7 +13,7 @@ from . import _kernels as K
 from ._arrays import batch, entry
 
 _Q = (4,)
-_multiply = entry(K.quat_multiply, _Q, (_Q, "q1", "finite"), (_Q, "q2", "finite"))
+_multiply = entry(K.quat_multiply, _Q, (_Q, "q1", "finite"), (_Q, "q2", "finite"), one=K.quat_multiply_one)
 _conjugate = entry(K.quat_scale, _Q, (_Q, "q", "finite"), args=(0,))
 _inverse = entry(K.quat_scale, _Q, (_Q, "q", "nonzero"), args=(1,))
 _normalize = entry(K.quat_scale, _Q, (_Q, "q", "nonzero"), args=(2,))
@@ -22,7 +22,7 @@ _to_matrix = entry(K.quat_to_matrix, (3, 3), (_Q, "q", "unit"))
 _from_matrix = entry(K.matrix_to_quat, _Q, ((3, 3), "R", "rotation"))
 _from_axis_angle = entry(K.axis_angle_to_quat, _Q, ((3,), "axis", "nonzero"), ((), "angle", "finite"))
 _to_axis_angle = entry(K.quat_to_axis_angle, _Q, (_Q, "q", "unit"))
-_slerp = entry(K.quat_slerp, _Q, (_Q, "q0", "unit"), (_Q, "q1", "unit"), ((), "t", "finite"))
+_slerp = entry(K.quat_slerp, _Q, (_Q, "q0", "unit"), (_Q, "q1", "unit"), ((), "t", "finite"), one=K.quat_slerp_one)
 
 
 def quat_multiply(q1, q2):

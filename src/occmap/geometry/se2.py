@@ -16,7 +16,7 @@ from .so2 import SO2, wrap_angle
 
 _matrix = entry(
     K.matrix_of_three, (3, 3), ((), "x", "finite"), ((), "y", "finite"), ((), "theta", "finite"),
-    args=(K.SE2_POSE,), floats=K.se2_matrix_one,
+    args=(K.SE2_POSE,), one=K.se2_matrix_one,
 )
 _from_matrix = entry(K.se2_from_matrix, (3,), ((3, 3), "T", "rigid2"))
 _apply = entry(K.transform_points2, (2,), ((3, 3), "pose", "rigid2"), ((2,), "points", "finite"))
