@@ -243,7 +243,7 @@ def bt_rows(path: Path):
 #: A long drive streamed scan by scan in a fresh process: the scans are simulated one at a time
 #: (not held), so resident memory is the interpreter, the kernels, one scan and the tree.
 DRIVE = """
-import json, resource, sys, time
+import json, sys, time
 import numpy as np
 from occmap.geometry import SE3
 from occmap.octree import OcTree
@@ -271,7 +271,10 @@ for i, T in enumerate(poses):
     if (i + 1) % chunk == 0:
         chunks.append(points / seconds)
         seconds = points = 0
-print(json.dumps({"base": base, "peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "end": rss(),
+def peak():  # (VmHWM: this process's own peak; getrusage's maxrss keeps the parent's size from before exec)
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmHWM:"))
+print(json.dumps({"base": base, "peak": peak(), "end": rss(),
                   "usage": tree.memory_usage(), "allocated": tree.memory_allocated(), "rates": chunks,
                   "nodes": tree.num_nodes()}))
 """
