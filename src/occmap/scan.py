@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
+
+from .errors import ShapeError
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,3 +110,13 @@ def stack_scans(scans) -> ScanStack:
         for k, s in enumerate(scans):
             angles[k, : np.shape(s.angles)[0]] = s.angles
     return ScanStack(poses, ranges, angles, max_ranges, stamps)
+
+
+def with_poses(scans, poses) -> list[LaserScan]:
+    """The scans with their sensor poses replaced by ``poses`` (N, 3) (scan-matched ones, say);
+    ranges, angles, stamps and odometry are shared, not copied."""
+    scans = list(scans)
+    p = np.asarray(poses, dtype=np.float64)
+    if p.shape != (len(scans), 3):
+        raise ShapeError(f"poses must have shape ({len(scans)}, 3) for {len(scans)} scans, got {p.shape}")
+    return [replace(s, pose=p[k].copy()) for k, s in enumerate(scans)]

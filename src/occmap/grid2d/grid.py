@@ -242,6 +242,20 @@ class OccupancyGrid2D(OneCallAtATime):
         out[inside] = np.where(stamp[jy, jx] != UNSEEN, L[jy, jx], np.nan)
         return out
 
+    def log_odds_in(self, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+        """Log-odds (a copy, float32, NaN where unobserved) of the map's cells that overlap the world
+        box from ``lo = (xmin, ymin)`` to ``hi = (xmax, ymax)``, clipped to the map (possibly
+        empty), and the world position of the outer corner of its cell (0, 0). Costs the box, not
+        the map: what a local submap reads of a growing map."""
+        H, W = self.shape
+        (iy0, ix0), (iy1, ix1) = self.world_to_cell(np.array([lo, hi], dtype=np.float64))
+        ix0, iy0 = min(max(ix0, 0), W), min(max(iy0, 0), H)
+        ix1, iy1 = min(max(ix1 + 1, ix0), W), min(max(iy1 + 1, iy0), H)
+        L, stamp = self._cells()
+        window = np.where(stamp[iy0:iy1, ix0:ix1] != UNSEEN, L[iy0:iy1, ix0:ix1], np.float32(np.nan))
+        corner = self._anchor + (np.array([ix0, iy0]) + self._corner()) * self.resolution
+        return window, corner
+
     def occupancy_at(self, points) -> np.ndarray:
         """Per world point (..., 2), int8: −1 unknown or outside the map, 1 occupied
         (``p ≥ occupied_threshold``), else 0 free."""
