@@ -242,3 +242,18 @@ def test_a_growing_map_lies_on_the_world_lattice(rng):
     p = rng.uniform(-2.0, 8.0, (1000, 2)) + poses[0, :2]
     cells = g.world_to_cell(p)
     np.testing.assert_array_equal(cells[:, ::-1] + [ix, iy], np.floor(p * (1.0 / 0.05)))
+
+
+def test_log_odds_in_reads_a_box_of_a_growing_map_as_the_whole_map_has_it():
+    grid = OccupancyGrid2D(0.1)
+    grid.insert_scans(np.array([[0.0, 0.0, 0.0], [3.0, 1.0, 1.0]]), np.full((2, 90), 2.5),
+                      np.linspace(-np.pi, np.pi, 90, endpoint=False), max_range=4.0)
+    whole = grid.log_odds()
+    window, corner = grid.log_odds_in((0.0, -1.0), (2.0, 0.5))
+    (iy0, ix0) = grid.world_to_cell(np.array([0.0, -1.0]))
+    assert corner.tolist() == pytest.approx((grid.origin + 0.1 * np.array([ix0, iy0])).tolist())
+    assert window.shape == (16, 21)
+    np.testing.assert_array_equal(window, whole[iy0:iy0 + 16, ix0:ix0 + 21])
+    clipped, _ = grid.log_odds_in((-100.0, -100.0), (100.0, 100.0))
+    np.testing.assert_array_equal(clipped, whole)
+    assert grid.log_odds_in((50.0, 50.0), (60.0, 60.0))[0].size == 0

@@ -26,17 +26,21 @@ by any-of-block. A scan is matched in two stages:
 
 The pose a match starts from (the prior) is the last pose moved by the odometry between the two
 scans when both carry one (:attr:`~occmap.scan.LaserScan.odom`, the robot's; the sensor is taken
-to sit at the robot's origin), else by the last step's motion (constant velocity, scaled by the
-ratio of the time steps when the stamps give one). The first scan defines the frame: its pose is
+to sit at the robot's origin), else by the last step's motion (constant velocity per scan; scaling
+it by the ratio of the time steps predicted worse on Intel's log, whose scans are irregular). The first scan defines the frame: its pose is
 ``initial_pose`` (default the origin).
 
 A match *fails* when the finest level keeps fewer than :data:`~occmap.localize.scan_match.MIN_INLIERS`
 end points or its system is singular; it is *rejected* when it moves the pose farther than
 ``max_correction`` from the prior. Both leave the scan at its prior and are counted, never raised.
-A match is *degenerate* when its end points pin the position in one direction only (a straight
-corridor: the ratio of the smallest to the largest eigenvalue of the position block of JᵀJ is
-below :data:`DEGENERATE_RATIO`); the regularised step then leaves the pose at the prior along
-the corridor. It is kept, and counted.
+A match is *degenerate* when the scan's surfaces pin the position in one direction only (a
+straight corridor): the unit normals of the surfaces, taken between end points two beams apart
+and less than :data:`SURFACE_GAP` apart, have a scatter matrix whose smaller eigenvalue is below
+:data:`DEGENERATE_RATIO` times the larger. The map cannot say either (the distance field of a wall
+mapped with gaps would pin the pose to the gaps' pattern), so the match moves the position only
+along the constrained direction and keeps the prior's along the other (Zhang, Kaess and Singh,
+"On degeneracy of optimization-based state estimation problems", ICRA 2016). It is kept, and
+counted.
 
 A scan is inserted into the map when its match succeeded (or the map has no obstacle yet) and
 the sensor moved at least ``insert_min_d`` metres or turned ``insert_min_a`` radians since the
@@ -68,9 +72,12 @@ from ..scan import LaserScan
 
 __all__ = ["DEGENERATE_RATIO", "MatchQuality", "ScanMatchParams", "ScanMatchTrack", "ScanMatcher", "match_scans"]
 
-#: Below this ratio of the smallest to the largest eigenvalue of the position block of JᵀJ a match
-#: is degenerate (its end points constrain the position along one direction only).
+#: Below this ratio of the smaller to the larger eigenvalue of the scatter of a scan's surface
+#: normals, the scan constrains the position along one direction only.
 DEGENERATE_RATIO = 0.02
+
+#: End points farther apart (m) than this are not taken to lie on one surface.
+SURFACE_GAP = 0.5
 
 #: End points scored per candidate of the correlative search, at most (evenly spread).
 SEARCH_BEAMS = 120
@@ -234,6 +241,28 @@ def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle_one(b[2] - a[2])])
 
 
+def _keep_prior_where_unconstrained(pose: np.ndarray, prior: np.ndarray, bx: np.ndarray, by: np.ndarray):
+    """``(pose, degenerate)``: when the surfaces of end points ``(bx, by)`` (sensor frame)
+    constrain the position along one direction only, ``pose`` with its position moved from the
+    prior's along that direction only."""
+    tx, ty = bx[2:] - bx[:-2], by[2:] - by[:-2]
+    length = np.hypot(tx, ty)
+    keep = (length > 0.0) & (length < SURFACE_GAP)
+    if np.count_nonzero(keep) < 3:
+        return pose, False
+    tx, ty = tx[keep] / length[keep], ty[keep] / length[keep]
+    # Σ n nᵀ of the normals n = (−t_y, t_x)
+    scatter = np.array([[np.dot(ty, ty), -np.dot(tx, ty)], [-np.dot(tx, ty), np.dot(tx, tx)]])
+    ev, vec = np.linalg.eigh(scatter)
+    if ev[0] >= DEGENERATE_RATIO * ev[1]:
+        return pose, False
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    v = np.array([c * vec[0, 1] - s * vec[1, 1], s * vec[0, 1] + c * vec[1, 1]])  # in the world frame
+    out = pose.copy()
+    out[:2] = prior[:2] + v * np.dot(v, pose[:2] - prior[:2])
+    return out, True
+
+
 class ScanMatcher:
     """Streaming scan-to-map matching: :meth:`add` one scan at a time, get its pose.
 
@@ -261,8 +290,6 @@ class ScanMatcher:
         self._fields: list[_Field] = []  # coarse to fine; empty until the map has an obstacle
         self._pose: np.ndarray | None = None
         self._step = np.zeros(3)  # the last step's motion, in the frame of the pose before it
-        self._dt = 0.0
-        self._stamp = math.nan
         self._odom: np.ndarray | None = None
         self._inserted: np.ndarray | None = None
 
@@ -276,31 +303,30 @@ class ScanMatcher:
         pose ``(x, y, theta)`` (3,) in the frame of the first scan. Its pose field is not read."""
         p = self.params
         odom = None if scan.odom is None else np.asarray(scan.odom, dtype=np.float64)
-        stamp = float(scan.stamp)
         bx, by, _, _ = beam_end_points(np.asarray(scan.ranges, dtype=np.float64),
                                        np.asarray(scan.angles, dtype=np.float64), float(scan.max_range), self._beams)
+        degenerate = False
         if self._pose is None:
             pose = np.array(p.initial_pose, dtype=np.float64)
             prior, status = pose.copy(), FIRST
         else:
-            prior = self._predict(odom, stamp)
+            prior = self._predict(odom)
             pose, status = self._match(prior, bx, by)
-        self.quality = self._quality(status, pose, bx, by)
+            if status == MATCHED:
+                pose, degenerate = _keep_prior_where_unconstrained(pose, prior, bx, by)
+        self.quality = self._quality(status, pose, bx, by, degenerate)
         self._count(self.quality)
         if self._pose is not None:
             self._step = _between(self._pose, pose)
-            self._dt = stamp - self._stamp
-        self._pose, self._stamp, self._odom, self.prior = pose, stamp, odom, prior
+        self._pose, self._odom, self.prior = pose, odom, prior
         if not self._fields or (status == MATCHED and self._moved_enough(pose)):
             self._insert(scan, pose)
         return pose.copy()
 
-    def _predict(self, odom, stamp: float) -> np.ndarray:
+    def _predict(self, odom) -> np.ndarray:
         if odom is not None and self._odom is not None and np.isfinite(odom).all() and np.isfinite(self._odom).all():
             return _compose(self._pose, _between(self._odom, odom))
-        dt = stamp - self._stamp
-        scale = dt / self._dt if self._dt > 0.0 and dt > 0.0 else 1.0
-        return _compose(self._pose, min(scale, 3.0) * self._step)
+        return _compose(self._pose, self._step)
 
     def _match(self, prior: np.ndarray, bx: np.ndarray, by: np.ndarray) -> tuple[np.ndarray, int]:
         p = self.params
@@ -345,17 +371,13 @@ class ScanMatcher:
         x[2] = wrap_angle_one(float(x[2]))
         return x
 
-    def _quality(self, status: int, pose: np.ndarray, bx: np.ndarray, by: np.ndarray) -> MatchQuality:
+    def _quality(self, status: int, pose: np.ndarray, bx: np.ndarray, by: np.ndarray, degenerate: bool) -> MatchQuality:
         if not self._fields:
-            return MatchQuality(status, bx.size, 0, math.nan, False)
+            return MatchQuality(status, bx.size, 0, math.nan, degenerate)
         f = self._fields[-1]
         Hm, g = np.empty((3, 3)), np.empty(3)
         cost, used = K.match_normal_equations(pose, bx, by, f.distance, f.max_dist, self.params.cutoff,
                                               f.origin[0], f.origin[1], 1.0 / f.resolution, Hm, g)
-        degenerate = False
-        if status == MATCHED:
-            ev = np.linalg.eigvalsh(Hm[:2, :2])
-            degenerate = bool(ev[0] < DEGENERATE_RATIO * ev[1])
         rms = math.sqrt(cost / used) if used else math.nan
         return MatchQuality(status, bx.size, used, rms, degenerate)
 
