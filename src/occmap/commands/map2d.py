@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from . import _notes, _options, _tiles
+from . import _notes, _options, _scan_match, _tiles
 from ._outputs import check_outputs, check_suffix
 
 
@@ -32,6 +32,7 @@ def add_parser(subparsers):
     p.add_argument("--prob-miss", type=_options.probability, default=0.4,
                    help="P(occupied) for cells a beam passes (default: %(default)s, OctoMap's; 0.45 keeps walls "
                    "that many grazing beams cross more continuous)")
+    _scan_match.add_option(p)
     _tiles.add_tile_options(p, 256, "cells")
     return p
 
@@ -64,6 +65,7 @@ def run(args) -> int:
     from ..grid2d import LidarModel
     from ..io.carmen import read_carmen
     from ..mapping2d import map_scans
+    from ..scan import stack_scans
 
     _tiles.check_tile_options(args)
     if args.tiles is None and args.output is None:
@@ -75,6 +77,8 @@ def run(args) -> int:
     check_outputs({"-o": args.output, "the map's image": image, "--png": args.png}, {"LOG": args.log})
     model = LidarModel(args.prob_hit, args.prob_miss)  # checks the pair before the log is read
     if args.tiles is not None:
+        if args.scan_match:
+            raise InvalidArgumentError("--scan-match builds one map in memory: leave out --tiles")
         return _run_tiled(args, model)
 
     t0 = time.perf_counter()
@@ -84,7 +88,8 @@ def run(args) -> int:
     if not len(log):
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
     _notes.carmen_assumptions("map2d", log.stats)
-    summary = map_scans(log.stack(), args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model,
+    stack = stack_scans(_scan_match.scan_matched(log.scans)) if args.scan_match else log.stack()
+    summary = map_scans(stack, args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model,
                          max_extent=args.max_extent)
     image = summary.grid.save(args.output)
     for line in summary.lines():
