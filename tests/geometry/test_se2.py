@@ -12,9 +12,11 @@ from occmap.errors import NotARotationError, ShapeError
 from occmap.geometry import (
     SE2,
     SO2,
+    compose_poses,
     invert_transform,
     make_transform,
     nearest_rotation,
+    relative_poses,
     rot2,
     se2_from_matrix,
     se2_matrix,
@@ -304,3 +306,17 @@ def test_planar_angle_range_with_negative_zero():
     assert -PI < so2_angle(R) <= PI
     T = np.array([[-1.0, 0.0, 0.0], [-0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])
     assert -PI < se2_from_matrix(T)[2] <= PI
+
+
+def test_compose_and_relative_poses_agree_with_the_se2_products_and_broadcast():
+    rng = np.random.default_rng(7)
+    a = rng.uniform([-5, -5, -4], [5, 5, 4], (50, 3))
+    b = rng.uniform([-5, -5, -4], [5, 5, 4], (50, 3))
+    np.testing.assert_allclose(compose_poses(a, b), (SE2(a) @ SE2(b)).xytheta, atol=1e-12)
+    np.testing.assert_allclose(relative_poses(a, b), (SE2(a).inv() @ SE2(b)).xytheta, atol=1e-12)
+    np.testing.assert_allclose(compose_poses(a, relative_poses(a, b)), SE2(b).xytheta, atol=1e-12)
+    one = compose_poses(a[0], b)  # one pose against many
+    assert one.shape == (50, 3)
+    np.testing.assert_allclose(one[3], compose_poses(a[0], b[3]), atol=1e-15)
+    # a quarter turn: one metre ahead of a robot facing +y is one metre up
+    np.testing.assert_allclose(compose_poses([1.0, 2.0, np.pi / 2], [1.0, 0.0, 0.0]), [1.0, 3.0, np.pi / 2], atol=1e-15)

@@ -36,7 +36,7 @@ from .quaternion import (
     quat_to_matrix,
     quat_to_xyzw,
 )
-from .se2 import SE2, se2_from_matrix, se2_matrix
+from .se2 import SE2, compose_poses, relative_poses, se2_from_matrix, se2_matrix
 from .se3 import SE3, compose_transforms, exp_se3, invert_transform, log_se3, make_transform, transform_points
 from .so2 import SO2, rot2, so2_angle, wrap_angle, wrap_angle_one
 from .so3 import (
@@ -63,6 +63,7 @@ __all__ = sorted([
     "SE3",
     "SO2",
     "axis_angle_to_quat",
+    "compose_poses",
     "compose_transforms",
     "euler_zyx_to_matrix",
     "exp_se3",
@@ -81,6 +82,7 @@ __all__ = sorted([
     "quat_to_axis_angle",
     "quat_to_matrix",
     "quat_to_xyzw",
+    "relative_poses",
     "rot2",
     "se2_from_matrix",
     "se2_matrix",

@@ -32,6 +32,25 @@ def se2_from_matrix(T):
     return unstack(_from_matrix(T))
 
 
+def compose_poses(a, b) -> np.ndarray:
+    """Poses ``a ⊕ b`` (..., 3): pose or motion ``b`` ``(x, y, θ)`` taken in the frame of pose ``a``,
+    θ wrapped; the ``xytheta`` of ``SE2(a) @ SE2(b)`` without its checks, for a loop that
+    moves one pose at a time. ``a`` and ``b`` broadcast."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    return np.stack([a[..., 0] + c * b[..., 0] - s * b[..., 1], a[..., 1] + s * b[..., 0] + c * b[..., 1],
+                     wrap_angle(a[..., 2] + b[..., 2])], -1)
+
+
+def relative_poses(a, b) -> np.ndarray:
+    """Motions ``a⁻¹ ⊕ b`` (..., 3) from poses ``a`` to poses ``b``, in ``a``'s frame, θ wrapped; the
+    ``xytheta`` of ``SE2(a).inv() @ SE2(b)`` without its checks. ``a`` and ``b`` broadcast."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[..., 2] - a[..., 2])], -1)
+
+
 class SE2(Batch):
     """Batched planar poses of shape ``self.shape``, held as a read-only (..., 3) ``(x, y, θ)`` array.
 

@@ -61,7 +61,8 @@ import numpy as np
 
 from .. import checks
 from ..errors import InvalidArgumentError
-from ..geometry.so2 import wrap_angle_one
+from ..geometry.se2 import compose_poses, relative_poses
+from ..geometry.so2 import rot2, wrap_angle_one
 from ..grid2d import LidarModel, OccupancyGrid2D
 from ..localize import _kernels as K
 from ..localize.likelihood_field import beam_end_points
@@ -228,19 +229,6 @@ class ScanMatchTrack:
                 f"{s['inserted']:,} inserted into the map")
 
 
-def _compose(a: np.ndarray, d) -> np.ndarray:
-    """Pose ``a ⊕ d``: ``d`` (dx, dy, dθ) taken in ``a``'s frame."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([a[0] + c * d[0] - s * d[1], a[1] + s * d[0] + c * d[1], wrap_angle_one(a[2] + d[2])])
-
-
-def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Motion ``a⁻¹ ⊕ b`` from pose ``a`` to pose ``b``, in ``a``'s frame."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle_one(b[2] - a[2])])
-
-
 def _keep_prior_where_unconstrained(pose: np.ndarray, prior: np.ndarray, bx: np.ndarray, by: np.ndarray):
     """``(pose, degenerate)``: when the surfaces of end points ``(bx, by)`` (sensor frame)
     constrain the position along one direction only, ``pose`` with its position moved from the
@@ -256,8 +244,7 @@ def _keep_prior_where_unconstrained(pose: np.ndarray, prior: np.ndarray, bx: np.
     ev, vec = np.linalg.eigh(scatter)
     if ev[0] >= DEGENERATE_RATIO * ev[1]:
         return pose, False
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    v = np.array([c * vec[0, 1] - s * vec[1, 1], s * vec[0, 1] + c * vec[1, 1]])  # in the world frame
+    v = rot2(pose[2]) @ vec[:, 1]  # the constrained direction, in the world frame
     out = pose.copy()
     out[:2] = prior[:2] + v * np.dot(v, pose[:2] - prior[:2])
     return out, True
@@ -317,7 +304,7 @@ class ScanMatcher:
         self.quality = self._quality(status, pose, bx, by, degenerate)
         self._count(self.quality)
         if self._pose is not None:
-            self._step = _between(self._pose, pose)
+            self._step = relative_poses(self._pose, pose)
         self._pose, self._odom, self.prior = pose, odom, prior
         if not self._fields or (status == MATCHED and self._moved_enough(pose)):
             self._insert(scan, pose)
@@ -325,8 +312,8 @@ class ScanMatcher:
 
     def _predict(self, odom) -> np.ndarray:
         if odom is not None and self._odom is not None and np.isfinite(odom).all() and np.isfinite(self._odom).all():
-            return _compose(self._pose, _between(self._odom, odom))
-        return _compose(self._pose, self._step)
+            return compose_poses(self._pose, relative_poses(self._odom, odom))
+        return compose_poses(self._pose, self._step)
 
     def _match(self, prior: np.ndarray, bx: np.ndarray, by: np.ndarray) -> tuple[np.ndarray, int]:
         p = self.params
@@ -389,7 +376,7 @@ class ScanMatcher:
         s["degenerate"] += q.degenerate
 
     def _moved_enough(self, pose: np.ndarray) -> bool:
-        d = _between(self._inserted, pose)
+        d = relative_poses(self._inserted, pose)
         return math.hypot(d[0], d[1]) >= self.params.insert_min_d or abs(d[2]) >= self.params.insert_min_a
 
     def _insert(self, scan: LaserScan, pose: np.ndarray) -> None:
