@@ -9,7 +9,9 @@ cross, so objects that leave are forgotten). Matching does not read the whole ma
 submap: the square of side ``2 · field_radius`` around the last inserted pose, turned into
 distance fields (distance to the nearest occupied cell, :mod:`occmap.raster.edt`) at
 ``levels`` resolutions, ``resolution · 2^k``, the coarser ones from the finer occupied cells
-by any-of-block. A scan is matched in two stages:
+by any-of-block. A scan is matched by Gauss–Newton coarse to fine from the prior (2 below); when
+that fails or keeps fewer than :data:`SEARCH_BELOW` of the end points within the fine cutoff,
+again from the best pose of a correlative search (1), and the match with more such inliers wins:
 
 1. A correlative search (Olson, "Real-time correlative scan matching", ICRA 2009; Cartographer's
    real-time matcher) over poses within ``search_window`` of the prior on the coarsest field:
@@ -26,9 +28,9 @@ by any-of-block. A scan is matched in two stages:
 
 The pose a match starts from (the prior) is the last pose moved by the odometry between the two
 scans when both carry one (:attr:`~occmap.scan.LaserScan.odom`, the robot's; the sensor is taken
-to sit at the robot's origin), else by the last step's motion (constant velocity per scan; scaling
-it by the ratio of the time steps predicted worse on Intel's log, whose scans are irregular). The first scan defines the frame: its pose is
-``initial_pose`` (default the origin).
+to sit at the robot's origin), else by the last step's motion (constant velocity per scan;
+scaling it by the ratio of the time steps predicted worse on Intel's log, whose scans are
+irregular). The first scan defines the frame: its pose is ``initial_pose`` (default the origin).
 
 A match *fails* when the finest level keeps fewer than :data:`~occmap.localize.scan_match.MIN_INLIERS`
 end points or its system is singular; it is *rejected* when it moves the pose farther than
@@ -82,6 +84,10 @@ SURFACE_GAP = 0.5
 
 #: End points scored per candidate of the correlative search, at most (evenly spread).
 SEARCH_BEAMS = 120
+
+#: The correlative search runs when Gauss–Newton from the prior keeps fewer than this share of the
+#: end points within the fine cutoff.
+SEARCH_BELOW = 0.8
 
 #: Status of a scan in :attr:`ScanMatchTrack.status`.
 FIRST, MATCHED, FAILED, REJECTED = 0, 1, 2, 3
@@ -319,19 +325,32 @@ class ScanMatcher:
         p = self.params
         if not self._fields:
             return prior, FAILED
-        x = self._search(prior, bx, by)
-        for level, f in enumerate(self._fields):
-            cutoff = p.cutoff * 2 ** (len(self._fields) - 1 - level)
-            found, _ = match(f, x, bx, by, cutoff, p.iterations)
-            if found is None:
-                if level == len(self._fields) - 1:
-                    return prior, FAILED
-                continue  # a coarse level that found too little: the finer ones start where it began
-            x = found
+        x, inliers = self._refine(prior, bx, by)
+        if x is None or inliers < SEARCH_BELOW * bx.size:
+            y, more = self._refine(self._search(prior, bx, by), bx, by)
+            if y is not None and more > inliers:
+                x = y
+        if x is None:
+            return prior, FAILED
         dx = x - prior
         if math.hypot(dx[0], dx[1]) > p.max_correction[0] or abs(wrap_angle_one(dx[2])) > p.max_correction[1]:
             return prior, REJECTED
         return x, MATCHED
+
+    def _refine(self, start: np.ndarray, bx: np.ndarray, by: np.ndarray) -> tuple[np.ndarray | None, int]:
+        """Gauss–Newton coarse to fine from ``start``: ``(pose, inliers at the finest level)``,
+        the pose None when the finest level failed."""
+        p = self.params
+        x = start
+        for level, f in enumerate(self._fields):
+            cutoff = p.cutoff * 2 ** (len(self._fields) - 1 - level)
+            found, used = match(f, x, bx, by, cutoff, p.iterations)
+            if found is None:
+                if level == len(self._fields) - 1:
+                    return None, used
+                continue  # a coarse level that found too little: the finer ones start where it began
+            x = found
+        return x, used
 
     def _search(self, prior: np.ndarray, bx: np.ndarray, by: np.ndarray) -> np.ndarray:
         """The best pose of the correlative search around ``prior`` on the coarsest field."""
