@@ -58,6 +58,7 @@ def test_commands_after_warmup_compile_nothing(tmp_path):
     t_ = str(tmp_path)
     commands = [
         ["map2d", f"{t_}/office.log", "-o", f"{t_}/office.yaml", "--png", f"{t_}/office.png", "--resolution", "0.1"],
+        ["map2d", f"{t_}/office.log", "--scan-match", "-o", f"{t_}/matched.yaml"],
         ["local", f"{t_}/office.log", "-o", f"{t_}/local.gif", "--max-frames", "3"],
         ["localize", f"{t_}/office.yaml", f"{t_}/office.log", "-o", f"{t_}/track.csv", "--init", f"{x},{y},{t}",
          "--particles", "300", "--png", f"{t_}/track.png"],

@@ -196,6 +196,20 @@ def localization(folder: Path) -> None:
     save_track_png(folder / "track.png", loc, result)
 
 
+def scan_matching(folder: Path) -> None:
+    """Scan-to-map matching as ``map2d --scan-match`` runs it (odometry from the log as the prior,
+    and without), a jump that sends it to its correlative search, and the relative pose error."""
+    from dataclasses import replace
+
+    from ..io.carmen import read_carmen
+    from ..slam import match_scans, relative_pose_error
+
+    scans = read_carmen(_office_log(folder)).scans
+    track = match_scans(scans[:12])
+    match_scans([replace(s, odom=None) for s in scans[:10] + scans[30:31]])
+    relative_pose_error(track.poses, np.array([s.pose for s in scans[:12]]))
+
+
 def octree(folder: Path) -> None:
     """Octree insertion (small and large scans, discretized, lazy), queries, ray casts, files."""
     from ..io.octomap import read_octree, write_bt, write_ot
@@ -305,7 +319,7 @@ def city(folder: Path) -> None:
     drive.city.occupied(cloud.world_points())
 
 
-JOBS = (geometry, grids, local_map, localization, octree, world, city)
+JOBS = (geometry, grids, local_map, localization, scan_matching, octree, world, city)
 
 
 def run(args) -> int:

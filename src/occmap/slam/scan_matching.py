@@ -10,8 +10,9 @@ submap: the square of side ``2 · field_radius`` around the last inserted pose, 
 distance fields (distance to the nearest occupied cell, :mod:`occmap.raster.edt`) at
 ``levels`` resolutions, ``resolution · 2^k``, the coarser ones from the finer occupied cells
 by any-of-block. A scan is matched by Gauss–Newton coarse to fine from the prior (2 below); when
-that fails or keeps fewer than :data:`SEARCH_BELOW` of the end points within the fine cutoff,
-again from the best pose of a correlative search (1), and the match with more such inliers wins:
+that fails or keeps fewer than :data:`SEARCH_BELOW` (:data:`SEARCH_BELOW_ODOMETRY` from an odometry
+prior) of the end points within the fine cutoff, again from the best pose of a correlative search
+(1), and the match with more such inliers wins:
 
 1. A correlative search (Olson, "Real-time correlative scan matching", ICRA 2009; Cartographer's
    real-time matcher) over poses within ``search_window`` of the prior on the coarsest field:
@@ -85,10 +86,15 @@ SURFACE_GAP = 0.5
 #: End points scored per candidate of the correlative search, at most (evenly spread).
 SEARCH_BEAMS = 120
 
-#: The correlative search runs when Gauss–Newton from the prior keeps fewer than this share of the
-#: end points within the fine cutoff. Higher (0.5, 0.8) misled Intel's sparse scans (0.67 m apart,
-#: odometry as the prior): a search pose with more inliers in a half-mapped room was a wrong one.
-SEARCH_BELOW = 0.3
+#: The correlative search runs when Gauss–Newton from a constant-velocity prior keeps fewer than
+#: this share of the end points within the fine cutoff (on Intel's run from the ranges alone, 0.3
+#: let 27 wrong matches through, 0.8 none) ...
+SEARCH_BELOW = 0.8
+
+#: ... and from an odometry prior, which is seldom far off: on Intel's sparse scans (0.67 m apart)
+#: 0.8 sent 46 to a search pose with more inliers in a half-mapped room that was a wrong one, 0.3
+#: none.
+SEARCH_BELOW_ODOMETRY = 0.3
 
 #: Status of a scan in :attr:`ScanMatchTrack.status`.
 FIRST, MATCHED, FAILED, REJECTED = 0, 1, 2, 3
@@ -304,8 +310,8 @@ class ScanMatcher:
             pose = np.array(p.initial_pose, dtype=np.float64)
             prior, status = pose.copy(), FIRST
         else:
-            prior = self._predict(odom)
-            pose, status = self._match(prior, bx, by)
+            prior, by_odometry = self._predict(odom)
+            pose, status = self._match(prior, bx, by, SEARCH_BELOW_ODOMETRY if by_odometry else SEARCH_BELOW)
             if status == MATCHED:
                 pose, degenerate = _keep_prior_where_unconstrained(pose, prior, bx, by)
         self.quality = self._quality(status, pose, bx, by, degenerate)
@@ -317,17 +323,18 @@ class ScanMatcher:
             self._insert(scan, pose)
         return pose.copy()
 
-    def _predict(self, odom) -> np.ndarray:
+    def _predict(self, odom) -> tuple[np.ndarray, bool]:
+        """The prior and whether odometry gave it."""
         if odom is not None and self._odom is not None and np.isfinite(odom).all() and np.isfinite(self._odom).all():
-            return compose_poses(self._pose, relative_poses(self._odom, odom))
-        return compose_poses(self._pose, self._step)
+            return compose_poses(self._pose, relative_poses(self._odom, odom)), True
+        return compose_poses(self._pose, self._step), False
 
-    def _match(self, prior: np.ndarray, bx: np.ndarray, by: np.ndarray) -> tuple[np.ndarray, int]:
+    def _match(self, prior: np.ndarray, bx: np.ndarray, by: np.ndarray, search_below: float) -> tuple[np.ndarray, int]:
         p = self.params
         if not self._fields:
             return prior, FAILED
         x, inliers = self._refine(prior, bx, by)
-        if x is None or inliers < SEARCH_BELOW * bx.size:
+        if x is None or inliers < search_below * bx.size:
             y, more = self._refine(self._search(prior, bx, by), bx, by)
             if y is not None and more > inliers:
                 x = y
