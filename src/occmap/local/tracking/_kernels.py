@@ -1,0 +1,185 @@
+"""Numba kernels of the tracker: optimal assignment (the Hungarian method) and the grid clustering
+of detections. Plain arrays in and out; the callers check shapes and values."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..._jit import kernel
+
+
+@kernel
+def min_cost_assignment(cost, out):
+    """Rows matched to distinct columns at least total cost, for ``cost`` ``(n, m)`` with
+    ``n ≤ m`` and finite entries: ``out[i]`` = the column of row ``i``.
+
+    Shortest augmenting paths with row and column potentials (Kuhn–Munkres as in Jonker and
+    Volgenant 1987): ``O(n² m)``."""
+    n, m = cost.shape
+    u = np.zeros(n + 1)
+    v = np.zeros(m + 1)
+    owner = np.zeros(m + 1, np.int64)  # owner[j]: the row (1-based) holding column j; 0 none
+    way = np.zeros(m + 1, np.int64)
+    minv = np.empty(m + 1)
+    used = np.empty(m + 1, np.bool_)
+    for i in range(1, n + 1):
+        owner[0] = i
+        j0 = 0
+        minv[:] = np.inf
+        used[:] = False
+        while True:
+            used[j0] = True
+            i0 = owner[j0]
+            delta = np.inf
+            j1 = 0
+            for j in range(1, m + 1):
+                if not used[j]:
+                    cur = cost[i0 - 1, j - 1] - u[i0] - v[j]
+                    if cur < minv[j]:
+                        minv[j] = cur
+                        way[j] = j0
+                    if minv[j] < delta:
+                        delta = minv[j]
+                        j1 = j
+            for j in range(m + 1):
+                if used[j]:
+                    u[owner[j]] += delta
+                    v[j] -= delta
+                else:
+                    minv[j] -= delta
+            j0 = j1
+            if owner[j0] == 0:
+                break
+        while j0 != 0:  # flip the augmenting path
+            j1 = way[j0]
+            owner[j0] = owner[j1]
+            j0 = j1
+    for j in range(1, m + 1):
+        if owner[j] != 0:
+            out[owner[j] - 1] = j - 1
+    return out
+
+
+@kernel
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@kernel
+def cluster_points(points, gap, labels):
+    """Single-linkage clusters of points ``(N, 2)``: two points share a cluster when a chain of
+    points at most ``gap`` apart joins them. ``labels[i]`` = cluster of point ``i``, numbered
+    ``0, 1, …`` in order of first point; returns the number of clusters. Points are binned into
+    cells of side ``gap`` and compared with the 3 × 3 cells around theirs."""
+    n = points.shape[0]
+    inv = 1.0 / gap
+    cx = np.empty(n, np.int64)
+    cy = np.empty(n, np.int64)
+    for i in range(n):
+        cx[i] = np.int64(np.floor(points[i, 0] * inv))
+        cy[i] = np.int64(np.floor(points[i, 1] * inv))
+    ox = cx.min() if n else 0
+    oy = cy.min() if n else 0
+    span = (cy.max() - oy + 3) if n else 1
+    key = (cx - ox + 1) * span + (cy - oy + 1)
+    order = np.argsort(key)
+    skey = key[order]
+    parent = np.arange(n)
+    g2 = gap * gap
+    for a in range(n):
+        i = order[a]
+        for dx in range(-1, 2):
+            for dy in range(-1, 2):
+                k = key[i] + dx * span + dy
+                lo = np.searchsorted(skey, k)
+                b = lo
+                while b < n and skey[b] == k:
+                    j = order[b]
+                    if j > i:
+                        ex = points[i, 0] - points[j, 0]
+                        ey = points[i, 1] - points[j, 1]
+                        if ex * ex + ey * ey <= g2:
+                            ri = _root(parent, i)
+                            rj = _root(parent, j)
+                            if ri != rj:
+                                parent[max(ri, rj)] = min(ri, rj)
+                    b += 1
+    count = 0
+    number = np.full(n, -1, np.int64)
+    for i in range(n):
+        r = _root(parent, i)
+        if number[r] < 0:
+            number[r] = count
+            count += 1
+        labels[i] = number[r]
+    return count
+
+
+@kernel
+def fit_boxes(points, starts, steps, min_distance, out):
+    """Oriented boxes around point clusters by L-shape fitting with the closeness criterion (Zhang
+    et al., "Efficient L-shape fitting for vehicle detection using laser scanners", IV 2017).
+
+    Cluster ``k`` is ``points[starts[k]:starts[k + 1]]``. For each of ``steps`` directions θ in
+    [0, π/2) the points are projected on ``e1 = (cos θ, sin θ)`` and ``e2 = (−sin θ, cos θ)``; the
+    score sums, over points, ``1 / max(d, min_distance)`` with ``d`` the distance to the nearer of
+    the box's two nearest edges; the best θ gives the box. ``out[k]`` = (centre x, centre y,
+    heading of the longer side in [−π/2, π/2), length, width)."""
+    for k in range(starts.shape[0] - 1):
+        a = starts[k]
+        b = starts[k + 1]
+        best = -1.0
+        best_t = 0.0
+        for s in range(steps):
+            t = 0.5 * np.pi * s / steps
+            c = np.cos(t)
+            sn = np.sin(t)
+            lo1 = np.inf
+            hi1 = -np.inf
+            lo2 = np.inf
+            hi2 = -np.inf
+            for i in range(a, b):
+                p1 = c * points[i, 0] + sn * points[i, 1]
+                p2 = -sn * points[i, 0] + c * points[i, 1]
+                lo1 = min(lo1, p1)
+                hi1 = max(hi1, p1)
+                lo2 = min(lo2, p2)
+                hi2 = max(hi2, p2)
+            score = 0.0
+            for i in range(a, b):
+                p1 = c * points[i, 0] + sn * points[i, 1]
+                p2 = -sn * points[i, 0] + c * points[i, 1]
+                d = min(min(hi1 - p1, p1 - lo1), min(hi2 - p2, p2 - lo2))
+                score += 1.0 / max(d, min_distance)
+            if score > best:
+                best = score
+                best_t = t
+        c = np.cos(best_t)
+        sn = np.sin(best_t)
+        lo1 = np.inf
+        hi1 = -np.inf
+        lo2 = np.inf
+        hi2 = -np.inf
+        for i in range(a, b):
+            p1 = c * points[i, 0] + sn * points[i, 1]
+            p2 = -sn * points[i, 0] + c * points[i, 1]
+            lo1 = min(lo1, p1)
+            hi1 = max(hi1, p1)
+            lo2 = min(lo2, p2)
+            hi2 = max(hi2, p2)
+        m1 = 0.5 * (lo1 + hi1)
+        m2 = 0.5 * (lo2 + hi2)
+        out[k, 0] = c * m1 - sn * m2
+        out[k, 1] = sn * m1 + c * m2
+        if hi1 - lo1 >= hi2 - lo2:
+            out[k, 2] = best_t
+            out[k, 3] = hi1 - lo1
+            out[k, 4] = hi2 - lo2
+        else:
+            out[k, 2] = best_t - 0.5 * np.pi
+            out[k, 3] = hi2 - lo2
+            out[k, 4] = hi1 - lo1
+    return out
