@@ -128,7 +128,7 @@ def test_box_fit_recovers_an_l_shaped_view(heading):
 
 def _detection(x, y, size=0.5):
     return Detections(np.array([x]), np.array([y]), np.array([0.0]), np.array([size]), np.array([size]),
-                      np.array([10]), np.array([False]))
+                      np.array([10]), np.array([False]), np.array([False]))
 
 
 def test_a_walking_person_is_confirmed_and_tracked():

@@ -4,8 +4,9 @@ a planar lidar (cast exactly through :class:`~occmap.sim.world2d.World2D`) and a
 The default scene (:meth:`Street.default`, 20 s) is a main street along x (road ``|y| ≤ 5`` m, a
 parking lane at ``|y| ≈ 4``, lanes centred at ``y = ±1.5``, pavements to the building fronts at
 ``|y| = 8``) crossed at ``x ∈ [65, 75]`` by a side street along y. In it: parked cars (static), cars
-at 7–14 m/s passing each other (1.2 m apart), one turning from the side street into the main
-street, one crossing it, pedestrians at 1.2–1.8 m/s along and across the street, and a delivery
+at 6–14 m/s passing each other (1.2 m apart), one turning from the side street into the main
+street (easing in and out of the bend), one crossing it, pedestrians at 1.2–1.8 m/s along and
+across the street, and a delivery
 robot on the southern pavement at 1.5 m/s that carries the sensors.
 
 Objects move on piecewise constant ``(speed, yaw rate)`` legs integrated exactly
@@ -149,10 +150,29 @@ def _trees() -> np.ndarray:
                            np.stack([xs + 7.0, np.full(8, -5.6), np.full(8, 0.15)], -1)])
 
 
+def _turn_legs(speed: float, radius: float, angle: float, ramp: float = 0.5, steps: int = 5) -> tuple:
+    """Legs that turn by ``angle`` (rad, negative clockwise) at ``speed`` on an arc of ``radius``,
+    the yaw rate raised and lowered over ``ramp`` seconds in ``steps`` stairs (as a driver eases
+    into a bend: yaw acceleration about ``speed / radius / ramp``)."""
+    rate = math.copysign(speed / radius, angle)
+    dt = ramp / steps
+    up = [(dt, speed, rate * (k + 0.5) / steps) for k in range(steps)]
+    hold = abs(angle / rate) - ramp  # each ramp turns by rate · ramp / 2
+    return (*up, (hold, speed, rate), *reversed(up))
+
+
+def _displacement(legs: tuple, heading: float) -> np.ndarray:
+    """Where ``legs`` driven from the origin at ``heading`` end."""
+    return Mover(0, CAR, 1.0, 1.0, 0.0, (0.0, 0.0, heading), legs).state(sum(leg[0] for leg in legs))[0][:2]
+
+
 def _default_movers() -> tuple:
     car, person = _CAR, _PERSON
-    turn_r, turn_v = 4.5, 7.0
-    turn = (math.pi / 2.0 * turn_r / turn_v, turn_v, -turn_v / turn_r)
+    turn_v = 6.0
+    turn = _turn_legs(turn_v, 8.0, -math.pi / 2.0)
+    # where the turn must begin for the car to come out of it on the eastbound lane's centre line
+    _, dy = _displacement(turn, math.pi / 2.0)
+    approach = (-1.5 - dy) - (-45.0)
     parked = [(18.0, 4.0), (24.0, 4.0), (47.0, 4.0), (95.0, 4.0), (101.0, 4.0), (88.0, -4.0), (110.0, -4.0)]
     movers = [Mover(i, PARKED, *car, 0.0, (x, y, 0.0), ((1e9, 0.0, 0.0),)) for i, (x, y) in enumerate(parked)]
     k = len(movers)
@@ -160,13 +180,13 @@ def _default_movers() -> tuple:
         Mover(k, CAR, *car, 0.0, (10.0, -1.5, 0.0), ((12.0, 10.0, 0.0),)),  # eastbound
         Mover(k + 1, CAR, *car, 2.0, (135.0, 1.5, math.pi), ((12.0, 11.0, 0.0),)),  # westbound, passes k
         Mover(k + 2, CAR, *car, 3.0, (71.5, -45.0, math.pi / 2.0),  # turns right into the main street
-              ((39.0 / turn_v, turn_v, 0.0), turn, (10.0, turn_v, 0.0))),
+              ((approach / turn_v, turn_v, 0.0), *turn, (10.0, turn_v, 0.0))),
         Mover(k + 3, CAR, *car, 4.0, (68.5, 45.0, -math.pi / 2.0), ((90.0 / 13.0, 13.0, 0.0),)),  # crosses
-        Mover(k + 4, CAR, *car, 8.0, (0.0, -1.5, 0.0), ((10.0, 14.0, 0.0),)),  # overtakes the robot
-        Mover(k + 5, PEDESTRIAN, person, person, 0.0, (100.0, 6.5, math.pi), ((20.0, 1.4, 0.0),)),
+        Mover(k + 4, CAR, *car, 9.5, (0.0, -1.5, 0.0), ((10.5, 12.0, 0.0),)),  # overtakes the robot
+        Mover(k + 5, PEDESTRIAN, person, person, 0.0, (100.0, 6.3, math.pi), ((20.0, 1.4, 0.0),)),
         Mover(k + 6, PEDESTRIAN, person, person, 0.0, (52.0, -7.3, 0.0), ((20.0, 1.6, 0.0),)),
         Mover(k + 7, PEDESTRIAN, person, person, 5.0, (85.0, 7.0, -math.pi / 2.0), ((14.5 / 1.2, 1.2, 0.0),)),
-        Mover(k + 8, PEDESTRIAN, person, person, 0.0, (40.0, 6.8, 0.0), ((20.0, 1.8, 0.0),)),
+        Mover(k + 8, PEDESTRIAN, person, person, 0.0, (40.0, 7.3, 0.0), ((20.0, 1.8, 0.0),)),
     ]
     return tuple(movers)
 
@@ -262,9 +282,10 @@ class Street:
         static structure) per ray, with Gaussian noise on range, azimuth and radial velocity. Then
         ``clutter_rate`` false alarms on average (Poisson; uniform in range and azimuth, half at the
         Doppler of the static ground, half at random velocities within ±15 m/s) and, for each
-        object detection with probability ``p_ghost``, a multipath ghost: the reflector mirrored
-        across the building front beyond it, with its mirrored velocity. Cross-sections (dBsm): cars
-        10 ± 3, pedestrians −5 ± 3, structure 15 ± 5, false alarms −10 ± 5.
+        object detection between two building fronts of the main street with probability
+        ``p_ghost``, a multipath ghost: the reflector mirrored across the front beyond it, with its
+        mirrored velocity. Cross-sections (dBsm): cars 10 ± 3, pedestrians −5 ± 3, structure
+        15 ± 5, false alarms −10 ± 5.
         """
         rng = np.random.default_rng(rng)
         pose = self.robot_pose(t)
@@ -289,7 +310,8 @@ class Street:
         pts, vel, truth, kind = world_pts[keep], vel[keep], truth[keep], kind[keep]
         rcs = np.where(kind == PEDESTRIAN, -5.0, np.where(kind >= 0, 10.0, 15.0))
         rcs = rcs + rng.normal(0.0, np.where(kind < 0, 5.0, 3.0))
-        ghost = (truth >= 0) & (rng.random(truth.shape[0]) < p_ghost)
+        fronted = (np.abs(pts[:, 1]) < _FRONT) & ((pts[:, 0] < _SIDE[0]) | (pts[:, 0] > _SIDE[1]))
+        ghost = (truth >= 0) & fronted & (rng.random(truth.shape[0]) < p_ghost)
         g_pts = pts[ghost].copy()
         front = np.where(g_pts[:, 1] > pose[1], _FRONT, -_FRONT)
         g_pts[:, 1] = 2.0 * front - g_pts[:, 1]

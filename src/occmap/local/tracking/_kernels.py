@@ -183,3 +183,47 @@ def fit_boxes(points, starts, steps, min_distance, out):
             out[k, 3] = hi2 - lo2
             out[k, 4] = hi1 - lo1
     return out
+
+
+@kernel
+def occluded_ends(points, starts, sx, sy, scene, angle, depth, out):
+    """Whether something nearer hides an end of each cluster from the sensor at ``(sx, sy)``:
+    ``out[k]`` is true when a point of ``scene`` ``(K, 2)`` lies within ``angle`` (rad) beyond
+    either angular end of cluster ``k`` (``points[starts[k]:starts[k + 1]]``) and at least
+    ``depth`` (m) nearer than that end."""
+    for k in range(starts.shape[0] - 1):
+        a = starts[k]
+        b = starts[k + 1]
+        mx = 0.0
+        my = 0.0
+        for i in range(a, b):
+            mx += points[i, 0] - sx
+            my += points[i, 1] - sy
+        mid = np.arctan2(my, mx)
+        lo = np.inf
+        hi = -np.inf
+        r_lo = 0.0
+        r_hi = 0.0
+        for i in range(a, b):
+            dx = points[i, 0] - sx
+            dy = points[i, 1] - sy
+            rel = np.arctan2(dy, dx) - mid
+            rel = rel - 2.0 * np.pi * np.floor((rel + np.pi) / (2.0 * np.pi))
+            if rel < lo:
+                lo = rel
+                r_lo = np.hypot(dx, dy)
+            if rel > hi:
+                hi = rel
+                r_hi = np.hypot(dx, dy)
+        hidden = False
+        for j in range(scene.shape[0]):
+            dx = scene[j, 0] - sx
+            dy = scene[j, 1] - sy
+            rel = np.arctan2(dy, dx) - mid
+            rel = rel - 2.0 * np.pi * np.floor((rel + np.pi) / (2.0 * np.pi))
+            r = np.hypot(dx, dy)
+            if (lo - angle <= rel < lo and r < r_lo - depth) or (hi < rel <= hi + angle and r < r_hi - depth):
+                hidden = True
+                break
+        out[k] = hidden
+    return out

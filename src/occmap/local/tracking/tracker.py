@@ -11,7 +11,8 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
    it. That centre is the pair's measurement.
 3. **Gate and assign**: pairs with squared Mahalanobis distance of the centres above ``gate`` are
    not allowed; among the rest the assignment of least total ``d² + ln det S`` that matches the
-   most pairs is taken (the cost of a Gaussian likelihood).
+   most pairs is taken (the cost of a Gaussian likelihood), first for the confirmed tracks, then
+   for the others with the detections left.
 4. **Manage**: a matched track is updated (its heading too when the box is L-shaped, choosing the
    box axis nearer to the track's heading); its size grows to the largest extent seen (capped).
    A detection left over starts a *tentative* track; at its second detection the velocity is set
@@ -45,6 +46,8 @@ __all__ = ["TrackerParams", "Tracker", "Tracks"]
 TENTATIVE, CONFIRMED = 0, 1
 #: Tracks shorter than this (m) are taken as round objects (people), longer ones as vehicles.
 MIN_VEHICLE_LENGTH = 1.0
+#: A line of returns at least this long (m) gives a direction.
+MIN_FACE_LENGTH = 1.0
 
 
 @dataclass(frozen=True)
@@ -59,21 +62,25 @@ class TrackerParams:
     confirm_hits: int = 3
     confirm_window: int = 5
     min_travel: float = 0.5
+    lost_after: float = 0.3
     max_coast: float = 1.0
     tentative_coast: float = 0.3
     max_position_sigma: float = 3.0
     max_size: tuple = (8.0, 3.0)
-    vehicle_size: tuple = (4.0, 1.7)
+    vehicle_size: tuple = (4.4, 1.8)
     vehicle_width: float = 1.2
-    min_moving_speed: float = 1.0
+    min_moving_speed: float = 3.0
     max_speed: float = 20.0
+    footprint_margin: float = 0.5
+    settled_heading_sigma: float = math.radians(10.0)
     initial_speed_sigma: float = 10.0
     initial_yaw_rate_sigma: float = 0.5
     radial_velocity_sigma: float = 0.2
 
     def __post_init__(self):
-        for name in ("accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "max_coast",
-                     "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed", "initial_speed_sigma", "initial_yaw_rate_sigma",
+        for name in ("accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after", "max_coast",
+                     "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed", "footprint_margin",
+                     "settled_heading_sigma", "initial_speed_sigma", "initial_yaw_rate_sigma",
                      "radial_velocity_sigma"):
             checks.positive(name, getattr(self, name))
         checks.non_negative("min_travel", self.min_travel, "metres")
@@ -84,8 +91,10 @@ class TrackerParams:
 
 class Tracks(NamedTuple):
     """Tracks at one time, one entry each: ``id``, centre ``x``, ``y`` (m), velocity ``vx``, ``vy``
-    (m/s), ``heading`` (rad, direction of travel), ``length``, ``width`` (m), ``confirmed`` and the
-    state covariance ``covariance`` ``(N, 5, 5)`` over ``(x, y, heading, speed, yaw_rate)``."""
+    (m/s), ``heading`` (rad, direction of travel), ``length``, ``width`` (m), ``confirmed`` (a
+    confirmed track detected within ``lost_after`` seconds), ``lost`` (a confirmed track not
+    detected for longer: predicted only, until ``max_coast``) and the state covariance
+    ``covariance`` ``(N, 5, 5)`` over ``(x, y, heading, speed, yaw_rate)``."""
 
     id: np.ndarray
     x: np.ndarray
@@ -96,6 +105,7 @@ class Tracks(NamedTuple):
     length: np.ndarray
     width: np.ndarray
     confirmed: np.ndarray
+    lost: np.ndarray
     covariance: np.ndarray
 
     def __len__(self) -> int:
@@ -114,6 +124,12 @@ def _corners(det: Detections) -> np.ndarray:
                      det.y[:, None] + s[:, None] * ax + c[:, None] * ay], -1)
 
 
+def _directed(det: Detections) -> np.ndarray:
+    """Detections whose box has a direction: L-shaped, or a face at least
+    :data:`MIN_FACE_LENGTH` long (its direction is the object's side or its end)."""
+    return det.oriented | (det.length >= MIN_FACE_LENGTH)
+
+
 def _turn_around(states: np.ndarray, covs: np.ndarray) -> None:
     """In place: states with negative speed get ``θ + π`` and ``−v`` (the same motion)."""
     back = states[:, 3] < 0.0
@@ -122,6 +138,30 @@ def _turn_around(states: np.ndarray, covs: np.ndarray) -> None:
         states[back, 3] = -states[back, 3]
         flip = np.diag([1.0, 1.0, 1.0, -1.0, 1.0])
         covs[back] = flip @ covs[back] @ flip
+
+
+def _nearest_axis(box_heading, heading):
+    """The direction among ``box_heading + k·π/2`` nearest to ``heading`` (radians)."""
+    return box_heading + 0.5 * math.pi * np.round((heading - box_heading) / (0.5 * math.pi))
+
+
+def _frames(heading, size, centre, sensor, box_heading, directed):
+    """Axes ``(..., 2, 2)`` (rows) in which a detection centred at ``centre`` (..., 2) is measured
+    for a track of ``heading`` (...) and ``size`` (..., 2), and the size along them. A vehicle
+    (length ≥ :data:`MIN_VEHICLE_LENGTH`) is measured along its length and its side: the axes of a
+    ``directed`` detection's box (``box_heading``, the one of its axes nearest to the track's
+    heading), else the track's own (a track's heading must not place the centre that corrects the
+    heading); a smaller object, taken as round, along the line of sight and across it, its size the
+    largest seen."""
+    along = np.where(directed, _nearest_axis(box_heading, heading), heading)
+    c, s = np.cos(along), np.sin(along)
+    track = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2)
+    d = centre - sensor
+    u = d / np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)[..., None]
+    sight = np.stack([u, np.stack([-u[..., 1], u[..., 0]], -1)], -2)
+    small = size[..., 0] < MIN_VEHICLE_LENGTH
+    axes = np.where(small[..., None, None], sight, track)
+    return axes, np.where(small[..., None], size.max(axis=-1, keepdims=True), size)
 
 
 class Tracker:
@@ -146,6 +186,7 @@ class Tracker:
         self.last_hit = np.empty(0)
         self.updates = np.empty(0, np.int64)
         self.hit_bits = np.empty(0, np.uint8)
+        self.clean = np.empty(0, bool)  # the last detection was whole (not occluded)
         self.stats = {"updates": 0, "detections": 0, "tracks_started": 0, "tracks_confirmed": 0, "tracks_dropped": 0}
 
     def __len__(self) -> int:
@@ -179,33 +220,38 @@ class Tracker:
 
     # ------------------------------------------------------------------ measurement
 
-    def _pair_frames(self, det: Detections, sensor: np.ndarray):
-        """Per track and detection: the axes ``(N, M, 2, 2)`` (rows) in which the detection is
-        measured and the track's size ``(N, 2)`` along them. A vehicle (length ≥
-        :data:`MIN_VEHICLE_LENGTH`) is measured along its heading and its side; a smaller object,
-        taken as round, along the line of sight and across it, its size the largest seen."""
-        th = self.state[:, 2]
-        track = np.stack([np.stack([np.cos(th), np.sin(th)], -1), np.stack([-np.sin(th), np.cos(th)], -1)], 1)
-        d = np.stack([det.x, det.y], -1) - sensor
-        u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)[:, None]
-        sight = np.stack([u, np.stack([-u[:, 1], u[:, 0]], -1)], 1)
-        small = self.size[:, 0] < MIN_VEHICLE_LENGTH
-        axes = np.where(small[:, None, None, None], sight[None], track[:, None])
-        size = np.where(small[:, None], self.size.max(axis=1, keepdims=True), self.size)
-        return axes, size
+    def _measure(self, corners: np.ndarray, axes: np.ndarray, size: np.ndarray, sensor: np.ndarray, occluded=False,
+                 track=None):
+        """What a detected box says of an object of size ``size`` (``(..., 2)`` along ``axes``
+        ``(..., 2, 2)``), from its corners ``(..., 4, 2)`` seen from ``sensor``: ``(centre (..., 2),
+        covariance (..., 2, 2), seen extent (..., 2), side (..., 2))``.
 
-    def _measured_centres(self, corners: np.ndarray, axes: np.ndarray, size: np.ndarray, sensor: np.ndarray):
-        """Detection centres corrected for the faces not seen ``(..., 2)``, and the extents seen
-        ``(..., 2)``, from box corners ``(..., 4, 2)`` measured along ``axes`` ``(..., 2, 2)``
-        with the track sizes ``size`` ``(..., 2)``."""
+        Along an axis where the sensor lies beyond the extent seen, the near edge is the object's
+        (``side`` +1: the object lies toward +axis from its lower edge, −1 from its upper edge)
+        and the centre half the size behind it. Elsewhere — the sensor within the extent
+        (``side`` 0), or any axis of an ``occluded`` box (``(...)``: its near edges may be where the
+        occluder cuts it) — the box only bounds the centre: it lies where an object of that size
+        still covers all that is seen. Given the ``track``'s centre (..., 2) the measurement is the
+        point of that interval nearest to it (none of a bias a part seen for many scans would
+        build up); without it the interval's middle, uncertain by its length (uniform)."""
+        p = self.params
         proj = np.einsum("...cj,...aj->...ac", corners, axes)
         lo, hi = proj.min(-1), proj.max(-1)
         seen = hi - lo
         s_proj = np.einsum("...aj,j->...a", axes, sensor)
         full = np.maximum(size, seen)
-        # the edge nearer to the sensor is the one seen; a sensor within the extent sees both
-        centre = np.where(s_proj < lo, lo + 0.5 * full, np.where(s_proj > hi, hi - 0.5 * full, 0.5 * (lo + hi)))
-        return np.einsum("...a,...aj->...j", centre, axes), seen
+        side = np.where(s_proj < lo, 1.0, np.where(s_proj > hi, -1.0, 0.0))
+        unsure = (side == 0) | np.asarray(occluded)[..., None]
+        first, last = hi - 0.5 * full, lo + 0.5 * full  # centres that cover what is seen
+        if track is None:
+            bound = 0.5 * (first + last)
+            var = p.position_sigma ** 2 + np.where(unsure, (full - seen) ** 2 / 12.0, 0.0)
+        else:
+            bound = np.clip(np.einsum("...aj,...j->...a", axes, track), first, last)
+            var = np.full(bound.shape, p.position_sigma ** 2)
+        centre = np.where(unsure, bound, np.where(side > 0, lo + 0.5 * full, hi - 0.5 * full))
+        return (np.einsum("...a,...aj->...j", centre, axes), np.einsum("...ai,...a,...aj->...ij", axes, var, axes),
+                seen, side)
 
     def update(self, stamp: float, detections: Detections, sensor) -> None:
         """Bring the tracks to ``stamp`` (s, not before the last) with one scan's detections seen
@@ -219,48 +265,71 @@ class Tracker:
         self.hit_bits = (self.hit_bits << 1).astype(np.uint8)
         rows = cols = np.empty(0, np.int64)
         if n and m:
-            axes, size = self._pair_frames(detections, sensor)
-            z, seen = self._measured_centres(_corners(detections)[None], axes, size[:, None], sensor)
+            centres = np.stack([detections.x, detections.y], -1)
+            directed = _directed(detections)
+            axes, size = _frames(self.state[:, None, 2], self.size[:, None], centres[None], sensor,
+                                 detections.heading[None], directed[None])
+            z, R, _, _ = self._measure(_corners(detections)[None], axes, size, sensor, detections.occluded[None],
+                                       self.state[:, None, :2])
             r = z - self.state[:, None, :2]
-            S = self.cov[:, None, :2, :2] + p.position_sigma ** 2 * np.eye(2)
+            S = self.cov[:, None, :2, :2] + R
             # a track seen once has no velocity yet: it may have gone anywhere within max_speed
             young = self.updates == 0
             reach = (p.max_speed * (self.time - self.last_hit[young]) / 3.0) ** 2
-            S[young] = (reach[:, None, None, None] + 2.0 * p.position_sigma ** 2) * np.eye(2)
+            S[young] += reach[:, None, None, None] * np.eye(2)
             d2 = np.einsum("nmi,nmi->nm", r, np.linalg.solve(S, r[..., None])[..., 0])
             cost = np.where(d2 <= p.gate, d2 + np.log(np.linalg.det(S)), np.inf)
-            rows, cols = assign(cost)
+            rows, cols = self._assign(cost)
             if len(rows):
-                self._correct(rows, cols, z[rows, cols], detections)
-                small = self.size[rows, 0] < MIN_VEHICLE_LENGTH
-                grown = np.maximum(self.size[rows], seen[rows, cols])
-                grown[small] = grown[small].max(axis=1, keepdims=True)
-                # a moving object as wide as a car is taken as at least a car until seen whole
-                car = (grown.max(axis=1) >= p.vehicle_width) & (self.state[rows, 3] >= p.min_moving_speed)
-                grown[car] = np.maximum(grown[car], p.vehicle_size)
-                self.size[rows] = np.minimum(grown, p.max_size)
+                self._resize(*self._correct(rows, cols, z[rows, cols], R[rows, cols], detections), detections, sensor)
         self._manage(rows)
         spawn = np.setdiff1d(np.arange(m), cols)
+        if len(spawn) and len(self):
+            spawn = spawn[~self._inside(detections.x[spawn], detections.y[spawn])]
         if len(spawn):
             self._spawn(detections, spawn)
         _turn_around(self.state, self.cov)
 
-    def _correct(self, rows, cols, centres, det: Detections) -> None:
+    def _assign(self, cost: np.ndarray):
+        """Confirmed tracks choose first; the others share the detections left."""
+        first = np.flatnonzero(self.status == CONFIRMED)
+        r1, c1 = assign(cost[first])
+        r1 = first[r1]
+        rest = np.flatnonzero(self.status != CONFIRMED)
+        free = np.setdiff1d(np.arange(cost.shape[1]), c1)
+        r2, c2 = assign(cost[np.ix_(rest, free)])
+        rows = np.concatenate([r1, rest[r2]])
+        cols = np.concatenate([c1, free[c2]])
+        return rows, cols
+
+    def _correct(self, rows, cols, centres, R_centre, det: Detections) -> None:
+        """Update matched tracks; returns the rows that are now initialised (all but the re-born)."""
         p = self.params
         first = self.updates[rows] == 0
+        reborn = first & ~(self.clean[rows] & ~det.occluded[cols])
+        if reborn.any():  # a displacement between boxes an occluder cuts says nothing of the motion
+            r, c = rows[reborn], cols[reborn]
+            self.state[r, 0], self.state[r, 1], self.state[r, 2] = det.x[c], det.y[c], det.heading[c]
+            self.state[r, 3:] = 0.0
+            self.size[r] = np.minimum(np.stack([det.length[c], det.width[c]], -1), p.max_size)
+        first &= ~reborn
         if first.any():  # the second detection: velocity from the displacement
-            r = rows[first]
-            d = centres[first] - self.state[r, :2]
+            r, c = rows[first], cols[first]
+            d = np.stack([det.x[c], det.y[c]], -1) - self.state[r, :2]
             dt = np.maximum(self.time - self.last_hit[r], 1e-3)
             dist = np.hypot(d[:, 0], d[:, 1])
-            self.state[r, :2] = centres[first]
-            self.state[r, 2] = np.arctan2(d[:, 1], d[:, 0])
+            heading = np.arctan2(d[:, 1], d[:, 0])
+            # an L-shaped box knows the heading better than two noisy centres: its axis nearest
+            aligned = _nearest_axis(det.heading[c], heading)
+            self.state[r, 2] = np.where(det.oriented[c], wrap_angle(aligned), heading)
+            self.state[r, :2] = np.stack([det.x[c], det.y[c]], -1)
             self.state[r, 3] = dist / dt
             self.state[r, 4] = 0.0
             var_p = p.position_sigma ** 2
             cov = np.zeros((len(r), 5, 5))
             cov[:, 0, 0] = cov[:, 1, 1] = var_p
-            cov[:, 2, 2] = np.minimum(2.0 * var_p / np.maximum(dist, 1e-9) ** 2, (math.pi / 2) ** 2)
+            cov[:, 2, 2] = np.where(det.oriented[c], p.heading_sigma ** 2,
+                                    np.minimum(2.0 * var_p / np.maximum(dist, 1e-9) ** 2, (math.pi / 2) ** 2))
             cov[:, 3, 3] = 2.0 * var_p / dt ** 2 + (p.accel * dt) ** 2
             cov[:, 4, 4] = p.initial_yaw_rate_sigma ** 2
             self.cov[r] = cov
@@ -268,31 +337,71 @@ class Tracker:
         if rest.any():
             r, c = rows[rest], cols[rest]
             z = np.concatenate([centres[rest], np.zeros((len(r), 1))], 1)
-            oriented = det.oriented[c] & (self.updates[r] >= 2)
-            # the box axis nearer to the track's heading, modulo π
-            h = det.heading[c]
-            alt = h + math.pi / 2.0
-            near = np.abs(wrap_angle(2.0 * (h - self.state[r, 2]))) <= np.abs(wrap_angle(2.0 * (alt - self.state[r, 2])))
-            z[:, 2] = np.where(near, h, alt)
+            oriented = _directed(det)[c] & (self.updates[r] >= 2) & (self.size[r, 0] >= MIN_VEHICLE_LENGTH)
+            z[:, 2] = _nearest_axis(det.heading[c], self.state[r, 2])
             for with_heading in (False, True):
                 k = oriented == with_heading
                 if not k.any():
                     continue
                 y, H = ekf.pose_innovation(self.state[r[k]], z[k], with_heading)
-                sig = [p.position_sigma, p.position_sigma] + ([p.heading_sigma] if with_heading else [])
-                R = np.broadcast_to(np.diag(np.square(sig)), (int(k.sum()), len(sig), len(sig)))
+                R = np.zeros((int(k.sum()), 3, 3))
+                R[:, :2, :2] = R_centre[rest][k]
+                R[:, 2, 2] = p.heading_sigma ** 2
+                R = R if with_heading else R[:, :2, :2]
                 self.state[r[k]], self.cov[r[k]] = ekf.update(self.state[r[k]], self.cov[r[k]], y, H, R)
-        self.updates[rows] += 1
+        self.updates[rows[~reborn]] += 1
         self.last_hit[rows] = self.time
+        self.clean[rows] = ~det.occluded[cols]
         self.hit_bits[rows] |= 1
         d = self.state[rows, :2] - self.birth[rows]
         self.travel[rows] = np.maximum(self.travel[rows], np.hypot(d[:, 0], d[:, 1]))
+        return rows[~reborn], cols[~reborn]
+
+    def _resize(self, rows, cols, det: Detections, sensor) -> None:
+        """After an update: sizes grow to the largest extent seen along the measuring axes of the
+        updated heading (capped; a round object stays round; a moving object as wide as a car is
+        taken as at least ``vehicle_size`` until seen whole), and the face seen stays where it is:
+        along an axis measured from one edge the centre moves away from it by half the growth.
+        A track at its second detection has just got its heading: its size is what is seen now
+        along it, its centre measured anew."""
+        p = self.params
+        centres = np.stack([det.x[cols], det.y[cols]], -1)
+        first = self.updates[rows] == 1
+        size = np.where(first[:, None], 0.0, self.size[rows])
+        axes, size = _frames(self.state[rows, 2], size, centres, sensor, det.heading[cols], _directed(det)[cols])
+        corners = _corners(det)[cols]
+        _, _, seen, side = self._measure(corners, axes, size, sensor)
+        small = size[:, 0] < MIN_VEHICLE_LENGTH
+        # a vehicle grows only from a whole view in settled axes: a box cut short by an occluder
+        # or measured in a wrong heading would make it wider than it is
+        settled = (det.oriented[cols] & ~det.occluded[cols]
+                   & (self.cov[rows, 2, 2] <= p.settled_heading_sigma ** 2)) | small
+        grown = np.where((settled | first)[:, None], np.maximum(size, seen), size)
+        grown[small] = grown[small].max(axis=1, keepdims=True)
+        car = (grown.max(axis=1) >= p.vehicle_width) & (self.state[rows, 3] >= p.min_moving_speed)
+        grown[car] = np.where(settled[car, None], np.maximum(grown[car], p.vehicle_size), p.vehicle_size)
+        grown = np.minimum(grown, p.max_size)
+        self.state[rows, :2] += np.einsum("ka,kaj->kj", side * 0.5 * (grown - size), axes)
+        if first.any():
+            centre, _, _, _ = self._measure(corners[first], axes[first], grown[first], sensor)
+            self.state[rows[first], :2] = centre
+        self.size[rows] = grown
+
+    def _inside(self, x, y) -> np.ndarray:
+        """Whether each point (x, y) lies within a track's footprint grown by ``footprint_margin``:
+        a part of an object that a nearer one splits off from the rest starts no track of its own."""
+        dx = x[:, None] - self.state[None, :, 0]
+        dy = y[:, None] - self.state[None, :, 1]
+        c, s = np.cos(self.state[:, 2]), np.sin(self.state[:, 2])
+        half = 0.5 * self.size + self.params.footprint_margin
+        return ((np.abs(c * dx + s * dy) <= half[:, 0]) & (np.abs(-s * dx + c * dy) <= half[:, 1])).any(axis=1)
 
     def _manage(self, matched) -> None:
         p = self.params
         window = (1 << p.confirm_window) - 1
         hits = np.unpackbits((self.hit_bits & window)[:, None], axis=1).sum(axis=1)
-        promote = (self.status == TENTATIVE) & (hits >= p.confirm_hits) & (self.travel >= p.min_travel)
+        promote = ((self.status == TENTATIVE) & (hits >= p.confirm_hits) & (self.travel >= p.min_travel)
+                   & (self.updates >= 2))
         self.status[promote] = CONFIRMED
         self.stats["tracks_confirmed"] += int(promote.sum())
         idle = self.time - self.last_hit
@@ -303,7 +412,7 @@ class Tracker:
             self._keep(~lost)
 
     def _keep(self, keep) -> None:
-        for name in ("id", "state", "cov", "status", "size", "birth", "travel", "last_hit", "updates", "hit_bits"):
+        for name in ("id", "state", "cov", "status", "size", "birth", "travel", "last_hit", "updates", "hit_bits", "clean"):
             setattr(self, name, getattr(self, name)[keep])
 
     def _spawn(self, det: Detections, which) -> None:
@@ -328,6 +437,7 @@ class Tracker:
         self.last_hit = np.concatenate([self.last_hit, np.full(k, self.time)])
         self.updates = np.concatenate([self.updates, np.zeros(k, np.int64)])
         self.hit_bits = np.concatenate([self.hit_bits, np.ones(k, np.uint8)])
+        self.clean = np.concatenate([self.clean, ~det.occluded[which]])
         self.stats["tracks_started"] += k
 
     # ------------------------------------------------------------------ read-out
@@ -335,6 +445,7 @@ class Tracker:
     def tracks(self) -> Tracks:
         """The tracks alive at the last update (tentative ones included; see ``confirmed``)."""
         s = self.state
+        lost = self.time - self.last_hit > self.params.lost_after
         return Tracks(self.id.copy(), s[:, 0].copy(), s[:, 1].copy(), s[:, 3] * np.cos(s[:, 2]),
                       s[:, 3] * np.sin(s[:, 2]), s[:, 2].copy(), self.size[:, 0].copy(), self.size[:, 1].copy(),
-                      self.status == CONFIRMED, self.cov.copy())
+                      (self.status == CONFIRMED) & ~lost, (self.status == CONFIRMED) & lost, self.cov.copy())
