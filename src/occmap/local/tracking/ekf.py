@@ -45,8 +45,8 @@ def _sinc_and_derivative(h: np.ndarray):
 
 
 def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: float):
-    """States and covariances ``dt`` seconds later (``dt`` a scalar or ``(N,)``, ≥ 0); returns new
-    arrays."""
+    """States and covariances ``dt`` seconds later (``dt``, ``accel`` and ``yaw_accel`` scalars or
+    ``(N,)``; ``dt ≥ 0``); returns new arrays."""
     x, y, th, v, w = states.T
     dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), x.shape)
     h = 0.5 * w * dt
@@ -74,7 +74,10 @@ def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: f
     G[:, 3, 0] = dt
     G[:, 2, 1] = half * dt
     G[:, 4, 1] = dt
-    Q = G @ np.diag([accel * accel, yaw_accel * yaw_accel]) @ G.transpose(0, 2, 1)
+    q = np.zeros((n, 2, 2))
+    q[:, 0, 0] = np.square(accel)
+    q[:, 1, 1] = np.square(yaw_accel)
+    Q = G @ q @ G.transpose(0, 2, 1)
     P = F @ covs @ F.transpose(0, 2, 1) + Q
     return out, 0.5 * (P + P.transpose(0, 2, 1))
 

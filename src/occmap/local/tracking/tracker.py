@@ -15,11 +15,12 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
    for the others with the detections left.
 4. **Manage**: a matched track is updated (its heading too when the box is L-shaped, choosing the
    box axis nearer to the track's heading); its size grows to the largest extent seen (capped).
-   A detection left over starts a *tentative* track; at its second detection the velocity is set
-   from the displacement (two-point initialisation). A tentative track is *confirmed* once it has
-   been detected in ``confirm_hits`` of its last ``confirm_window`` scans and has moved at least
+   A detection left over starts a *tentative* track; once it has moved ``init_distance`` or been
+   seen whole for ``init_span`` seconds its velocity is set from the displacement (see
+   :meth:`Tracker._correct`). A tentative track is *confirmed* once it has
+   been detected in ``confirm_hits`` of its last ``confirm_window`` scans, has moved at least
    ``min_travel`` from where it started (walls and parked cars that leak into the detections do
-   not move). A track not detected for ``max_coast`` seconds (``tentative_coast`` while tentative)
+   not move) and knows its speed to ``confirm_speed_sigma``. A track not detected for ``max_coast`` seconds (``tentative_coast`` while tentative)
    is dropped, as is one whose position standard deviation passes ``max_position_sigma``.
 
 Speeds are kept non-negative: a state with ``v < 0`` is turned around (``θ + π``, ``−v``), so the
@@ -55,6 +56,7 @@ class TrackerParams:
     """Tracker settings (SI units; see the module's description for their role)."""
 
     accel: float = 3.0
+    person_accel: float = 1.0
     yaw_accel: float = 1.5
     position_sigma: float = 0.15
     heading_sigma: float = math.radians(8.0)
@@ -62,6 +64,7 @@ class TrackerParams:
     confirm_hits: int = 3
     confirm_window: int = 5
     min_travel: float = 0.5
+    confirm_speed_sigma: float = 1.0
     lost_after: float = 0.3
     max_coast: float = 1.0
     tentative_coast: float = 0.3
@@ -74,13 +77,15 @@ class TrackerParams:
     footprint_margin: float = 0.5
     settled_heading_sigma: float = math.radians(10.0)
     initial_speed_sigma: float = 10.0
+    init_span: float = 0.2
+    init_distance: float = 1.0
     initial_yaw_rate_sigma: float = 0.5
     radial_velocity_sigma: float = 0.2
 
     def __post_init__(self):
-        for name in ("accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after", "max_coast",
+        for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after", "max_coast",
                      "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed", "footprint_margin",
-                     "settled_heading_sigma", "initial_speed_sigma", "initial_yaw_rate_sigma",
+                     "settled_heading_sigma", "confirm_speed_sigma", "init_span", "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma",
                      "radial_velocity_sigma"):
             checks.positive(name, getattr(self, name))
         checks.non_negative("min_travel", self.min_travel, "metres")
@@ -182,6 +187,7 @@ class Tracker:
         self.status = np.empty(0, np.int8)
         self.size = np.empty((0, 2))
         self.birth = np.empty((0, 2))
+        self.born = np.empty(0)
         self.travel = np.empty(0)
         self.last_hit = np.empty(0)
         self.updates = np.empty(0, np.int64)
@@ -194,6 +200,13 @@ class Tracker:
 
     # ------------------------------------------------------------------ time
 
+    def _noise(self, size):
+        """Process noise ``(accel, yaw_accel)`` per track: people (round tracks) change their
+        speed less than vehicles."""
+        small = size[:, 0] < MIN_VEHICLE_LENGTH
+        p = self.params
+        return np.where(small, p.person_accel, p.accel), np.full(len(size), p.yaw_accel)
+
     def _advance(self, stamp: float) -> None:
         stamp = checks.finite("stamp", stamp)
         if self.time is not None:
@@ -202,7 +215,7 @@ class Tracker:
                 raise InvalidArgumentError(f"stamp {stamp!r} goes backwards: the tracker is at {self.time!r} s")
             if dt > 0.0 and len(self):
                 p = self.params
-                self.state, self.cov = ekf.predict(self.state, self.cov, dt, p.accel, p.yaw_accel)
+                self.state, self.cov = ekf.predict(self.state, self.cov, dt, *self._noise(self.size))
         self.time = stamp
 
     def predicted(self, t: float, confirmed_only: bool = True):
@@ -215,7 +228,7 @@ class Tracker:
         keep = self.status == CONFIRMED if confirmed_only else np.ones(len(self), bool)
         s, c = self.state[keep], self.cov[keep]
         if t > now and len(s):
-            s, c = ekf.predict(s, c, t - now, self.params.accel, self.params.yaw_accel)
+            s, c = ekf.predict(s, c, t - now, *self._noise(self.size[keep]))
         return self.id[keep], s, c, self.size[keep]
 
     # ------------------------------------------------------------------ measurement
@@ -229,8 +242,8 @@ class Tracker:
         Along an axis where the sensor lies beyond the extent seen, the near edge is the object's
         (``side`` +1: the object lies toward +axis from its lower edge, −1 from its upper edge)
         and the centre half the size behind it. Elsewhere — the sensor within the extent
-        (``side`` 0), or any axis of an ``occluded`` box (``(...)``: its near edges may be where the
-        occluder cuts it) — the box only bounds the centre: it lies where an object of that size
+        (``side`` 0), or the axis of an ``occluded`` box (``(...)``) more across the line of sight
+        (where the occluder may cut it) — the box only bounds the centre: it lies where an object of that size
         still covers all that is seen. Given the ``track``'s centre (..., 2) the measurement is the
         point of that interval nearest to it (none of a bias a part seen for many scans would
         build up); without it the interval's middle, uncertain by its length (uniform)."""
@@ -241,7 +254,11 @@ class Tracker:
         s_proj = np.einsum("...aj,j->...a", axes, sensor)
         full = np.maximum(size, seen)
         side = np.where(s_proj < lo, 1.0, np.where(s_proj > hi, -1.0, 0.0))
-        unsure = (side == 0) | np.asarray(occluded)[..., None]
+        # an occluder cuts a box's angular extent: the axis across the line of sight
+        mid = np.einsum("...a,...aj->...j", 0.5 * (lo + hi), axes) - sensor
+        across = np.abs(np.einsum("...aj,...j->...a", axes, mid))
+        cut = across == across.min(axis=-1, keepdims=True)
+        unsure = (side == 0) | (np.asarray(occluded)[..., None] & cut)
         first, last = hi - 0.5 * full, lo + 0.5 * full  # centres that cover what is seen
         if track is None:
             bound = 0.5 * (first + last)
@@ -302,38 +319,51 @@ class Tracker:
         cols = np.concatenate([c1, free[c2]])
         return rows, cols
 
-    def _correct(self, rows, cols, centres, R_centre, det: Detections) -> None:
-        """Update matched tracks; returns the rows that are now initialised (all but the re-born)."""
+    def _correct(self, rows, cols, centres, R_centre, det: Detections):
+        """Update matched tracks; returns ``(rows, cols)`` of those that have a velocity now.
+
+        A track without a velocity yet (seen once, or only since its last restart) waits for
+        ``init_span`` seconds or ``init_distance`` metres of motion between whole views and takes
+        its velocity from that displacement; a view an occluder cuts restarts it there (such a
+        box's centre moves with the occluder, not with the object)."""
         p = self.params
-        first = self.updates[rows] == 0
-        reborn = first & ~(self.clean[rows] & ~det.occluded[cols])
-        if reborn.any():  # a displacement between boxes an occluder cuts says nothing of the motion
-            r, c = rows[reborn], cols[reborn]
-            self.state[r, 0], self.state[r, 1], self.state[r, 2] = det.x[c], det.y[c], det.heading[c]
+        young = self.updates[rows] == 0
+        here = np.stack([det.x[cols], det.y[cols]], -1)
+        restart = young & ~(self.clean[rows] & ~det.occluded[cols])
+        d = here - self.birth[rows]
+        elapsed = self.time - self.born[rows]
+        dist = np.hypot(d[:, 0], d[:, 1])
+        ready = young & ~restart & ((elapsed >= p.init_span) | (dist >= p.init_distance))
+        waiting = young & ~ready
+        if waiting.any():
+            r, c = rows[waiting], cols[waiting]
+            self.state[r, :2] = here[waiting]
+            self.state[r, 2] = det.heading[c]
             self.state[r, 3:] = 0.0
             self.size[r] = np.minimum(np.stack([det.length[c], det.width[c]], -1), p.max_size)
-        first &= ~reborn
-        if first.any():  # the second detection: velocity from the displacement
-            r, c = rows[first], cols[first]
-            d = np.stack([det.x[c], det.y[c]], -1) - self.state[r, :2]
-            dt = np.maximum(self.time - self.last_hit[r], 1e-3)
-            dist = np.hypot(d[:, 0], d[:, 1])
-            heading = np.arctan2(d[:, 1], d[:, 0])
+        if restart.any():
+            r = rows[restart]
+            self.birth[r] = here[restart]
+            self.born[r] = self.time
+        if ready.any():
+            r, c = rows[ready], cols[ready]
+            dt, dd = elapsed[ready], dist[ready]
+            heading = np.arctan2(d[ready, 1], d[ready, 0])
             # an L-shaped box knows the heading better than two noisy centres: its axis nearest
             aligned = _nearest_axis(det.heading[c], heading)
             self.state[r, 2] = np.where(det.oriented[c], wrap_angle(aligned), heading)
-            self.state[r, :2] = np.stack([det.x[c], det.y[c]], -1)
-            self.state[r, 3] = dist / dt
+            self.state[r, :2] = here[ready]
+            self.state[r, 3] = dd / dt
             self.state[r, 4] = 0.0
             var_p = p.position_sigma ** 2
             cov = np.zeros((len(r), 5, 5))
             cov[:, 0, 0] = cov[:, 1, 1] = var_p
             cov[:, 2, 2] = np.where(det.oriented[c], p.heading_sigma ** 2,
-                                    np.minimum(2.0 * var_p / np.maximum(dist, 1e-9) ** 2, (math.pi / 2) ** 2))
+                                    np.minimum(2.0 * var_p / np.maximum(dd, 1e-9) ** 2, (math.pi / 2) ** 2))
             cov[:, 3, 3] = 2.0 * var_p / dt ** 2 + (p.accel * dt) ** 2
             cov[:, 4, 4] = p.initial_yaw_rate_sigma ** 2
             self.cov[r] = cov
-        rest = ~first
+        rest = ~young
         if rest.any():
             r, c = rows[rest], cols[rest]
             z = np.concatenate([centres[rest], np.zeros((len(r), 1))], 1)
@@ -349,13 +379,13 @@ class Tracker:
                 R[:, 2, 2] = p.heading_sigma ** 2
                 R = R if with_heading else R[:, :2, :2]
                 self.state[r[k]], self.cov[r[k]] = ekf.update(self.state[r[k]], self.cov[r[k]], y, H, R)
-        self.updates[rows[~reborn]] += 1
+        self.updates[rows[~waiting]] += 1
         self.last_hit[rows] = self.time
         self.clean[rows] = ~det.occluded[cols]
         self.hit_bits[rows] |= 1
         d = self.state[rows, :2] - self.birth[rows]
         self.travel[rows] = np.maximum(self.travel[rows], np.hypot(d[:, 0], d[:, 1]))
-        return rows[~reborn], cols[~reborn]
+        return rows[~waiting], cols[~waiting]
 
     def _resize(self, rows, cols, det: Detections, sensor) -> None:
         """After an update: sizes grow to the largest extent seen along the measuring axes of the
@@ -401,7 +431,7 @@ class Tracker:
         window = (1 << p.confirm_window) - 1
         hits = np.unpackbits((self.hit_bits & window)[:, None], axis=1).sum(axis=1)
         promote = ((self.status == TENTATIVE) & (hits >= p.confirm_hits) & (self.travel >= p.min_travel)
-                   & (self.updates >= 2))
+                   & (self.updates >= 2) & (self.cov[:, 3, 3] <= p.confirm_speed_sigma ** 2))
         self.status[promote] = CONFIRMED
         self.stats["tracks_confirmed"] += int(promote.sum())
         idle = self.time - self.last_hit
@@ -412,7 +442,7 @@ class Tracker:
             self._keep(~lost)
 
     def _keep(self, keep) -> None:
-        for name in ("id", "state", "cov", "status", "size", "birth", "travel", "last_hit", "updates", "hit_bits", "clean"):
+        for name in ("id", "state", "cov", "status", "size", "birth", "born", "travel", "last_hit", "updates", "hit_bits", "clean"):
             setattr(self, name, getattr(self, name)[keep])
 
     def _spawn(self, det: Detections, which) -> None:
@@ -433,6 +463,7 @@ class Tracker:
         self.size = np.concatenate([self.size, np.minimum(np.stack([det.length[which], det.width[which]], -1),
                                                           p.max_size)])
         self.birth = np.concatenate([self.birth, state[:, :2]])
+        self.born = np.concatenate([self.born, np.full(k, self.time)])
         self.travel = np.concatenate([self.travel, np.zeros(k)])
         self.last_hit = np.concatenate([self.last_hit, np.full(k, self.time)])
         self.updates = np.concatenate([self.updates, np.zeros(k, np.int64)])
