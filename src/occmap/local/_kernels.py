@@ -325,10 +325,11 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
 
 
 @kernel
-def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, out):
+def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, extra, out):
     """The inflated costmap, in window order, into ``out`` (uint8 (H, W)).
 
-    A cell is lethal (254) when observed and ``u ≥ thr_occ``, free when observed and
+    A cell is lethal (254) when observed and ``u ≥ thr_occ`` or when ``extra`` (bool (H, W), window
+    order: objects placed by the caller) holds it, free when observed and
     ``u < thr_free``, unknown (255) otherwise. Inflation from the exact squared Euclidean distance
     ``d²`` (cells, between centres) to the nearest lethal cell, needed only up to ``R`` cells: the
     column distances (capped at R + 1) then, per row, the minimum over the 2R + 1 columns around
@@ -353,8 +354,8 @@ def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, o
                 c = x + off
                 u = cells[r, c, 0]
                 seen = stamps[r, c, 1] != UNSEEN
-                lethal = seen & (u >= thr_occ)
-                free = seen & (u < thr_free)
+                lethal = (seen & (u >= thr_occ)) | extra[y, x]
+                free = seen & (u < thr_free) & ~lethal
                 out[y, x] = 255 - np.uint8(lethal) - 255 * np.uint8(free)
                 gv = min(g[yp, x] + 1, C) if y > 0 else C  # row 0: nothing above
                 g[y, x] = 0 if lethal else gv

@@ -1,7 +1,10 @@
-"""Numba kernels of the tracker: optimal assignment (the Hungarian method) and the grid clustering
-of detections. Plain arrays in and out; the callers check shapes and values."""
+"""Numba kernels of the tracker: optimal assignment (the Hungarian method), the clustering, box
+fitting and occlusion test of detections, and the probability that a place lies under a tracked
+object. Plain arrays in and out; the callers check shapes and values."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -226,4 +229,81 @@ def occluded_ends(points, starts, sx, sy, scene, angle, depth, out):
                 hidden = True
                 break
         out[k] = hidden
+    return out
+
+
+@kernel
+def _interval_probability(d, half, sigma):
+    """P(|d + e| ≤ half) for e ~ N(0, σ²): a box edge-to-edge along one axis, smeared."""
+    if sigma <= 0.0:
+        return 1.0 if abs(d) <= half else 0.0
+    k = 1.0 / (sigma * np.sqrt(2.0))
+    return 0.5 * (math.erf((half - d) * k) - math.erf((-half - d) * k))
+
+
+@kernel
+def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
+    """Adds, into ``out`` (H, W, window order, cell (0, 0) with its outer corner at ``(ox, oy)``,
+    side ``res``), the probability that each cell centre lies under one of the boxes ``sizes``
+    (T, 2) grown by ``grow`` on every side, centred at ``states[:, :2]`` with heading
+    ``states[:, 2]``, their centres Gaussian with covariance ``covs[:, :2, :2]`` and heading spread
+    ``covs[:, 2, 2]`` (its effect at the box's ends taken as extra spread across each axis).
+    Objects are taken as independent: ``out ← 1 − (1 − out)(1 − p)``."""
+    H, W = out.shape
+    for t in range(states.shape[0]):
+        x = states[t, 0]
+        y = states[t, 1]
+        c = np.cos(states[t, 2])
+        s = np.sin(states[t, 2])
+        ha = 0.5 * sizes[t, 0] + grow
+        hb = 0.5 * sizes[t, 1] + grow
+        sxx = covs[t, 0, 0]
+        sxy = covs[t, 0, 1]
+        syy = covs[t, 1, 1]
+        vth = covs[t, 2, 2]
+        va = c * c * sxx + 2.0 * c * s * sxy + s * s * syy + hb * hb * vth
+        vb = s * s * sxx - 2.0 * c * s * sxy + c * c * syy + ha * ha * vth
+        sa = np.sqrt(max(va, 0.0))
+        sb = np.sqrt(max(vb, 0.0))
+        reach = np.sqrt(ha * ha + hb * hb) + 4.0 * max(sa, sb)
+        i0 = max(int(np.floor((y - reach - oy) / res)), 0)
+        i1 = min(int(np.floor((y + reach - oy) / res)), H - 1)
+        j0 = max(int(np.floor((x - reach - ox) / res)), 0)
+        j1 = min(int(np.floor((x + reach - ox) / res)), W - 1)
+        for i in range(i0, i1 + 1):
+            py = oy + (i + 0.5) * res - y
+            for j in range(j0, j1 + 1):
+                px = ox + (j + 0.5) * res - x
+                da = c * px + s * py
+                db = -s * px + c * py
+                p = _interval_probability(da, ha, sa) * _interval_probability(db, hb, sb)
+                out[i, j] = 1.0 - (1.0 - out[i, j]) * (1.0 - p)
+    return out
+
+
+@kernel
+def point_probability(points, states, covs, sizes, grow, out):
+    """``out[i]`` = probability that point ``i`` (N, 2) lies under at least one box ``j`` of
+    ``states[i, j]`` (N, T, 5), ``covs[i, j]`` (N, T, 5, 5), ``sizes[j]`` (T, 2) grown by
+    ``grow`` — the objects predicted to point ``i``'s time (the model of
+    :func:`footprint_probability`)."""
+    for i in range(points.shape[0]):
+        free = 1.0
+        for t in range(states.shape[1]):
+            c = np.cos(states[i, t, 2])
+            s = np.sin(states[i, t, 2])
+            ha = 0.5 * sizes[t, 0] + grow
+            hb = 0.5 * sizes[t, 1] + grow
+            sxx = covs[i, t, 0, 0]
+            sxy = covs[i, t, 0, 1]
+            syy = covs[i, t, 1, 1]
+            vth = covs[i, t, 2, 2]
+            va = c * c * sxx + 2.0 * c * s * sxy + s * s * syy + hb * hb * vth
+            vb = s * s * sxx - 2.0 * c * s * sxy + c * c * syy + ha * ha * vth
+            px = points[i, 0] - states[i, t, 0]
+            py = points[i, 1] - states[i, t, 1]
+            p = (_interval_probability(c * px + s * py, ha, np.sqrt(max(va, 0.0)))
+                 * _interval_probability(-s * px + c * py, hb, np.sqrt(max(vb, 0.0))))
+            free *= 1.0 - p
+        out[i] = 1.0 - free
     return out

@@ -18,6 +18,8 @@ from . import _kernels as K
 
 __all__ = ["Detections", "detect_objects"]
 
+#: Largest gap (m) between the returns of one object.
+DETECTION_GAP = 0.5
 #: Directions tried by the L-shape fit over 90° (one per degree).
 FIT_STEPS = 90
 #: Floor of the closeness criterion's distance (m): points this close to an edge count alike.
@@ -50,7 +52,7 @@ class Detections(NamedTuple):
         return Detections(f, f, f, f, f, np.empty(0, np.int64), np.empty(0, bool), np.empty(0, bool))
 
 
-def detect_objects(points, gap: float = 0.5, min_points: int = 3, min_width: float = 0.3, *, sensor=None,
+def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_width: float = 0.3, *, sensor=None,
                    scene=None, max_range: float | None = None, angle: float = math.radians(1.0),
                    depth: float = 0.3) -> Detections:
     """Cluster world points ``(N, 2)`` (single linkage at ``gap`` m) and fit a box to each cluster

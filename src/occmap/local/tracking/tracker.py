@@ -218,18 +218,40 @@ class Tracker:
                 self.state, self.cov = ekf.predict(self.state, self.cov, dt, *self._noise(self.size))
         self.time = stamp
 
-    def predicted(self, t: float, confirmed_only: bool = True):
-        """``(ids, states (N, 5), covariances (N, 5, 5), sizes (N, 2))`` of the tracks predicted to
-        time ``t`` (at or after the last update), without changing them."""
-        t = checks.finite("t", t)
-        now = self.time if self.time is not None else t
-        if t < now:
-            raise InvalidArgumentError(f"t = {t!r} lies before the tracker's time {now!r}: predictions go forward only")
+    def predicted(self, t, confirmed_only: bool = True):
+        """``(ids (T,), states, covariances, sizes (T, 2))`` of the tracks predicted to time ``t``
+        (seconds, at or after the last update), without changing them: states ``(T, 5)`` and
+        covariances ``(T, 5, 5)`` for one time, ``(K, T, 5)`` and ``(K, T, 5, 5)`` for times
+        ``(K,)``. ``confirmed_only``: the confirmed tracks (lost ones included), else all."""
+        times = np.asarray(t, dtype=np.float64)
+        if not np.isfinite(times).all():
+            raise InvalidArgumentError(f"prediction times must be finite, got {t!r}")
+        now = self.time if self.time is not None else float(times.min(initial=0.0))
+        if (times < now).any():
+            raise InvalidArgumentError(f"t = {float(times.min())!r} lies before the tracker's time {now!r}: "
+                                       "predictions go forward only")
         keep = self.status == CONFIRMED if confirmed_only else np.ones(len(self), bool)
-        s, c = self.state[keep], self.cov[keep]
-        if t > now and len(s):
-            s, c = ekf.predict(s, c, t - now, *self._noise(self.size[keep]))
-        return self.id[keep], s, c, self.size[keep]
+        s, c, size = self.state[keep], self.cov[keep], self.size[keep]
+        k, n = times.size, len(s)
+        flat_s = np.broadcast_to(s, (k, n, 5)).reshape(-1, 5)
+        flat_c = np.broadcast_to(c, (k, n, 5, 5)).reshape(-1, 5, 5)
+        dt = np.repeat(times.reshape(-1) - now, n)
+        if n:
+            accel, yaw = self._noise(np.broadcast_to(size, (k, n, 2)).reshape(-1, 2))
+            flat_s, flat_c = ekf.predict(flat_s, flat_c, dt, accel, yaw)
+        shape = times.shape + (n,)
+        return self.id[keep], flat_s.reshape(shape + (5,)), flat_c.reshape(shape + (5, 5)), size
+
+    def covers(self, points, t: float, margin: float, confirmed_only: bool = False) -> np.ndarray:
+        """Whether each world point ``(N, 2)`` lies within a track's footprint (predicted to
+        ``t``) grown by ``margin`` metres."""
+        _, s, _, size = self.predicted(t, confirmed_only=confirmed_only)
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        dx = p[:, None, 0] - s[None, :, 0]
+        dy = p[:, None, 1] - s[None, :, 1]
+        c, sn = np.cos(s[:, 2]), np.sin(s[:, 2])
+        half = 0.5 * size + margin
+        return ((np.abs(c * dx + sn * dy) <= half[:, 0]) & (np.abs(-sn * dx + c * dy) <= half[:, 1])).any(axis=1)
 
     # ------------------------------------------------------------------ measurement
 
@@ -302,7 +324,9 @@ class Tracker:
         self._manage(rows)
         spawn = np.setdiff1d(np.arange(m), cols)
         if len(spawn) and len(self):
-            spawn = spawn[~self._inside(detections.x[spawn], detections.y[spawn])]
+            # a part of an object that a nearer one splits off from the rest starts no track
+            spawn = spawn[~self.covers(np.stack([detections.x[spawn], detections.y[spawn]], -1), self.time,
+                                       p.footprint_margin)]
         if len(spawn):
             self._spawn(detections, spawn)
         _turn_around(self.state, self.cov)
@@ -402,10 +426,10 @@ class Tracker:
         corners = _corners(det)[cols]
         _, _, seen, side = self._measure(corners, axes, size, sensor)
         small = size[:, 0] < MIN_VEHICLE_LENGTH
-        # a vehicle grows only from a whole view in settled axes: a box cut short by an occluder
-        # or measured in a wrong heading would make it wider than it is
-        settled = (det.oriented[cols] & ~det.occluded[cols]
-                   & (self.cov[rows, 2, 2] <= p.settled_heading_sigma ** 2)) | small
+        # sizes grow only from whole views (a box an occluder cuts may hold the occluder's returns),
+        # a vehicle's only in settled axes (a box measured in a wrong heading looks wider)
+        settled = ~det.occluded[cols] & (small | (det.oriented[cols]
+                                                  & (self.cov[rows, 2, 2] <= p.settled_heading_sigma ** 2)))
         grown = np.where((settled | first)[:, None], np.maximum(size, seen), size)
         grown[small] = grown[small].max(axis=1, keepdims=True)
         car = (grown.max(axis=1) >= p.vehicle_width) & (self.state[rows, 3] >= p.min_moving_speed)
@@ -416,15 +440,6 @@ class Tracker:
             centre, _, _, _ = self._measure(corners[first], axes[first], grown[first], sensor)
             self.state[rows[first], :2] = centre
         self.size[rows] = grown
-
-    def _inside(self, x, y) -> np.ndarray:
-        """Whether each point (x, y) lies within a track's footprint grown by ``footprint_margin``:
-        a part of an object that a nearer one splits off from the rest starts no track of its own."""
-        dx = x[:, None] - self.state[None, :, 0]
-        dy = y[:, None] - self.state[None, :, 1]
-        c, s = np.cos(self.state[:, 2]), np.sin(self.state[:, 2])
-        half = 0.5 * self.size + self.params.footprint_margin
-        return ((np.abs(c * dx + s * dy) <= half[:, 0]) & (np.abs(-s * dx + c * dy) <= half[:, 1])).any(axis=1)
 
     def _manage(self, matched) -> None:
         p = self.params
