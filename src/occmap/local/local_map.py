@@ -440,10 +440,13 @@ class LocalMap(OneCallAtATime):
         if now and self._cost_cache is not None:
             return self._cost_cache, self.origin
         if self._objects is None:
-            extra = self._no_objects
+            out = self._costs(self._no_objects)
         else:
-            extra = self._objects.lethal(self._time if now else at, self.origin, self.resolution, self.shape)
-        out = self._costs(extra)
+            extra, graded = self._objects.lethal(self._time if now else at, self.origin, self.resolution, self.shape)
+            out = self._costs(extra)
+            if graded.any():  # free and inflated cells an object may cover cost more
+                out = np.where((out < 253) & (graded > out), graded, out)
+                out.flags.writeable = False
         if now:
             self._cost_cache = out
         return out, self.origin
@@ -529,7 +532,8 @@ class LocalMap(OneCallAtATime):
         ``stamps`` (N,): the time of each pose (seconds, at or after the last update). With
         tracking, each pose is then checked against the moving objects predicted to its own time:
         a pose whose footprint (its circumscribed disc) meets a tracked object with probability at
-        least the layer's threshold is lethal (254); the static layer and the moving returns no
+        least the layer's threshold is lethal (254), a lesser probability ``p`` costs
+        ``252 · p / threshold`` (from ``p`` = 0.05); the static layer and the moving returns no
         track explains are checked as without stamps. Without tracking the stamps change nothing."""
         P = np.ascontiguousarray(poses, dtype=np.float64)
         if P.ndim != 2 or P.shape[1] != 3:
@@ -546,7 +550,7 @@ class LocalMap(OneCallAtATime):
                 raise InvalidArgumentError(f"stamp {float(T.min())!r} lies before the map's time {self._time!r}: "
                                            "paths are checked forward in time")
         if timed:
-            cost = self._costs(self._objects.lethal(None, self.origin, self.resolution, self.shape))
+            cost = self._costs(self._objects.lethal(None, self.origin, self.resolution, self.shape)[0])
         else:
             cost, _ = self.costmap()
         out = np.empty(len(P), dtype=np.uint8)
@@ -555,9 +559,12 @@ class LocalMap(OneCallAtATime):
         if timed:
             good = np.isfinite(P).all(axis=1)
             reach = radius if radius >= 0.0 else circumscribed_radius(fp)
-            hit = np.zeros(len(P), bool)
-            hit[good] = self._objects.path_probability(P[good, :2], T[good], reach) >= self._objects.threshold
-            out[hit] = np.maximum(out[hit], 254)
+            p = np.zeros(len(P))
+            p[good] = self._objects.path_probability(P[good, :2], T[good], reach)
+            thr = self._objects.threshold
+            hit = p >= thr
+            graded = np.where(hit, 254, np.where(p >= 0.05, np.minimum(252.0 * p / thr, 252.0), 0)).astype(np.uint8)
+            out = np.where(good & (out < 253), np.maximum(out, graded), np.where(hit, np.maximum(out, 254), out))
             if hit.any():
                 k = int(np.flatnonzero(hit)[0])
                 first = k if first < 0 else min(int(first), k)

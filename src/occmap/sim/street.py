@@ -150,7 +150,7 @@ def _trees() -> np.ndarray:
                            np.stack([xs + 7.0, np.full(8, -5.6), np.full(8, 0.15)], -1)])
 
 
-def _turn_legs(speed: float, radius: float, angle: float, ramp: float = 0.5, steps: int = 5) -> tuple:
+def _turn_legs(speed: float, radius: float, angle: float, ramp: float = 1.0, steps: int = 10) -> tuple:
     """Legs that turn by ``angle`` (rad, negative clockwise) at ``speed`` on an arc of ``radius``,
     the yaw rate raised and lowered over ``ramp`` seconds in ``steps`` stairs (as a driver eases
     into a bend: yaw acceleration about ``speed / radius / ramp``)."""

@@ -15,7 +15,7 @@ they coast) predicted with its covariance to the time asked; per cell the probab
 centre lies under the object's footprint (:func:`~._kernels.footprint_probability`). Cells at
 ``threshold`` or above are obstacles of the costmap at that time (:meth:`ObjectLayer.lethal`), as
 are the moving returns of the last scan that no confirmed track explains (they stay where they
-were seen).
+were seen); cells an object may cover with less probability cost in proportion (below lethal).
 """
 
 from __future__ import annotations
@@ -96,11 +96,18 @@ class ObjectLayer:
                                     out)
         return out.astype(np.float32)
 
-    def lethal(self, at: float | None, origin, resolution: float, shape) -> np.ndarray:
-        """Obstacle cells (bool (H, W)) of moving objects at time ``at``: cells whose predicted
-        occupancy reaches ``threshold`` (none for ``at=None``) and the cells of the last scan's
-        moving returns that no confirmed track explains."""
-        out = np.zeros(shape, bool) if at is None else self.occupancy(at, origin, resolution, shape) >= self.threshold
+    def lethal(self, at: float | None, origin, resolution: float, shape):
+        """``(lethal, cost)`` of moving objects at time ``at``: obstacle cells (bool (H, W)) where
+        the predicted occupancy reaches ``threshold`` and where the last scan's moving returns no
+        confirmed track explains lie; and Nav2 costs (uint8 (H, W)) below lethal for the cells an
+        object may cover, ``252 · p / threshold`` for occupancy ``p`` from 0.05 up (none for
+        ``at=None``: the returns alone)."""
+        if at is None:
+            out, cost = np.zeros(shape, bool), np.zeros(shape, np.uint8)
+        else:
+            p = self.occupancy(at, origin, resolution, shape)
+            out = p >= self.threshold
+            cost = np.where(p >= 0.05, np.minimum(252.0 * p / self.threshold, 252.0), 0.0).astype(np.uint8)
         pts = self.moving
         if len(pts):
             ids, states, covs, sizes = self.tracker.predicted(self.tracker.time)
@@ -114,7 +121,7 @@ class ObjectLayer:
             H, W = shape
             ok = (cells[:, 0] >= 0) & (cells[:, 0] < W) & (cells[:, 1] >= 0) & (cells[:, 1] < H)
             out[cells[ok, 1], cells[ok, 0]] = True
-        return out
+        return out, cost
 
     def path_probability(self, points, stamps, radius: float) -> np.ndarray:
         """Probability (N,) that a disc of ``radius`` m at each world point ``(N, 2)`` meets a

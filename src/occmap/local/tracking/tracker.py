@@ -55,9 +55,9 @@ MIN_FACE_LENGTH = 1.0
 class TrackerParams:
     """Tracker settings (SI units; see the module's description for their role)."""
 
-    accel: float = 3.0
+    accel: float = 2.0
     person_accel: float = 1.0
-    yaw_accel: float = 1.5
+    yaw_accel: float = 0.7
     position_sigma: float = 0.15
     heading_sigma: float = math.radians(8.0)
     gate: float = 13.8  # χ² with 2 degrees of freedom at 99.9 %
