@@ -58,7 +58,7 @@ def replay():
 
 def test_confirmed_tracks_follow_cars_and_people(replay):
     _, rows, _, _ = replay
-    for kind, pos, speed, heading in ((CAR, 0.15, 0.6, 3.0), (PEDESTRIAN, 0.15, 0.3, 8.0)):
+    for kind, pos, speed, heading in ((CAR, 0.2, 0.7, 4.0), (PEDESTRIAN, 0.15, 0.3, 8.0)):
         m = (rows[:, 3] == kind) & (rows[:, 2] >= 0)
         assert m.sum() > 150
         assert np.sqrt(np.mean(rows[m, 4] ** 2)) <= pos

@@ -325,6 +325,36 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
 
 
 @kernel
+def in_open_space(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, out):
+    """``out[i]``: the cell of world point ``i`` (N, 2) and its eight neighbours are observed and
+    free (``u < thr_free``), and no cell within ``reach`` cells of it (a square, inside the window)
+    is observed and occupied (``u ≥ thr_occ``)."""
+    H, W = cells.shape[0], cells.shape[1]
+    for i in range(pts.shape[0]):
+        x = pts[i, 0]
+        y = pts[i, 1]
+        ok = math.isfinite(x) and math.isfinite(y)
+        if ok:
+            gx, gy = cell_of(x, y, 0.0, 0.0, inv_res)
+            wx = gx - gx0
+            wy = gy - gy0
+            ok = 1 <= wx < W - 1 and 1 <= wy < H - 1
+            for yy in range(max(wy - reach, 0), min(wy + reach + 1, H)):
+                if not ok:
+                    break
+                r = slot(yy, sr, H)
+                for xx in range(max(wx - reach, 0), min(wx + reach + 1, W)):
+                    c = slot(xx, sc, W)
+                    seen = stamps[r, c, 1] != UNSEEN
+                    near = abs(xx - wx) <= 1 and abs(yy - wy) <= 1
+                    if (seen and cells[r, c, 0] >= thr_occ) or (near and not (seen and cells[r, c, 0] < thr_free)):
+                        ok = False
+                        break
+        out[i] = ok
+    return out
+
+
+@kernel
 def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, extra, out):
     """The inflated costmap, in window order, into ``out`` (uint8 (H, W)).
 

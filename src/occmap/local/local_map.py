@@ -288,7 +288,7 @@ class LocalMap(OneCallAtATime):
         moving objects clear only and go to the tracks."""
         if self._objects is not None:
             occupied = np.nan_to_num(self.log_odds_at(ends), nan=-np.inf) >= self.l_occupied
-            self._objects.sort_returns(ends, kinds, self._clear_around(ends), occupied, (px, py), self._time, max_range)
+            self._objects.sort_returns(ends, kinds, self._in_open_space(ends), occupied, (px, py), self._time, max_range)
         g = self._g
         lp = self.l_prior
         hits, rays, updated, visited = K.integrate(
@@ -304,15 +304,16 @@ class LocalMap(OneCallAtATime):
         self._changed()
         return {**counts, "hits": int(hits), "free_updates": int(updated), "cells_visited": int(visited)}
 
-    def _clear_around(self, points: np.ndarray) -> np.ndarray:
-        """Whether each world point's cell is free and no cell next to it (8-neighbourhood) is
-        unknown or occupied: open space the map has seen through, not the edge of a wall that
-        rays grazing it have cleared."""
-        out = np.ones(len(points), dtype=bool)
-        r = self.resolution
-        for dx in (-r, 0.0, r):
-            for dy in (-r, 0.0, r):
-                out &= self.log_odds_at(points + (dx, dy)) < self.l_free  # NaN (unknown): False
+    def _in_open_space(self, points: np.ndarray) -> np.ndarray:
+        """Whether each world point's cell and its neighbours are known free and no cell within the
+        layer's ``open_margin`` of it known occupied: space the map has seen through, not the edge
+        of a wall that grazing rays have cleared or that a small pose error shifts."""
+        out = np.empty(len(points), dtype=np.bool_)
+        reach = int(math.ceil(self._objects.open_margin / self.resolution - 1e-9))
+        g = self._g
+        K.in_open_space(self._cells, self._stamps, self._sr, self._sc, self._gx0, self._gy0, 1.0 / self.resolution,
+                        (self.l_free - self.l_prior) / g, (self.l_occupied - self.l_prior) / g, reach,
+                        np.ascontiguousarray(points), out)
         return out
 
     def _dropped_pose(self, n: int) -> dict:

@@ -1,9 +1,9 @@
 """The moving-object layer of a local map: which returns moving objects explain, their tracks, and
 where they will be.
 
-Per scan (:meth:`ObjectLayer.sort_returns`) a return is taken as *moving* when its cell and the
-cells around it are known free in the static layer (something stands where the map has seen
-through), when it falls on a confirmed track's footprint predicted to the scan (grown by
+Per scan (:meth:`ObjectLayer.sort_returns`) a return is taken as *moving* when its cell and its
+neighbours are known free in the static layer and no cell within ``open_margin`` of it known
+occupied (something stands where the map has seen through, away from walls), when it falls on a confirmed track's footprint predicted to the scan (grown by
 ``cover_margin``), or when it belongs to a small cluster of returns mostly moving and its cell is
 not known occupied (the part of an object in cells not seen yet). Moving returns do not mark
 the static layer — their rays still clear it up to them — so a moving object leaves no trail; they
@@ -42,11 +42,16 @@ class ObjectLayer:
         Metres around a track's predicted footprint within which returns are the object's.
     threshold : float
         Probability from which a cell under a predicted object is an obstacle.
+    open_margin : float
+        Metres around a return's cell in which no cell may be known occupied for the return to be
+        moving (walls that grazing rays clear, or that pose errors shift, are not).
     """
 
-    def __init__(self, params: TrackerParams | None = None, cover_margin: float = 0.2, threshold: float = 0.5):
+    def __init__(self, params: TrackerParams | None = None, cover_margin: float = 0.2, threshold: float = 0.5,
+                 open_margin: float = 0.2):
         self.tracker = Tracker(params)
         self.cover_margin = checks.non_negative("cover_margin", cover_margin, "metres")
+        self.open_margin = checks.non_negative("open_margin", open_margin, "metres")
         self.threshold = checks.probability("threshold", threshold)
         self.moving = np.empty((0, 2))
         self.stats = {"moving_returns": 0}

@@ -20,7 +20,7 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
    :meth:`Tracker._correct`). A tentative track is *confirmed* once it has
    been detected in ``confirm_hits`` of its last ``confirm_window`` scans, has moved at least
    ``min_travel`` from where it started (walls and parked cars that leak into the detections do
-   not move) and knows its speed to ``confirm_speed_sigma``. A track not detected for ``max_coast`` seconds (``tentative_coast`` while tentative)
+   not move), knows its speed to ``confirm_speed_sigma`` and moves at ``confirm_speed`` at least. A track not detected for ``max_coast`` seconds (``tentative_coast`` while tentative)
    is dropped, as is one whose position standard deviation passes ``max_position_sigma``.
 
 Speeds are kept non-negative: a state with ``v < 0`` is turned around (``θ + π``, ``−v``), so the
@@ -65,6 +65,7 @@ class TrackerParams:
     confirm_window: int = 5
     min_travel: float = 0.5
     confirm_speed_sigma: float = 1.0
+    confirm_speed: float = 0.3
     lost_after: float = 0.3
     max_coast: float = 1.0
     tentative_coast: float = 0.3
@@ -85,7 +86,7 @@ class TrackerParams:
     def __post_init__(self):
         for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after", "max_coast",
                      "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed", "footprint_margin",
-                     "settled_heading_sigma", "confirm_speed_sigma", "init_span", "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma",
+                     "settled_heading_sigma", "confirm_speed_sigma", "confirm_speed", "init_span", "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma",
                      "radial_velocity_sigma"):
             checks.positive(name, getattr(self, name))
         checks.non_negative("min_travel", self.min_travel, "metres")
@@ -446,7 +447,8 @@ class Tracker:
         window = (1 << p.confirm_window) - 1
         hits = np.unpackbits((self.hit_bits & window)[:, None], axis=1).sum(axis=1)
         promote = ((self.status == TENTATIVE) & (hits >= p.confirm_hits) & (self.travel >= p.min_travel)
-                   & (self.updates >= 2) & (self.cov[:, 3, 3] <= p.confirm_speed_sigma ** 2))
+                   & (self.updates >= 2) & (self.cov[:, 3, 3] <= p.confirm_speed_sigma ** 2)
+                   & (self.state[:, 3] >= p.confirm_speed))
         self.status[promote] = CONFIRMED
         self.stats["tracks_confirmed"] += int(promote.sum())
         idle = self.time - self.last_hit
