@@ -325,33 +325,39 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
 
 
 @kernel
-def in_open_space(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, out):
-    """``out[i]``: the cell of world point ``i`` (N, 2) and its eight neighbours are observed and
-    free (``u < thr_free``), and no cell within ``reach`` cells of it (a square, inside the window)
-    is observed and occupied (``u ≥ thr_occ``)."""
+def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, kinds, open_, occupied):
+    """For each return (``kinds[i] == 1``) at world point ``pts[i]``: ``occupied[i]``, its cell is
+    observed and occupied (``u ≥ thr_occ``); ``open_[i]``, its cell and its eight neighbours are
+    observed and free (``u < thr_free``) and no cell within ``reach`` cells (a square, inside the
+    window) is observed and occupied. Both false for the other points."""
     H, W = cells.shape[0], cells.shape[1]
     for i in range(pts.shape[0]):
-        x = pts[i, 0]
-        y = pts[i, 1]
-        ok = math.isfinite(x) and math.isfinite(y)
-        if ok:
-            gx, gy = cell_of(x, y, 0.0, 0.0, inv_res)
-            wx = gx - gx0
-            wy = gy - gy0
-            ok = 1 <= wx < W - 1 and 1 <= wy < H - 1
-            for yy in range(max(wy - reach, 0), min(wy + reach + 1, H)):
-                if not ok:
+        open_[i] = False
+        occupied[i] = False
+        if kinds[i] != 1:
+            continue
+        gx, gy = cell_of(pts[i, 0], pts[i, 1], 0.0, 0.0, inv_res)
+        wx = gx - gx0
+        wy = gy - gy0
+        if not (0 <= wx < W and 0 <= wy < H):
+            continue
+        r = slot(wy, sr, H)
+        c = slot(wx, sc, W)
+        occupied[i] = stamps[r, c, 1] != UNSEEN and cells[r, c, 0] >= thr_occ
+        ok = 1 <= wx < W - 1 and 1 <= wy < H - 1 and not occupied[i]
+        for yy in range(max(wy - reach, 0), min(wy + reach + 1, H)):
+            if not ok:
+                break
+            r = slot(yy, sr, H)
+            for xx in range(max(wx - reach, 0), min(wx + reach + 1, W)):
+                c = slot(xx, sc, W)
+                seen = stamps[r, c, 1] != UNSEEN
+                near = abs(xx - wx) <= 1 and abs(yy - wy) <= 1
+                if (seen and cells[r, c, 0] >= thr_occ) or (near and not (seen and cells[r, c, 0] < thr_free)):
+                    ok = False
                     break
-                r = slot(yy, sr, H)
-                for xx in range(max(wx - reach, 0), min(wx + reach + 1, W)):
-                    c = slot(xx, sc, W)
-                    seen = stamps[r, c, 1] != UNSEEN
-                    near = abs(xx - wx) <= 1 and abs(yy - wy) <= 1
-                    if (seen and cells[r, c, 0] >= thr_occ) or (near and not (seen and cells[r, c, 0] < thr_free)):
-                        ok = False
-                        break
-        out[i] = ok
-    return out
+        open_[i] = ok
+    return open_
 
 
 @kernel

@@ -287,8 +287,9 @@ class LocalMap(OneCallAtATime):
         (the keys of :attr:`stats`, ``docs/architecture.md``). With tracking, the returns of
         moving objects clear only and go to the tracks."""
         if self._objects is not None:
-            occupied = np.nan_to_num(self.log_odds_at(ends), nan=-np.inf) >= self.l_occupied
-            self._objects.sort_returns(ends, kinds, self._in_open_space(ends), occupied, (px, py), self._time, max_range)
+            open_, occupied = self._classify_returns(ends, kinds)
+            self._objects.sort_returns(ends, kinds, open_, occupied, (px, py), self._time, max_range,
+                                       (self.origin, self.resolution, self.shape))
         g = self._g
         lp = self.l_prior
         hits, rays, updated, visited = K.integrate(
@@ -304,17 +305,19 @@ class LocalMap(OneCallAtATime):
         self._changed()
         return {**counts, "hits": int(hits), "free_updates": int(updated), "cells_visited": int(visited)}
 
-    def _in_open_space(self, points: np.ndarray) -> np.ndarray:
-        """Whether each world point's cell and its neighbours are known free and no cell within the
-        layer's ``open_margin`` of it known occupied: space the map has seen through, not the edge
-        of a wall that grazing rays have cleared or that a small pose error shifts."""
-        out = np.empty(len(points), dtype=np.bool_)
+    def _classify_returns(self, ends: np.ndarray, kinds: np.ndarray):
+        """``(open, occupied)`` per ray end (bool (N,), false but for returns): the return's cell
+        known occupied; the return in open free space — its cell and neighbours known free and no
+        cell within the layer's ``open_margin`` known occupied (not the edge of a wall that grazing
+        rays have cleared or that a small pose error shifts)."""
+        open_ = np.empty(len(kinds), dtype=np.bool_)
+        occupied = np.empty(len(kinds), dtype=np.bool_)
         reach = int(math.ceil(self._objects.open_margin / self.resolution - 1e-9))
         g = self._g
-        K.in_open_space(self._cells, self._stamps, self._sr, self._sc, self._gx0, self._gy0, 1.0 / self.resolution,
-                        (self.l_free - self.l_prior) / g, (self.l_occupied - self.l_prior) / g, reach,
-                        np.ascontiguousarray(points), out)
-        return out
+        K.classify_returns(self._cells, self._stamps, self._sr, self._sc, self._gx0, self._gy0, 1.0 / self.resolution,
+                           (self.l_free - self.l_prior) / g, (self.l_occupied - self.l_prior) / g, reach, ends, kinds,
+                           open_, occupied)
+        return open_, occupied
 
     def _dropped_pose(self, n: int) -> dict:
         """A scan or cloud whose sensor pose is not finite: counted, nothing inserted."""

@@ -189,11 +189,29 @@ def fit_boxes(points, starts, steps, min_distance, out):
 
 
 @kernel
-def occluded_ends(points, starts, sx, sy, scene, angle, depth, out):
+def nearest_by_bearing(scene, sx, sy, bins, out):
+    """Range of the nearest point of ``scene`` (K, 2) seen from ``(sx, sy)`` in each of ``bins``
+    equal bearing sectors over the full circle (``out`` (bins,), +inf where none)."""
+    out[:] = np.inf
+    scale = bins / (2.0 * np.pi)
+    for j in range(scene.shape[0]):
+        dx = scene[j, 0] - sx
+        dy = scene[j, 1] - sy
+        b = int((np.arctan2(dy, dx) + np.pi) * scale) % bins
+        out[b] = min(out[b], np.hypot(dx, dy))
+    return out
+
+
+@kernel
+def occluded_ends(points, starts, sx, sy, nearest, angle, depth, out):
     """Whether something nearer hides an end of each cluster from the sensor at ``(sx, sy)``:
-    ``out[k]`` is true when a point of ``scene`` ``(K, 2)`` lies within ``angle`` (rad) beyond
-    either angular end of cluster ``k`` (``points[starts[k]:starts[k + 1]]``) and at least
-    ``depth`` (m) nearer than that end."""
+    ``out[k]`` is true when, in the bearing sectors of ``nearest`` (the scene's nearest range per
+    sector, :func:`nearest_by_bearing`) within ``angle`` (rad) beyond either angular end of
+    cluster ``k`` (``points[starts[k]:starts[k + 1]]``), a return lies at least ``depth`` (m)
+    nearer than that end."""
+    bins = nearest.shape[0]
+    scale = bins / (2.0 * np.pi)
+    reach = int(np.ceil(angle * scale))
     for k in range(starts.shape[0] - 1):
         a = starts[k]
         b = starts[k + 1]
@@ -218,14 +236,11 @@ def occluded_ends(points, starts, sx, sy, scene, angle, depth, out):
             if rel > hi:
                 hi = rel
                 r_hi = np.hypot(dx, dy)
+        b_lo = int((mid + lo + np.pi) * scale)
+        b_hi = int((mid + hi + np.pi) * scale)
         hidden = False
-        for j in range(scene.shape[0]):
-            dx = scene[j, 0] - sx
-            dy = scene[j, 1] - sy
-            rel = np.arctan2(dy, dx) - mid
-            rel = rel - 2.0 * np.pi * np.floor((rel + np.pi) / (2.0 * np.pi))
-            r = np.hypot(dx, dy)
-            if (lo - angle <= rel < lo and r < r_lo - depth) or (hi < rel <= hi + angle and r < r_hi - depth):
+        for j in range(1, reach + 1):
+            if nearest[(b_lo - j) % bins] < r_lo - depth or nearest[(b_hi + j) % bins] < r_hi - depth:
                 hidden = True
                 break
         out[k] = hidden
@@ -265,7 +280,7 @@ def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
         vb = s * s * sxx - 2.0 * c * s * sxy + c * c * syy + ha * ha * vth
         sa = np.sqrt(max(va, 0.0))
         sb = np.sqrt(max(vb, 0.0))
-        reach = np.sqrt(ha * ha + hb * hb) + 4.0 * max(sa, sb)
+        reach = np.sqrt(ha * ha + hb * hb) + 3.0 * max(sa, sb)
         i0 = max(int(np.floor((y - reach - oy) / res)), 0)
         i1 = min(int(np.floor((y + reach - oy) / res)), H - 1)
         j0 = max(int(np.floor((x - reach - ox) / res)), 0)
@@ -306,4 +321,69 @@ def point_probability(points, states, covs, sizes, grow, out):
                  * _interval_probability(-s * px + c * py, hb, np.sqrt(max(vb, 0.0))))
             free *= 1.0 - p
         out[i] = 1.0 - free
+    return out
+
+
+@kernel
+def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span, out):
+    """Points that belong to a component mostly moving: the points ``(N, 2)`` are put in the grid
+    of ``H × W`` cells of side ``res`` whose cell (0, 0) has its outer corner at ``(ox, oy)``;
+    cells within ``reach`` cells of each other (a square) join; a component whose points are at
+    least half ``moving`` and whose cells span at most ``max_span`` metres (the bounding box's
+    diagonal) has all its points set in ``out``, but those ``blocked``. Only components that hold
+    a moving point are searched: the cost follows them, not the scan."""
+    count = np.zeros((H, W), np.int32)
+    movers = np.zeros((H, W), np.int32)
+    cy = np.full(pts.shape[0], -1, np.int64)
+    cx = np.full(pts.shape[0], -1, np.int64)
+    for i in range(pts.shape[0]):
+        x = int(np.floor((pts[i, 0] - ox) / res))
+        y = int(np.floor((pts[i, 1] - oy) / res))
+        if 0 <= x < W and 0 <= y < H:
+            cy[i] = y
+            cx[i] = x
+            count[y, x] += 1
+            movers[y, x] += moving[i]
+    label = np.zeros((H, W), np.int32)  # 0 unvisited, k > 0 component k, promoted when good[k]
+    good = np.zeros(1, np.bool_)
+    stack = np.empty(H * W, np.int64)
+    comp = 0
+    for i in range(pts.shape[0]):
+        if not moving[i] or cy[i] < 0 or label[cy[i], cx[i]] != 0:
+            continue
+        comp += 1
+        if comp >= good.shape[0]:
+            grown = np.zeros(2 * good.shape[0], np.bool_)
+            grown[:good.shape[0]] = good
+            good = grown
+        top = 0
+        stack[0] = cy[i] * W + cx[i]
+        label[cy[i], cx[i]] = comp
+        n_all = 0
+        n_mov = 0
+        x0 = W
+        x1 = -1
+        y0 = H
+        y1 = -1
+        while top >= 0:
+            k = stack[top]
+            top -= 1
+            y = k // W
+            x = k % W
+            n_all += count[y, x]
+            n_mov += movers[y, x]
+            x0 = min(x0, x)
+            x1 = max(x1, x)
+            y0 = min(y0, y)
+            y1 = max(y1, y)
+            for yy in range(max(y - reach, 0), min(y + reach + 1, H)):
+                for xx in range(max(x - reach, 0), min(x + reach + 1, W)):
+                    if count[yy, xx] > 0 and label[yy, xx] == 0:
+                        label[yy, xx] = comp
+                        top += 1
+                        stack[top] = yy * W + xx
+        span = res * np.hypot(x1 - x0 + 1, y1 - y0 + 1)
+        good[comp] = 2 * n_mov >= n_all and span <= max_span
+    for i in range(pts.shape[0]):
+        out[i] = cy[i] >= 0 and good[label[cy[i], cx[i]]] and not blocked[i]
     return out

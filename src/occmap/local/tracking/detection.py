@@ -20,6 +20,8 @@ __all__ = ["Detections", "detect_objects"]
 
 #: Largest gap (m) between the returns of one object.
 DETECTION_GAP = 0.5
+#: Bearing sectors over the full circle in which the occlusion test looks for nearer returns (0.25°).
+BEARING_SECTORS = 1440
 #: Directions tried by the L-shape fit over 90° (one per degree).
 FIT_STEPS = 90
 #: Floor of the closeness criterion's distance (m): points this close to an edge count alike.
@@ -59,8 +61,8 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
     of at least ``min_points``; a box is ``oriented`` when its width is at least ``min_width`` m.
 
     With the ``sensor`` position (x, y) and the ``scene`` (all returns of the scan, ``(K, 2)``), a
-    detection is ``occluded`` when a return within ``angle`` (rad, about two beams) beyond either of
-    its angular ends is at least ``depth`` m nearer, or (given the sensor's ``max_range``) when a
+    detection is ``occluded`` when a return within ``angle`` (rad, about two beams; in sectors of
+    0.25°) beyond either of its angular ends is at least ``depth`` m nearer, or (given the sensor's ``max_range``) when a
     point of it lies within ``depth`` of the range limit, beyond which the rest may lie; without
     the sensor none is."""
     p = np.ascontiguousarray(points, dtype=np.float64)
@@ -91,7 +93,9 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
         sc = np.ascontiguousarray(scene, dtype=np.float64)
         if sc.ndim != 2 or sc.shape[1] != 2:
             raise ShapeError(f"scene must have shape (K, 2), got {sc.shape}")
-        K.occluded_ends(pts, starts, sx, sy, sc[np.isfinite(sc).all(axis=1)], checks.positive("angle", angle),
+        nearest = K.nearest_by_bearing(sc[np.isfinite(sc).all(axis=1)], sx, sy, BEARING_SECTORS,
+                                       np.empty(BEARING_SECTORS))
+        K.occluded_ends(pts, starts, sx, sy, nearest, checks.positive("angle", angle),
                         checks.non_negative("depth", depth, "metres"), occluded)
     if sensor is not None and max_range is not None:
         far = np.hypot(pts[:, 0] - sx, pts[:, 1] - sy) >= checks.positive("max_range", max_range) - depth

@@ -20,6 +20,8 @@ were seen); cells an object may cover with less probability cost in proportion (
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ... import checks
@@ -57,39 +59,33 @@ class ObjectLayer:
         self.stats = {"moving_returns": 0}
 
     def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
-                     sensor, stamp: float, max_range: float | None = None) -> None:
+                     sensor, stamp: float, max_range: float | None = None, grid=None) -> None:
         """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
         clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
         ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
-        holds free (and open around) or occupied."""
+        holds free (and open around) or occupied; ``grid`` ``(origin, resolution, (H, W))`` is the
+        map's window, in which the returns are joined into objects."""
         hit = np.flatnonzero(kinds == 1)
         pts = np.ascontiguousarray(ends[hit])
         moving = known_free[hit]
         if len(self.tracker) and len(pts):
             moving = moving | self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True)
-        if moving.any():
-            moving |= self._with_their_object(pts, moving) & ~known_occupied[hit]
+        if moving.any() and grid is not None:
+            # an object moving into cells the map has not seen free yet (away from the sensor,
+            # out of its own shadow) is one object, not a moving part and a static one; returns
+            # in cells known occupied (a wall a person passes) stay static
+            origin, resolution, (H, W) = grid
+            promoted = np.empty(len(pts), np.bool_)
+            K.promote_components(pts, moving, np.ascontiguousarray(known_occupied[hit]), float(origin[0]),
+                                 float(origin[1]), float(resolution), H, W,
+                                 int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
+                                 float(np.hypot(*self.tracker.params.max_size)), promoted)
+            moving |= promoted
         kinds[hit[moving]] = 2
         self.moving = pts[moving]
         self.stats["moving_returns"] += int(moving.sum())
         sensor = np.asarray(sensor, dtype=np.float64)[:2]
         self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range), sensor)
-
-    def _with_their_object(self, pts: np.ndarray, moving: np.ndarray) -> np.ndarray:
-        """Returns that belong to an object mostly seen moving: in a cluster of the scan (single
-        linkage at the detector's gap) no larger than the largest object, at least half of whose
-        returns are moving. An object moving into cells the map has not seen free yet (away from
-        the sensor, out of its own shadow) is one object, not a moving part and a static one
-        (the caller keeps returns in cells known occupied static: a wall a person passes)."""
-        labels = np.empty(len(pts), np.int64)
-        n = K.cluster_points(pts, DETECTION_GAP, labels)
-        share = np.bincount(labels, weights=moving, minlength=n) / np.bincount(labels, minlength=n)
-        lo = np.full((n, 2), np.inf)
-        hi = np.full((n, 2), -np.inf)
-        np.minimum.at(lo, labels, pts)
-        np.maximum.at(hi, labels, pts)
-        small = np.hypot(*(hi - lo).T) <= np.hypot(*self.tracker.params.max_size)
-        return (share >= 0.5)[labels] & small[labels]
 
     def occupancy(self, at: float, origin, resolution: float, shape) -> np.ndarray:
         """Probability (float32 (H, W), row 0 at ``origin``) that each cell's centre lies under a
