@@ -40,7 +40,7 @@ def _run_tiled(args, model) -> int:
     from ..errors import InvalidArgumentError
     from ..world.build import build_grid
     from ..world.grid_tiles import TiledGrid2D
-    from ..world.sources import CarmenScans
+    from ..sources import CarmenScans
 
     if args.png is not None:
         raise InvalidArgumentError("with --tiles, --png is not made (export a box, then draw it)")

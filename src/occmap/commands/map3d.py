@@ -43,7 +43,7 @@ def _run_tiled(args) -> int:
     from ..errors import InvalidArgumentError
     from ..world.build import build_octree
     from ..world.octree_tiles import TiledOcTree
-    from ..world.sources import CloudFiles
+    from ..sources import CloudFiles
 
     if args.png is not None or (args.output is not None and not args.output.lower().endswith((".bt", ".ot"))):
         raise InvalidArgumentError("with --tiles, -o is a .bt or .ot export of the whole store and --png is not made")

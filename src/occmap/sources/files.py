@@ -1,33 +1,40 @@
-"""Where a world-scale build reads its scans: a *scan source* is a picklable sequence of scans
-that any process can open by number, so Dask workers (local or remote, sharing the files) each read
-just the scans their region needs, in the same order.
-
-A source has ``len(source)``, ``source.scan(k)``: scan ``k`` — for octrees a
-:class:`~occmap.cloud.PointCloud` (its ``world_points()`` and ``origin`` are what a map inserts;
-``has_pose`` false where the data gave no pose), for grids a :class:`~occmap.scan.LaserScan` —
-and ``source.name(k)`` to name it in messages.
-"""
+"""Scan sources read from files: point-cloud files (poses from the files or a pose file) and
+CARMEN laser logs. Both open any scan by number, so a world-scale build's workers each read just
+the scans their region needs."""
 
 from __future__ import annotations
 
+from collections import Counter
 from functools import lru_cache
 from pathlib import Path
+from typing import Iterator
+
+from ..cloud import PointCloud
 
 
 class CloudFiles:
     """Point-cloud files as a scan source, in order: each file one scan with its pose (PCD
     ``VIEWPOINT``, 3DTK ``.frames``; identity where the format has none), an OctoMap ScanGraph
-    (``.graph``) one scan per node. ``**read_options`` go to :func:`occmap.io.pointclouds.read_cloud`."""
+    (``.graph``) one scan per node. ``**read_options`` go to :func:`occmap.io.pointclouds.read_cloud`.
 
-    def __init__(self, paths, **read_options):
+    ``poses`` (a :class:`~occmap.io.poses.PoseTrack`) replaces the files' poses: pose ``k`` for
+    scan ``k`` (a file holding fewer poses than there are scans raises
+    :class:`~occmap.errors.InvalidArgumentError` naming both counts)."""
+
+    def __init__(self, paths, poses=None, **read_options):
         self.paths = [str(p) for p in paths]
         self.read_options = read_options
+        self.dropped = Counter()  # nothing is: every file is a scan
         self._scans = []  # (file, node or None)
         for path in self.paths:
             if path.endswith(".graph"):
                 self._scans += [(path, k) for k in range(len(_graph(path).nodes))]
             else:
                 self._scans.append((path, None))
+        self._poses = None if poses is None else poses.by_index(len(self._scans), "point clouds")
+
+    def __iter__(self) -> Iterator:
+        return (self.scan(k) for k in range(len(self)))
 
     def __len__(self) -> int:
         return len(self._scans)
@@ -36,10 +43,14 @@ class CloudFiles:
         """Scan ``k`` as a :class:`occmap.cloud.PointCloud`."""
         path, node = self._scans[k]
         if node is not None:
-            return _graph(path).nodes[node]
-        from ..io.pointclouds import read_cloud
+            cloud = _graph(path).nodes[node]
+        else:
+            from ..io.pointclouds import read_cloud
 
-        return read_cloud(path, **self.read_options)
+            cloud = read_cloud(path, **self.read_options)
+        if self._poses is None:
+            return cloud
+        return PointCloud(cloud.points, self._poses[k], cloud.stamp, cloud.dropped)
 
     def name(self, k: int) -> str:
         path, node = self._scans[k]
@@ -54,30 +65,6 @@ def _graph(path: str):
     return read_scangraph(Path(path))
 
 
-class SimulatedDrive:
-    """The LiDAR drive through the procedural town (:mod:`occmap.sim.city`) as a scan source:
-    scan ``k`` is made where it is needed, the same bits in every process."""
-
-    def __init__(self, drive=None, stop: int | None = None):
-        from ..sim.city import CityDrive
-
-        self.drive = CityDrive() if drive is None else drive
-        self.stop = self.drive.n_scans if stop is None else min(int(stop), self.drive.n_scans)
-
-    def __len__(self) -> int:
-        return self.stop
-
-    def scan(self, k: int):
-        from ..sim.city import city_scan
-
-        if not 0 <= k < self.stop:
-            raise IndexError(f"scan {k} of {self.stop}")
-        return city_scan(k, self.drive)
-
-    def name(self, k: int) -> str:
-        return f"simulated town drive scan {k}"
-
-
 class CarmenScans:
     """The laser scans of a CARMEN log as a scan source (``read_options`` as for
     :func:`occmap.io.carmen.read_carmen`: ``every``, ``max_range``, ``lenient``, …); each process
@@ -86,10 +73,14 @@ class CarmenScans:
     def __init__(self, path, **read_options):
         self.path = str(path)
         self.read_options = read_options
+        self.dropped = Counter()  # the reader counts what it skips in :attr:`stats`
         self._count = len(_carmen(self.path, tuple(sorted(read_options.items()))))
 
     def __len__(self) -> int:
         return self._count
+
+    def __iter__(self) -> Iterator:
+        return (self.scan(k) for k in range(len(self)))
 
     def scan(self, k: int):
         return _carmen(self.path, tuple(sorted(self.read_options.items()))).scans[k]
