@@ -55,7 +55,7 @@ class _BagSource:
         self.every = int(every)
         self.tolerance = float(tolerance)
         self.dropped: Counter = Counter()
-        self._track = poses
+        self.pose_track = poses
         self._tree = None
         with open_bag(path) as bag:
             self.topic = _pick_topic(bag, topic, self.MSGTYPE)
@@ -101,12 +101,12 @@ class _BagSource:
 
     def _pose(self, k: int, frame: str, stamp: float, where: str):
         """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
-        if self._track is not None:
-            if self._track.stamps is None:
-                return self._track.poses[k].matrix
-            pose, ok = self._track.at([stamp], self.tolerance)
+        if self.pose_track is not None:
+            if self.pose_track.stamps is None:
+                return self.pose_track.poses[k].matrix
+            pose, ok = self.pose_track.at([stamp], self.tolerance)
             if not ok[0]:
-                self.dropped[f"no pose in {self._track.path} within {self.tolerance:g} s"] += 1
+                self.dropped[f"no pose in {self.pose_track.path} within {self.tolerance:g} s"] += 1
                 return None
             return pose.matrix[0]
         try:
