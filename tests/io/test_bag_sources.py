@@ -180,25 +180,30 @@ def test_wrong_topic_type_and_truncated_bag(tmp_path, intel, capsys):
     assert "cut.bag" in capsys.readouterr().err
 
 
-# ---------------------------------------------------------------------- 3D: HDL-32 scans as PointCloud2 + tf
+# ---------------------------------------------------------------------- 3D: HDL-32 and UOS scans as PointCloud2 + tf
 
 
-@pytest.fixture(scope="module")
-def hdl_pair(data_dir):
-    """Every 8th point of the two HDL-32 scans (float32 as recorded, the (0, 0, 0) no-returns NaN)
-    and the registration between them."""
-    from occmap.io.pointclouds import read_pcd
+@pytest.fixture(scope="module", params=["hdl32", "uos"])
+def scan_pair(request, data_dir):
+    """Two real 3D scans, 8,192 points of each (float32 as a PointCloud2 carries them, no-returns
+    NaN), and their poses: the HDL-32 pair (the second placed by its registration), or UOS scans
+    0 and 1 with their registered poses."""
+    from occmap.io.pointclouds import read_pcd, read_uos
 
-    folder = data_dir / "scans3d" / "hdl32_pair"
-    clouds = []
-    for name in ("251370668.pcd", "251371071.pcd"):
-        pts = read_pcd(folder / name, drop_origin=False).points[::8][:8192].astype(np.float32)
-        pts[~pts.any(axis=1)] = np.nan
-        clouds.append(pts)
-    relative = np.loadtxt(folder / "relative.txt")
-    relative[:3, :3] = np.linalg.svd(relative[:3, :3])[0] @ np.linalg.svd(relative[:3, :3])[2]
-    return clouds, [SE3.from_quat((1.0, 0.0, 0.0, 0.0), (0.5, -1.0, 1.8)), SE3.from_quat(
-        (1.0, 0.0, 0.0, 0.0), (0.5, -1.0, 1.8)) @ SE3(relative)]
+    if request.param == "hdl32":
+        folder = data_dir / "scans3d" / "hdl32_pair"
+        clouds = []
+        for name in ("251370668.pcd", "251371071.pcd"):
+            pts = read_pcd(folder / name, drop_origin=False).points[::8][:8192].astype(np.float32)
+            pts[~pts.any(axis=1)] = np.nan
+            clouds.append(pts)
+        relative = np.loadtxt(folder / "relative.txt")
+        u, _, vt = np.linalg.svd(relative[:3, :3])
+        relative[:3, :3] = u @ vt  # printed with six digits
+        start = SE3.from_quat((1.0, 0.0, 0.0, 0.0), (0.5, -1.0, 1.8))
+        return clouds, [start, start @ SE3(relative)]
+    scans = [read_uos(data_dir / "scans3d" / "uos_3dtk" / f"scan00{k}.3d") for k in (0, 1)]
+    return [c.points[::9][:8192].astype(np.float32) for c in scans], [c.pose for c in scans]
 
 
 def layouts(xyz):
@@ -259,8 +264,8 @@ def octree_bytes(clouds, poses, tmp_path, resolution=0.2):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_map3d_from_a_bag_is_octree_inserts_of_the_same_clouds(tmp_path, hdl_pair, kind, capsys):
-    clouds, poses = hdl_pair
+def test_map3d_from_a_bag_is_octree_inserts_of_the_same_clouds(tmp_path, scan_pair, kind, capsys):
+    clouds, poses = scan_pair
     path = write_bag(tmp_path, kind, cloud_bag(clouds, poses, empty_at=10.5))
     placed = list(BagClouds(path, topic="/padded"))
     want = octree_bytes(clouds, [SE3(c.pose.matrix) for c in placed], tmp_path)
@@ -280,10 +285,10 @@ def test_map3d_from_a_bag_is_octree_inserts_of_the_same_clouds(tmp_path, hdl_pai
 # ---------------------------------------------------------------------- pose files
 
 
-def test_map3d_cloud_files_with_a_pose_file(tmp_path, hdl_pair, capsys):
+def test_map3d_cloud_files_with_a_pose_file(tmp_path, scan_pair, capsys):
     from occmap.io.pointclouds import write_xyz
 
-    clouds, poses = hdl_pair
+    clouds, poses = scan_pair
     files = []
     for k, xyz in enumerate(clouds):
         files.append(tmp_path / f"c{k}.xyz")

@@ -117,14 +117,14 @@ def read_poses(path, format: str | None = None, calibration: SE3 | None = None) 
     bad = ~np.isfinite(values)
     if bad.any():
         row, col = np.argwhere(bad)[0]
-        raise FormatError(path, f"field {col + 1} is {values[row, col]!r}, not a finite number", line=int(table.lines[row]))
+        raise FormatError(path, f"field {col + 1} is {float(values[row, col])!r}, not a finite number", line=int(table.lines[row]))
     stamps = None
     if format == "tum":
         stamps = values[:, 0]
         back = np.flatnonzero(np.diff(stamps) < 0)
         if back.size:
             k = int(back[0]) + 1
-            raise FormatError(path, f"timestamp {stamps[k]!r} is before the previous line's {stamps[k - 1]!r}; "
+            raise FormatError(path, f"timestamp {float(stamps[k])!r} is before the previous line's {float(stamps[k - 1])!r}; "
                               "TUM poses must be in time order", line=int(table.lines[k]))
         q = values[:, [7, 4, 5, 6]]  # (w, x, y, z)
         norms = np.linalg.norm(q, axis=1)
