@@ -308,3 +308,38 @@ def test_map3d_cloud_files_with_a_pose_file(tmp_path, scan_pair, capsys):
     (tmp_path / "one.txt").write_text((tmp_path / "poses.txt").read_text().splitlines()[0] + "\n")
     assert main(["map3d", *map(str, files), "--poses", str(tmp_path / "one.txt"), "-o", str(tmp_path / "q.bt")]) == 2
     assert "one.txt: 1 poses for 2 point clouds" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------- local and localize
+
+
+def carmen_twin(path, scans):
+    """A CARMEN log of ROBOTLASER1 lines holding exactly ``scans`` (placed LaserScans whose angles
+    are ``a0 + i * step``): the robot pose is the laser's, ``repr`` keeps every bit."""
+    lines = []
+    for s in scans:
+        a0, step = float(s.angles[0]), float(np.float32(s.angles[1] - s.angles[0]))
+        assert np.array_equal(s.angles, a0 + step * np.arange(len(s)))
+        x, y, th = map(repr, map(float, s.pose))
+        lines.append(" ".join(["ROBOTLASER1 0", repr(a0), "3.14", repr(step), repr(float(s.max_range)), "0 0", str(len(s)),
+                               *map(repr, s.ranges.tolist()), "0", x, y, th, x, y, th, "0 0 0 0 0",
+                               repr(float(s.stamp)), "host", repr(float(s.stamp))]))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_local_and_localize_read_a_bag_as_they_read_the_same_log(tmp_path, intel, capsys):
+    bag = write_bag(tmp_path, "mcap", laser_bag(intel[:80]))
+    log = carmen_twin(tmp_path / "twin.log", list(BagScans(bag)))
+    for name, source in (("bag", bag), ("log", log)):
+        assert main(["local", str(source), "-o", str(tmp_path / f"{name}.gif"), "--max-frames", "10"]) == 0
+    assert (tmp_path / "bag.gif").read_bytes() == (tmp_path / "log.gif").read_bytes()
+
+    assert main(["map2d", str(bag), "-o", str(tmp_path / "map.yaml")]) == 0
+    x, y, th = intel[0].pose
+    for name, source in (("bag", bag), ("log", log)):
+        assert main(["localize", str(tmp_path / "map.yaml"), str(source), "-o", str(tmp_path / f"{name}.csv"),
+                     "--init", f"{x},{y},{th}", "--particles", "300", "--beams", "30"]) == 0
+    assert (tmp_path / "bag.csv").read_text() == (tmp_path / "log.csv").read_text()
+    out = capsys.readouterr().out
+    assert out.count("read 80 scans from") == 2

@@ -67,7 +67,7 @@ def laser_source(args, path, every: int = 1):
     from ..sources import BagScans, CarmenScans
 
     if is_bag(path):
-        return BagScans(path, every=every, **bag_options(args))
+        return BagScans(path, every=every, max_range=getattr(args, "max_range", None), **bag_options(args))
     refuse_bag_options(args, "a CARMEN log")
     if getattr(args, "poses", None) is not None:
         from ..errors import InvalidArgumentError
@@ -76,10 +76,14 @@ def laser_source(args, path, every: int = 1):
     return CarmenScans(path, every=every, max_range=getattr(args, "max_range", None))
 
 
-def report_dropped(command: str, source) -> None:
-    """What the source could not use, by reason, as a note (nothing when it used everything)."""
-    from ._notes import note
+def report(command: str, source, max_range_option: bool = True) -> None:
+    """Notes on what the source assumed (a CARMEN log's defaults), tilted, or could not use, by
+    reason (nothing when it used everything as it came)."""
+    from ..sources import CarmenScans
+    from ._notes import carmen_assumptions, note
 
+    if isinstance(source, CarmenScans):
+        carmen_assumptions(command, source.stats, max_range_option)
     if source.dropped:
         reasons = "; ".join(f"{n:,} {why}" for why, n in source.dropped.most_common())
         note(command, f"messages dropped: {reasons}")

@@ -108,10 +108,10 @@ def _run_bag(args, model) -> int:
     if args.lenient:
         raise InvalidArgumentError("--lenient skips malformed CARMEN lines; a bag has none")
     t0 = time.perf_counter()
-    source = BagScans(args.log, every=args.every, **_sources.bag_options(args))
+    source = BagScans(args.log, every=args.every, max_range=args.max_range, **_sources.bag_options(args))
     summary = map_scan_stream(source, args.resolution, args.max_range, model=model, max_extent=args.max_extent,
                               progress=Progress(len(source), "messages"))
-    _sources.report_dropped("map2d", source)
+    _sources.report("map2d", source)
     if not summary.scans:
         raise InvalidArgumentError(f"{args.log}: none of the {len(source):,} scans on {source.topic} could be placed "
                                    "in the map (see the notes above)")

@@ -97,7 +97,7 @@ def run(args) -> int:
         outside += s["outside_key_range"]
         progress.update(scans + sum(source.dropped.values()), f"{points:,} points, {tree.num_nodes():,} nodes")
     progress.close()
-    _sources.report_dropped("map3d", source)
+    _sources.report("map3d", source)
     if not scans:
         raise InvalidArgumentError("no point clouds given" if not len(source) else
                                    f"none of the {len(source):,} clouds could be placed in the map (see the notes above)")

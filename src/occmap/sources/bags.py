@@ -127,14 +127,16 @@ class BagScans(_BagSource):
     projected on the fixed frame's xy plane; a laser mounted upside down (its z axis pointing down)
     sweeps clockwise there, so its beam angles are negated. Scans whose plane leans more than 5°
     are kept and counted in ``tilted``: a 2D map sees their beams as if level.
-    ``topic`` defaults to the bag's only LaserScan topic.
+    ``topic`` defaults to the bag's only LaserScan topic; ``max_range`` (metres), when given,
+    replaces the messages' ``range_max``, as it does for a CARMEN log.
     """
 
     MSGTYPE = "sensor_msgs/msg/LaserScan"
     FALLBACK_FRAME = "odom"
 
-    def __init__(self, path, *args, **kwargs):
+    def __init__(self, path, *args, max_range: float | None = None, **kwargs):
         super().__init__(path, *args, **kwargs)
+        self.max_range = None if max_range is None else float(max_range)
         self.tilted = 0
 
     def _decode(self, msg, where):
@@ -142,6 +144,8 @@ class BagScans(_BagSource):
         if not len(scan):
             self.dropped["scan with no beams"] += 1
             return None
+        if self.max_range is not None:
+            scan = replace(scan, max_range=self.max_range)
         return scan, frame, scan.stamp
 
     def _place(self, scan, T):

@@ -67,31 +67,39 @@ def _graph(path: str):
 
 class CarmenScans:
     """The laser scans of a CARMEN log as a scan source (``read_options`` as for
-    :func:`occmap.io.carmen.read_carmen`: ``every``, ``max_range``, ``lenient``, …); each process
-    reads the log once."""
+    :func:`occmap.io.carmen.read_carmen`: ``every``, ``max_range``, ``lenient``, …). Iterating
+    streams the log (nothing held but a line); ``len`` and ``scan(k)`` read it whole, once per
+    process."""
 
     def __init__(self, path, **read_options):
         self.path = str(path)
         self.read_options = read_options
         self.dropped = Counter()  # the reader counts what it skips in :attr:`stats`
-        self._count = len(_carmen(self.path, tuple(sorted(read_options.items()))))
+        self._streamed = None
 
     def __len__(self) -> int:
-        return self._count
+        return len(self._log())
 
     def __iter__(self) -> Iterator:
-        return (self.scan(k) for k in range(len(self)))
+        from ..io.carmen import CarmenStats, iter_carmen
+
+        self._streamed = CarmenStats()
+        return iter_carmen(self.path, stats=self._streamed, **self.read_options)
 
     def scan(self, k: int):
-        return _carmen(self.path, tuple(sorted(self.read_options.items()))).scans[k]
+        return self._log().scans[k]
 
     def name(self, k: int) -> str:
         return f"{self.path} scan {k}"
 
     @property
     def stats(self):
-        """The reader's counts (:class:`occmap.io.carmen.CarmenStats`)."""
-        return _carmen(self.path, tuple(sorted(self.read_options.items()))).stats
+        """The reader's counts (:class:`occmap.io.carmen.CarmenStats`): of the last iteration
+        when there was one, else of the whole log."""
+        return self._streamed if self._streamed is not None else self._log().stats
+
+    def _log(self):
+        return _carmen(self.path, tuple(sorted(self.read_options.items())))
 
 
 @lru_cache(maxsize=1)
