@@ -55,9 +55,11 @@ class _BagSource:
         self.every = int(every)
         self.tolerance = float(tolerance)
         self.dropped: Counter = Counter()
+        self.tilted = 0  # laser scans whose plane leans more than TILT_NOTE (see BagScans)
         self.pose_track = poses
         self._tree = None
-        with open_bag(path) as bag:
+        bag = self._bag = open_bag(path)  # kept for the first iteration: opening a ROS 2 bag costs 0.1 s
+        try:
             self.topic = _pick_topic(bag, topic, self.MSGTYPE)
             self.count = bag.topics[self.topic].count
             self.sensor_frame = _first_frame(bag, self.topic)
@@ -65,28 +67,37 @@ class _BagSource:
             if poses is not None:
                 if poses.stamps is None:
                     poses.by_index(self.count, f"messages on {self.topic}")
-                return
-            tree = read_frame_tree(bag)
-            if odom_topic is not None:
-                odometry = read_odometry(bag, odom_topic)
-                if len(odometry.stamps):
-                    tree.set_transform(odometry.frame_id, odometry.child_frame_id, odometry.poses, odometry.stamps)
-            if not tree.frames:
-                odoms = [t.name for t in bag.topics.values() if t.msgtype == ODOMETRY]
-                raise InvalidArgumentError(
-                    f"{self.path}: its {self.topic} messages have no poses: the bag has no tf (/tf, /tf_static)"
-                    + (f" (odometry on {', '.join(odoms)}: give --odom-topic)" if odoms else " and no odometry")
-                    + "; give a pose file with --poses, or build the poses from the scans with --scan-match")
-            self._tree = tree
-            if not self.fixed_frame:
-                self.fixed_frame = _root(tree, self.sensor_frame) or self.FALLBACK_FRAME
+            else:
+                self._tree = self._frame_tree(bag, odom_topic)
+                self.fixed_frame = self.fixed_frame or _root(self._tree, self.sensor_frame) or self.FALLBACK_FRAME
+        except BaseException:
+            bag.close()
+            raise
+
+    def _frame_tree(self, bag, odom_topic):
+        """tf, with the odometry topic's link, or an error when there is nothing to place scans by."""
+        tree = read_frame_tree(bag)
+        if odom_topic is not None:
+            odometry = read_odometry(bag, odom_topic)
+            if len(odometry.stamps):
+                tree.set_transform(odometry.frame_id, odometry.child_frame_id, odometry.poses, odometry.stamps)
+        if not tree.frames:
+            odoms = [t.name for t in bag.topics.values() if t.msgtype == ODOMETRY]
+            raise InvalidArgumentError(
+                f"{self.path}: its {self.topic} messages have no poses: the bag has no tf (/tf, /tf_static)"
+                + (f" (odometry on {', '.join(odoms)}: give --odom-topic)" if odoms else " and no odometry")
+                + "; give a pose file with --poses, or build the poses from the scans with --scan-match")
+        return tree
 
     def __len__(self) -> int:
         """Messages the stream looks at (every ``every``-th of the topic's)."""
         return -(-self.count // self.every)
 
     def __iter__(self) -> Iterator:
-        with open_bag(self.path) as bag:
+        bag, self._bag = self._bag or open_bag(self.path), None
+        self.dropped.clear()
+        self.tilted = 0
+        with bag:
             for k, m in enumerate(bag.messages(self.topic, self.MSGTYPE)):
                 if k % self.every:
                     continue
@@ -137,7 +148,6 @@ class BagScans(_BagSource):
     def __init__(self, path, *args, max_range: float | None = None, **kwargs):
         super().__init__(path, *args, **kwargs)
         self.max_range = None if max_range is None else float(max_range)
-        self.tilted = 0
 
     def _decode(self, msg, where):
         scan, frame = decode_laser_scan(msg, where)
