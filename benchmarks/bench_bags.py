@@ -155,14 +155,15 @@ def _writer(kind, path, ts):
 def _tf(ts, stamp, parent, child, translation, yaw):
     T = ts.types
     sec = int(stamp // 1)
-    header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=round((stamp - sec) * 1e9)),
-                                      frame_id=parent,
-                                      **({"seq": 0} if "seq" in ts.fielddefs["std_msgs/msg/Header"][1][0] else {}))
+    time = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=round((stamp - sec) * 1e9))
+    extra = {"seq": 0} if "seq" in ts.fielddefs["std_msgs/msg/Header"][1][0] else {}
+    header = T["std_msgs/msg/Header"](stamp=time, frame_id=parent, **extra)
     tr = T["geometry_msgs/msg/Transform"](translation=T["geometry_msgs/msg/Vector3"](x=translation[0], y=translation[1],
                                                                                      z=translation[2]),
                                           rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=np.sin(yaw / 2),
                                                                                      w=np.cos(yaw / 2)))
-    return T[TF](transforms=[T["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=child, transform=tr)]), header
+    stamped = T["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=child, transform=tr)
+    return T[TF](transforms=[stamped]), header
 
 
 def _typestore(kind):
@@ -268,7 +269,7 @@ def map2d_rows(scans, repeat):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--clouds", type=int, default=40, help="clouds per bag (default 40)")
-    ap.add_argument("--map-clouds", type=int, default=10, help="clouds in the bag mapped end to end (default 10)")
+    ap.add_argument("--map-clouds", type=int, default=20, help="clouds in the bag mapped end to end (default 20)")
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--no-write", action="store_true", help="print, do not rewrite BENCHMARKS.md")
     args = ap.parse_args()

@@ -138,7 +138,8 @@ def test_upside_down_laser_sweeps_clockwise(tmp_path, intel):
     def build(m):
         yield "/tf", TF, s.stamp, m.tf([m.transform(s.stamp, "odom", "laser", (1.0, 2.0, 0.3), (1.0, 0.0, 0.0, 0.0))])
         inc = float(s.angles[1] - s.angles[0])
-        yield "/scan", SCAN, s.stamp, m.laser_scan(s.stamp, "laser", s.ranges, float(s.angles[0]), inc, 0.0, s.max_range)
+        yield "/scan", SCAN, s.stamp, m.laser_scan(s.stamp, "laser", s.ranges, float(s.angles[0]), inc, 0.0,
+                                                   s.max_range)
 
     (scan,) = list(BagScans(write_bag(tmp_path, "ros1", build)))
     np.testing.assert_allclose(scan.pose, (1.0, 2.0, 0.0), atol=1e-15)
@@ -321,8 +322,8 @@ def carmen_twin(path, scans):
         a0, step = float(s.angles[0]), float(np.float32(s.angles[1] - s.angles[0]))
         assert np.array_equal(s.angles, a0 + step * np.arange(len(s)))
         x, y, th = map(repr, map(float, s.pose))
-        lines.append(" ".join(["ROBOTLASER1 0", repr(a0), "3.14", repr(step), repr(float(s.max_range)), "0 0", str(len(s)),
-                               *map(repr, s.ranges.tolist()), "0", x, y, th, x, y, th, "0 0 0 0 0",
+        lines.append(" ".join(["ROBOTLASER1 0", repr(a0), "3.14", repr(step), repr(float(s.max_range)), "0 0",
+                               str(len(s)), *map(repr, s.ranges.tolist()), "0", x, y, th, x, y, th, "0 0 0 0 0",
                                repr(float(s.stamp)), "host", repr(float(s.stamp))]))
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -343,3 +344,29 @@ def test_local_and_localize_read_a_bag_as_they_read_the_same_log(tmp_path, intel
     assert (tmp_path / "bag.csv").read_text() == (tmp_path / "log.csv").read_text()
     out = capsys.readouterr().out
     assert out.count("read 80 scans from") == 2
+
+
+def test_tum_poses_place_a_bags_scans_by_stamp(data_dir, tmp_path, capsys):
+    """The shared bag (no tf) with a TUM track over its first half: scans there are placed at the
+    interpolated pose, the others dropped and counted."""
+    from occmap.io.bags import decode_laser_scan, open_bag
+
+    bag = data_dir / SHARED_BAG
+    with open_bag(bag) as b:
+        stamps = np.array([decode_laser_scan(m.msg).scan.stamp for m in b.messages("/scan")])
+    knots = np.linspace(stamps[0], stamps[len(stamps) // 2], 20)
+    track = tmp_path / "track.txt"
+    track.write_text("# timestamp tx ty tz qx qy qz qw\n" + "".join(
+        f"{float(t)!r} {0.1 * k!r} 0 0 0 0 {math.sin(0.05 * k)!r} {math.cos(0.05 * k)!r}\n"
+        for k, t in enumerate(knots)))
+    source = BagScans(bag, poses=read_poses(track))
+    placed = list(source)
+    covered = stamps <= knots[-1] + 0.05
+    assert len(placed) == covered.sum() and dict(source.dropped) == {
+        f"no pose in {track} within 0.05 s": int((~covered).sum())}
+    got = np.array([s.pose for s in placed])
+    np.testing.assert_allclose(got[:, 0], np.interp(stamps[covered], knots, 0.1 * np.arange(20)), atol=1e-12)
+    np.testing.assert_allclose(got[:, 2], np.interp(stamps[covered], knots, 0.1 * np.arange(20)), atol=1e-12)
+    assert main(["map2d", str(bag), "--poses", str(track), "-o", str(tmp_path / "m.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert f"/scan in the frame of {track}: {len(stamps)} messages, {covered.sum()} scans used" in out

@@ -39,7 +39,8 @@ def _source(args):
         if len(args.inputs) > 1:
             raise InvalidArgumentError(f"one bag at a time: {bags[0]} came with {len(args.inputs) - 1} more inputs")
         if args.tiles is not None:
-            raise InvalidArgumentError("--tiles reads files scan by scan; a bag is mapped in one process (drop --tiles)")
+            raise InvalidArgumentError("--tiles reads files scan by scan; a bag is mapped in one process "
+                                       "(drop --tiles)")
         return BagClouds(bags[0], **_sources.bag_options(args))
     _sources.refuse_bag_options(args, "point-cloud files")
     return CloudFiles(args.inputs, poses=_sources.pose_track(args))
@@ -99,8 +100,8 @@ def run(args) -> int:
     progress.close()
     _sources.report("map3d", source)
     if not scans:
-        raise InvalidArgumentError("no point clouds given" if not len(source) else
-                                   f"none of the {len(source):,} clouds could be placed in the map (see the notes above)")
+        raise InvalidArgumentError("no point clouds given" if not len(source) else f"none of the {len(source):,} "
+                                   "clouds could be placed in the map (see the notes above)")
     _notes.identity_poses("map3d", no_pose, scans)
     if outside:
         _notes.note("map3d", f"points outside the octree's key range (±{32768 * args.resolution:g} m at "

@@ -76,7 +76,8 @@ class PoseTrack:
         the last, that sample if it is within ``tolerance`` seconds, else none (identity in the
         result, False in the mask). Only for tracks with stamps."""
         if self.stamps is None:
-            raise InvalidArgumentError(f"{self.path}: {self.format} poses have no stamps; they pair with scans by index")
+            raise InvalidArgumentError(f"{self.path}: {self.format} poses have no stamps; they pair with scans "
+                                       "by index")
         t = np.asarray(stamps, dtype=np.float64).reshape(-1)
         s = self.stamps
         i = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(s) - 1)
@@ -117,15 +118,16 @@ def read_poses(path, format: str | None = None, calibration: SE3 | None = None) 
     bad = ~np.isfinite(values)
     if bad.any():
         row, col = np.argwhere(bad)[0]
-        raise FormatError(path, f"field {col + 1} is {float(values[row, col])!r}, not a finite number", line=int(table.lines[row]))
+        raise FormatError(path, f"field {col + 1} is {float(values[row, col])!r}, not a finite number",
+                          line=int(table.lines[row]))
     stamps = None
     if format == "tum":
         stamps = values[:, 0]
         back = np.flatnonzero(np.diff(stamps) < 0)
         if back.size:
             k = int(back[0]) + 1
-            raise FormatError(path, f"timestamp {float(stamps[k])!r} is before the previous line's {float(stamps[k - 1])!r}; "
-                              "TUM poses must be in time order", line=int(table.lines[k]))
+            raise FormatError(path, f"timestamp {float(stamps[k])!r} is before the previous line's "
+                              f"{float(stamps[k - 1])!r}; TUM poses must be in time order", line=int(table.lines[k]))
         q = values[:, [7, 4, 5, 6]]  # (w, x, y, z)
         norms = np.linalg.norm(q, axis=1)
         if (norms == 0).any():
@@ -159,7 +161,8 @@ def read_kitti_calibration(path) -> SE3:
             continue
         fields = rest.split()
         if len(fields) != 12:
-            raise FormatError(path, f"{key.strip()} holds {len(fields)} numbers, expected 12 (a 3×4 matrix)", line=number)
+            raise FormatError(path, f"{key.strip()} holds {len(fields)} numbers, expected 12 (a 3×4 matrix)",
+                              line=number)
         try:
             values = np.array([float(f) for f in fields])
         except ValueError:
