@@ -13,6 +13,7 @@ from .errors import InvalidArgumentError
 from .grid2d import LidarModel, OccupancyGrid2D
 from .grid2d.grid import DEFAULT_MAX_EXTENT
 from ._progress import Progress
+from ._threads import read_ahead
 from .scan import LaserScan, ScanStack, stack_scans
 
 
@@ -63,11 +64,12 @@ def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: fl
                     chunk: int = 200, progress: Progress | None = None, model: LidarModel | None = None,
                     max_extent: float | None = DEFAULT_MAX_EXTENT) -> MappingSummary:
     """:func:`map_scans` for scans that arrive one by one (a bag, a log read as it goes): they are
-    stacked ``chunk`` at a time, so memory holds one chunk. Without ``max_range``, no-return
+    stacked ``chunk`` at a time, the next chunk read on a thread of its own while the grid takes
+    the last (:func:`occmap._threads.read_ahead`), so memory holds two or three chunks. Without ``max_range``, no-return
     readings clear up to the largest maximum range of their chunk (one sensor has one; for scans
     of one maximum range the grid is :func:`map_scans`'s to the bit). ``progress`` is told the
     scans done."""
-    chunks = (stack_scans(batch) for batch in _batches(scans, chunk))
+    chunks = read_ahead(stack_scans(batch) for batch in _batches(scans, chunk))
     return _integrate(chunks, resolution, lambda c: float(max_range) if max_range is not None
                       else float(c.max_ranges.max()), model, max_extent, progress)
 

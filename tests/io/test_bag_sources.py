@@ -23,7 +23,7 @@ from occmap.sources import BagClouds, BagScans, CloudFiles
 
 pytest.importorskip("rosbags")
 from bag_writing import (  # noqa: E402
-    CLOUD, MOUNT, ODOM, ROS_TYPE, SCAN, SHARED_BAG, TF, TF_STATIC, packed, quat_xyzw_of_yaw, write_bag,
+    CLOUD, MOUNT, ODOM, ROS_TYPE, SCAN, SHARED_BAG, TF, TF_STATIC, packed, write_bag,
 )
 
 KINDS = ("ros1", "sqlite3", "mcap")

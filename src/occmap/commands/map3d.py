@@ -68,6 +68,7 @@ def _run_tiled(args, source) -> int:
 def run(args) -> int:
     from .._clock import WorkClock
     from .._progress import Progress
+    from .._threads import read_ahead
     from ..errors import InvalidArgumentError
     from ..octree import OcTree
 
@@ -87,7 +88,7 @@ def run(args) -> int:
     points = dropped = outside = scans = 0
     no_pose = []
     clock = WorkClock()
-    for k, cloud in enumerate(source):
+    for k, cloud in enumerate(read_ahead(source)):  # the next cloud read while this one is inserted
         if not cloud.has_pose:
             no_pose.append(source.name(k))
         with clock.running():
