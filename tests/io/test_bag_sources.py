@@ -370,3 +370,17 @@ def test_tum_poses_place_a_bags_scans_by_stamp(data_dir, tmp_path, capsys):
     assert main(["map2d", str(bag), "--poses", str(track), "-o", str(tmp_path / "m.yaml")]) == 0
     out = capsys.readouterr().out
     assert f"/scan in the frame of {track}: {len(stamps)} messages, {covered.sum()} scans used" in out
+
+
+def test_bag_options_are_refused_for_other_inputs(data_dir, tmp_path, capsys):
+    log = data_dir / "carmen" / "intel-corrected.log.gz"
+    assert main(["map2d", str(log), "--poses", str(log), "--topic", "/scan", "-o", str(tmp_path / "m.yaml")]) == 2
+    assert "--topic, --poses: not for a CARMEN log (it carries its poses)" in capsys.readouterr().err
+    assert main(["local", str(log), "--fixed-frame", "map", "-o", str(tmp_path / "m.gif")]) == 2
+    assert "--fixed-frame: not for a CARMEN log" in capsys.readouterr().err
+    pcd = data_dir / "scans3d" / "hdl32_pair" / "251370668.pcd"
+    assert main(["map3d", str(pcd), "--odom-topic", "/odom", "-o", str(tmp_path / "m.bt")]) == 2
+    assert "--odom-topic: not for point-cloud files" in capsys.readouterr().err
+    assert main(["map3d", str(pcd), "--calib", str(pcd), "-o", str(tmp_path / "m.bt")]) == 2
+    assert "--calib and --pose-format go with --poses FILE" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())

@@ -50,14 +50,15 @@ def bag_options(args) -> dict:
                 poses=pose_track(args), tolerance=getattr(args, "pose_tolerance", 0.05))
 
 
-def refuse_bag_options(args, input_kind: str) -> None:
-    """Bag options given for an input that is not a bag: say so rather than ignore them."""
+def refuse_bag_options(args, input_kind: str, takes_poses: bool = False) -> None:
+    """Bag options (and, unless the input ``takes_poses``, pose-file options) given for an input
+    that is not a bag: say so rather than ignore them."""
     from ..errors import InvalidArgumentError
 
-    given = [f"--{name.replace('_', '-')}" for name in ("topic", "fixed_frame", "odom_topic")
-             if getattr(args, name, None) is not None]
+    names = ("topic", "fixed_frame", "odom_topic") + (() if takes_poses else ("poses", "pose_format", "calib"))
+    given = [f"--{name.replace('_', '-')}" for name in names if getattr(args, name, None) is not None]
     if given:
-        raise InvalidArgumentError(f"{', '.join(given)} read bags; the input is {input_kind}")
+        raise InvalidArgumentError(f"{', '.join(given)}: not for {input_kind}")
 
 
 def laser_source(args, path, every: int = 1):
@@ -68,11 +69,7 @@ def laser_source(args, path, every: int = 1):
 
     if is_bag(path):
         return BagScans(path, every=every, max_range=getattr(args, "max_range", None), **bag_options(args))
-    refuse_bag_options(args, "a CARMEN log")
-    if getattr(args, "poses", None) is not None:
-        from ..errors import InvalidArgumentError
-
-        raise InvalidArgumentError("--poses places a bag's scans; a CARMEN log carries its poses")
+    refuse_bag_options(args, "a CARMEN log (it carries its poses)")
     return CarmenScans(path, every=every, max_range=getattr(args, "max_range", None))
 
 

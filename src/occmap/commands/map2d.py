@@ -81,7 +81,7 @@ def run(args) -> int:
     model = LidarModel(args.prob_hit, args.prob_miss)  # checks the pair before the log is read
     if is_bag(args.log):
         return _run_bag(args, model)
-    _sources.refuse_bag_options(args, "a CARMEN log")
+    _sources.refuse_bag_options(args, "a CARMEN log (it carries its poses)")
     if args.tiles is not None:
         return _run_tiled(args, model)
 

@@ -42,7 +42,7 @@ def _source(args):
             raise InvalidArgumentError("--tiles reads files scan by scan; a bag is mapped in one process "
                                        "(drop --tiles)")
         return BagClouds(bags[0], **_sources.bag_options(args))
-    _sources.refuse_bag_options(args, "point-cloud files")
+    _sources.refuse_bag_options(args, "point-cloud files", takes_poses=True)
     return CloudFiles(args.inputs, poses=_sources.pose_track(args))
 
 
