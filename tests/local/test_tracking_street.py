@@ -42,7 +42,7 @@ def replay():
             rows.append((t, tracks.id[i], truth.id[j] if d[j] < 2.5 else -1, truth.kind[j], d[j],
                          math.hypot(truth.vx[j] - tracks.vx[i], truth.vy[j] - tracks.vy[i]), dh))
         if t + 1.0 <= STREET.duration and round(t * 10) % 5 == 0:  # every half second
-            ids, states, _, sizes = lm._objects.tracker.predicted(t + 1.0)
+            ids, states, _, sizes = lm.objects.tracker.predicted(t + 1.0)
             ahead = STREET.objects(t + 1.0)
             for k in range(len(ids)):
                 j = int(np.hypot(ahead.x - states[k, 0], ahead.y - states[k, 1]).argmin())
@@ -132,3 +132,21 @@ def test_tracking_needs_to_be_asked_for():
         lm.tracks()
     lm.insert_scan((0, 0, 0), np.full(8, 2.0), np.linspace(-3, 3, 8), 1.0)
     np.testing.assert_array_equal(lm.costmap(at=5.0)[0], lm.costmap()[0])  # nothing moves
+
+
+def test_frames_draw_confirmed_tracks(replay):
+    from occmap.commands.local import _objects
+    from occmap.local.replay import frame_image
+
+    lm = LocalMap((60.0, 60.0), 0.1, tracking=True)
+    rng = np.random.default_rng(2)
+    for t in np.arange(0.0, 3.01, RATE):
+        scan = STREET.lidar(round(float(t), 1), rng=rng)
+        lm.move_to(*scan.pose[:2])
+        lm.insert_scan(scan.pose, scan.ranges, scan.angles, round(float(t), 1), max_range=30.0)
+    corners, ahead = _objects(lm, 1.0)
+    assert len(corners) == lm.tracks().confirmed.sum() >= 1
+    plain = np.asarray(frame_image(lm.costmap()[0], None, 2))
+    drawn = np.asarray(frame_image(lm.costmap()[0], None, 2, (corners, ahead)))
+    assert not (plain == 131).any() and (drawn == 131).sum() > 20
+    assert lm.stats["tracks_confirmed"] >= 1 and lm.stats["moving_returns"] > 0

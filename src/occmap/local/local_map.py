@@ -158,6 +158,8 @@ class LocalMap(OneCallAtATime):
         self._cost_cache = None
         self.stats = {"scans": 0, "points": 0, "dropped": 0, "dropped_poses": 0, "beyond_max_range": 0,
                       "rays": 0, "cells_updated": 0, "cells_cleared_by_moves": 0}
+        if self._objects is not None:
+            self.stats.update(self._objects.counts())
         cx, cy = (checks.finite("center", v) for v in center)
         self._gx0, self._gy0 = self._corner_for(cx, cy)
 
@@ -290,6 +292,7 @@ class LocalMap(OneCallAtATime):
             open_, occupied = self._classify_returns(ends, kinds)
             self._objects.sort_returns(ends, kinds, open_, occupied, (px, py), self._time, max_range,
                                        (self.origin, self.resolution, self.shape))
+            self.stats.update(self._objects.counts())
         g = self._g
         lp = self.l_prior
         hits, rays, updated, visited = K.integrate(
@@ -477,6 +480,12 @@ class LocalMap(OneCallAtATime):
         """Probability (float32 (H, W), row 0 at the origin) that a tracked object covers each
         cell's centre at time ``at`` (seconds, at or after the last update); needs ``tracking=True``."""
         return self._layer().occupancy(checks.finite("at", at), self.origin, self.resolution, self.shape)
+
+    @property
+    def objects(self) -> ObjectLayer | None:
+        """The moving-object layer (its ``tracker`` predicts tracks to any later time), ``None``
+        without tracking."""
+        return self._objects
 
     def _layer(self) -> ObjectLayer:
         if self._objects is None:

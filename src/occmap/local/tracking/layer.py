@@ -87,6 +87,12 @@ class ObjectLayer:
         sensor = np.asarray(sensor, dtype=np.float64)[:2]
         self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range), sensor)
 
+    def counts(self) -> dict:
+        """Running counts: returns taken as moving, tracks started, confirmed and dropped."""
+        t = self.tracker.stats
+        return {"moving_returns": self.stats["moving_returns"], "tracks_started": t["tracks_started"],
+                "tracks_confirmed": t["tracks_confirmed"], "tracks_dropped": t["tracks_dropped"]}
+
     def occupancy(self, at: float, origin, resolution: float, shape) -> np.ndarray:
         """Probability (float32 (H, W), row 0 at ``origin``) that each cell's centre lies under a
         confirmed object at time ``at`` (seconds, not before the last scan)."""
