@@ -49,7 +49,7 @@ MAX_RANGE = 30.0
 #: The scan source each process makes: the town's drive, at the origin or at its default place.
 SOURCE = """
 from occmap.sim.city import CityDrive, CityPlan
-from occmap.world.sources import SimulatedDrive
+from occmap.sources import SimulatedDrive
 def source(near, stop):
     return SimulatedDrive(CityDrive(CityPlan(centre=(0.0, 0.0)) if near else CityPlan()), stop)
 """
@@ -163,7 +163,7 @@ def compare(scans: int, rounds: int) -> list[str]:
     from occmap.io.octomap import encode_bt
     from occmap.sim.city import CityDrive, CityPlan
     from occmap.world.octree_tiles import TiledOcTree
-    from occmap.world.sources import SimulatedDrive
+    from occmap.sources import SimulatedDrive
 
     with tempfile.TemporaryDirectory(prefix="occmap-bench-world-") as tmp:
         folder = Path(tmp)

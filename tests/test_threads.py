@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import occmap._threads
-from occmap._threads import ThreadChoice, _tbb_library, run_jobs
+from occmap._threads import ThreadChoice, _tbb_library, read_ahead, run_jobs
 
 two_threads = pytest.mark.skipif(numba.get_num_threads() < 2, reason="Numba has one thread here")
 
@@ -142,3 +142,26 @@ def test_octree_threads_work_in_forked_children():
     expected = _child_inserts(None)  # the parent's worker threads now exist
     with mp.get_context("fork").Pool(2) as pool:
         assert pool.map_async(_child_inserts, range(2)).get(timeout=240) == [expected] * 2
+
+
+def test_read_ahead_keeps_order_errors_and_stops_early():
+    made = []
+
+    def items(n, fail_at=None):
+        for k in range(n):
+            if k == fail_at:
+                raise ValueError(f"item {k}")
+            made.append(k)
+            yield k
+
+    assert list(read_ahead(items(50))) == list(range(50))
+    got = []
+    with pytest.raises(ValueError, match="item 7"):
+        for k in read_ahead(items(20, fail_at=7)):
+            got.append(k)
+    assert got == list(range(7))  # every item before the failure, then the failure
+    made.clear()
+    for k in read_ahead(items(10_000), depth=2):
+        if k == 3:
+            break
+    assert len(made) <= 3 + 2 + 2  # the reader stopped a few items ahead, not at the end

@@ -24,7 +24,8 @@ while another thread is inside a call must not use that object.
 ``prange`` cannot): :func:`share` runs a task on the calling thread and on pool threads at once,
 and never waits for a pool thread that has not started. As many threads as Numba has
 (``NUMBA_NUM_THREADS``, ``numba.set_num_threads``); pools are made per process, so a child made by
-``fork`` has its own.
+``fork`` has its own. :func:`read_ahead` reads a stream (a bag: Python, holding the GIL) on a
+thread of its own while the caller's kernels (which release it) insert what was read.
 """
 
 from __future__ import annotations
@@ -201,6 +202,45 @@ def run_jobs(jobs, threads: int | None = None) -> list:
 
     share(take, threads)
     return results
+
+
+def read_ahead(items, depth: int = 2):
+    """Iterate ``items`` on a reader thread, at most ``depth`` items ahead of the caller: the
+    same items in the same order, and an exception ``items`` raises surfaces here, where its item
+    would have. Stopping early (``break``, an error) stops the reader at its next item."""
+    import queue
+
+    ready: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+    end = object()
+
+    def read():
+        try:
+            for item in items:
+                ready.put((item, None))
+                if stop.is_set():
+                    return
+            ready.put((end, None))
+        except BaseException as e:  # handed to the caller, raised there
+            ready.put((end, e))
+
+    reader = threading.Thread(target=read, name="occmap-read-ahead", daemon=True)
+    reader.start()
+    try:
+        while True:
+            item, error = ready.get()
+            if item is end:
+                if error is not None:
+                    raise error
+                return
+            yield item
+    finally:
+        stop.set()
+        while reader.is_alive():  # free a put blocked on a full queue
+            try:
+                ready.get(timeout=0.01)
+            except queue.Empty:
+                pass
 
 
 def _max_threads() -> int:

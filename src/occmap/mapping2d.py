@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import sys
+import itertools
 from dataclasses import dataclass
+from typing import Iterable
 
 import numpy as np
 
@@ -11,7 +12,9 @@ from ._clock import WorkClock
 from .errors import InvalidArgumentError
 from .grid2d import LidarModel, OccupancyGrid2D
 from .grid2d.grid import DEFAULT_MAX_EXTENT
-from .scan import ScanStack
+from ._progress import Progress
+from ._threads import read_ahead
+from .scan import LaserScan, ScanStack, stack_scans
 
 
 @dataclass
@@ -49,27 +52,53 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
     :class:`OccupancyGrid2D`) stops it with an :class:`~occmap.errors.InvalidArgumentError` that
     names the scan's number in the log.
     """
-    poses, ranges, angles, max_ranges, _ = stack
-    grid = OccupancyGrid2D(resolution, max_extent=max_extent)
+    poses, ranges, angles, max_ranges, stamps = stack
     n = len(poses)
     limit = float(max_range) if max_range is not None else (float(max_ranges.max()) if n else 1.0)
-    no_return = ranges >= max_ranges[:, None]
-    ranges = np.where(no_return, np.inf, ranges)
+    chunks = (ScanStack(poses[s:s + chunk], ranges[s:s + chunk], angles if angles.ndim == 1 else angles[s:s + chunk],
+                        max_ranges[s:s + chunk], stamps[s:s + chunk]) for s in range(0, n, chunk))
+    return _integrate(chunks, resolution, lambda _: limit, model, max_extent, Progress(n, "scans", progress))
+
+
+def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: float | None = None,
+                    chunk: int = 200, progress: Progress | None = None, model: LidarModel | None = None,
+                    max_extent: float | None = DEFAULT_MAX_EXTENT) -> MappingSummary:
+    """:func:`map_scans` for scans that arrive one by one (a bag, a log read as it goes): they are
+    stacked ``chunk`` at a time, the next chunk read on a thread of its own while the grid takes
+    the last (:func:`occmap._threads.read_ahead`), so memory holds two or three chunks. Without ``max_range``, no-return
+    readings clear up to the largest maximum range of their chunk (one sensor has one; for scans
+    of one maximum range the grid is :func:`map_scans`'s to the bit). ``progress`` is told the
+    scans done."""
+    chunks = read_ahead(stack_scans(batch) for batch in _batches(scans, chunk))
+    return _integrate(chunks, resolution, lambda c: float(max_range) if max_range is not None
+                      else float(c.max_ranges.max()), model, max_extent, progress)
+
+
+def _batches(items, size: int):
+    """Lists of ``size`` items in order (the last one shorter)."""
+    it = iter(items)
+    while batch := list(itertools.islice(it, size)):
+        yield batch
+
+
+def _integrate(chunks, resolution, limit_of, model, max_extent, progress) -> MappingSummary:
+    """Insert stacked chunks of scans in order into a new grid; ``limit_of(chunk)`` is the range
+    up to which its no-return readings clear."""
+    grid = OccupancyGrid2D(resolution, max_extent=max_extent)
     clock = WorkClock()
-    for start in range(0, n, chunk):
-        stop = min(n, start + chunk)
-        a = angles if angles.ndim == 1 else angles[start:stop]
+    done = 0
+    for c in chunks:
+        ranges = np.where(c.ranges >= c.max_ranges[:, None], np.inf, c.ranges)
         with clock.running():
             try:
-                grid.insert_scans(poses[start:stop], ranges[start:stop], a, max_range=limit, model=model)
+                grid.insert_scans(c.poses, ranges, c.angles, max_range=limit_of(c), model=model)
             except InvalidArgumentError as e:
-                raise InvalidArgumentError(f"scans {start}–{stop - 1} of the log (indices below count from {start}): "
-                                           f"{e}") from None
-        if progress:
-            done = stop / n
-            bar = "#" * int(30 * done)
-            print(f"\r[{bar:<30s}] {100 * done:5.1f}% {stop:,}/{n:,} scans", end="", file=sys.stderr, flush=True)
-    if progress and n:
-        print(file=sys.stderr)
+                raise InvalidArgumentError(f"scans {done}–{done + len(c.poses) - 1} of the log (indices below count "
+                                           f"from {done}): {e}") from None
+        done += len(c.poses)
+        if progress is not None:
+            progress.update(done)
+    if progress is not None:
+        progress.close()
     s = grid.stats
     return MappingSummary(s["scans"], s["points"], s["dropped"], s["beyond_max_range"], clock.seconds, grid)

@@ -18,7 +18,7 @@ from occmap.octree import OcTree
 from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive
 from occmap.world.build import UNBOUNDED, build_octree, partition
 from occmap.world.octree_tiles import TiledOcTree
-from occmap.world.sources import CloudFiles
+from occmap.sources import CloudFiles
 from occmap.world.store import IncompleteStoreError
 
 
@@ -79,7 +79,7 @@ def test_regions_cover_the_plane_and_split_the_work():
 _KILLED_BUILD = """
 import sys
 from occmap.world.build import build_octree
-from occmap.world.sources import CloudFiles
+from occmap.sources import CloudFiles
 build_octree(sys.argv[1], CloudFiles(sys.argv[2:] * 50), 0.2, 16, memory_limit=1)  # tiles written as it goes
 """
 

@@ -1,5 +1,6 @@
-"""``occmap local LOG -o local.gif``: replay a CARMEN log through a :class:`~occmap.LocalMap` and
-write an animation of the costmap following the robot.
+"""``occmap local LOG -o local.gif``: replay a CARMEN log or a bag's LaserScan topic (placed by
+tf, odometry or a pose file) through a :class:`~occmap.LocalMap` and write an animation of the
+costmap following the robot.
 
 Each scan moves the window to the laser's position and integrates the scan at its logger stamp;
 every ``--frame-every`` scans a frame is drawn (:func:`occmap.local.replay.frame_image`).
@@ -7,13 +8,15 @@ every ``--frame-every`` scans a frame is drawn (:func:`occmap.local.replay.frame
 
 from __future__ import annotations
 
-from . import _notes, _options
+from . import _options, _sources
 from ._outputs import check_outputs
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("local", help="replay a CARMEN log through the rolling local costmap and write a GIF")
-    p.add_argument("log", help="CARMEN log with FLASER / RLASER / ROBOTLASER1 lines (plain, .gz or .bz2)")
+    p = subparsers.add_parser("local", help="replay a CARMEN log or a ROS bag through the rolling local costmap and "
+                              "write a GIF")
+    p.add_argument("log", help="CARMEN log with FLASER / RLASER / ROBOTLASER1 lines (plain, .gz or .bz2), or a ROS "
+                   "bag with sensor_msgs/LaserScan")
     p.add_argument("-o", "--output", required=True, help="animated GIF to write")
     p.add_argument("--size", type=_options.positive, default=20.0, help="window side in metres (default: %(default)s)")
     p.add_argument("--resolution", type=_options.positive, default=0.1,
@@ -30,7 +33,28 @@ def add_parser(subparsers):
     p.add_argument("--scale", type=_options.count, default=2, help="pixels per cell (default: %(default)s)")
     p.add_argument("--fps", type=_options.positive, default=10.0,
                    help="frames per second of the animation (default: %(default)s)")
+    p.add_argument("--tracking", action="store_true",
+                   help="track moving objects: they stay out of the static layer, and the frames show the confirmed "
+                   "tracks and where they will be in one second")
+    _sources.add_bag_options(p, "sensor_msgs/LaserScan", "odom")
     return p
+
+
+def _objects(lm, ahead: float):
+    """Confirmed tracks in window cells: their footprints' corners and where their centres will be
+    ``ahead`` seconds later at their velocity (:func:`occmap.local.replay.frame_image`)."""
+    import numpy as np
+
+    t = lm.tracks()
+    keep = t.confirmed
+    c, s = np.cos(t.heading[keep]), np.sin(t.heading[keep])
+    hl, hw = t.length[keep] / 2, t.width[keep] / 2
+    u = np.array([-1.0, 1.0, 1.0, -1.0])[None] * hl[:, None]
+    v = np.array([-1.0, -1.0, 1.0, 1.0])[None] * hw[:, None]
+    corners = np.stack([t.x[keep, None] + c[:, None] * u - s[:, None] * v,
+                        t.y[keep, None] + s[:, None] * u + c[:, None] * v], -1)
+    later = np.stack([t.x[keep] + ahead * t.vx[keep], t.y[keep] + ahead * t.vy[keep]], -1)
+    return (corners - lm.origin) / lm.resolution, (later - lm.origin) / lm.resolution
 
 
 def run(args) -> int:
@@ -43,20 +67,19 @@ def run(args) -> int:
     from .._clock import WorkClock
     from .._files import write_atomic
     from ..errors import InvalidArgumentError
-    from ..io.carmen import CarmenStats, iter_carmen
     from ..local import LocalMap
     from ..local.replay import frame_image
 
     check_outputs({"-o": args.output}, {"LOG": args.log})
-    lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None)
-    stats = CarmenStats()
+    source = _sources.laser_source(args, args.log, every=args.every)
+    lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None, tracking=args.tracking)
     frames = []
     used = 0
     clamped = 0
     clock = WorkClock()
     t0 = time.perf_counter()
     last = None
-    for scan in iter_carmen(args.log, every=args.every, max_range=args.max_range, stats=stats):
+    for scan in source:
         stamp = float(scan.stamp)
         if last is not None and stamp < last:
             clamped += 1  # logs with wrapped or shuffled stamps: hold the clock
@@ -72,13 +95,14 @@ def run(args) -> int:
             cost = lm.costmap()[0] if used % args.frame_every == 0 else None
         if cost is not None:
             robot = lm.world_to_cell(np.array([x, y]))
-            frames.append(frame_image(cost, (int(robot[0]), int(robot[1])), args.scale))
+            frames.append(frame_image(cost, (int(robot[0]), int(robot[1])), args.scale,
+                                      _objects(lm, 1.0) if args.tracking else None))
         used += 1
         if len(frames) >= args.max_frames:
             break
+    _sources.report("local", source)
     if not frames:
         raise InvalidArgumentError(f"{args.log}: no laser scans to replay")
-    _notes.carmen_assumptions("local", stats)
     buf = io.BytesIO()
     frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], loop=0,
                    duration=max(20, int(round(1000.0 / args.fps))), optimize=False)
@@ -87,6 +111,9 @@ def run(args) -> int:
     print(f"{used} scans through a {W}×{H} local map at {args.resolution:g} m "
           f"(half-life {args.half_life:g} s): {1e3 * clock.seconds / max(used, 1):.2f} ms per scan for move + "
           f"integrate (+ costmap on frames); {len(frames)} frames → {path} in {time.perf_counter() - t0:.1f} s")
+    if args.tracking:
+        print(f"tracking: {lm.stats['tracks_confirmed']} tracks confirmed of {lm.stats['tracks_started']} started, "
+              f"{lm.stats['moving_returns']:,} returns taken as moving")
     if lm.stats["dropped"] or lm.stats["dropped_poses"] or clamped:
         print(f"dropped: {lm.stats['dropped']} readings (NaN, ≤ 0), {lm.stats['dropped_poses']} poses; "
               f"{clamped} stamps going backwards held at the previous one")

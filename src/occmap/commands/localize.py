@@ -1,9 +1,10 @@
-"""``occmap localize MAP.yaml LOG -o track.csv``: replay a CARMEN log's raw odometry and scans
-through Monte Carlo localization in a map_server map (:mod:`occmap.localize.replay`)."""
+"""``occmap localize MAP.yaml LOG -o track.csv``: replay a CARMEN log's raw odometry and scans, or
+a bag's LaserScan topic with its odometry frame's poses, through Monte Carlo localization in a
+map_server map (:mod:`occmap.localize.replay`)."""
 
 from __future__ import annotations
 
-from . import _notes, _options
+from . import _options, _sources
 from ._outputs import check_outputs
 
 
@@ -13,7 +14,8 @@ def add_parser(subparsers):
         description="Replay a CARMEN log's raw odometry and scans through a particle filter in a map_server map, "
                     "write the estimated track as CSV and optionally draw it over the map beside the odometry.")
     p.add_argument("map", metavar="MAP.yaml", help="map_server YAML (with its image beside it)")
-    p.add_argument("log", metavar="LOG", help="CARMEN log (plain, .gz or .bz2) with odometry in its scan lines")
+    p.add_argument("log", metavar="LOG", help="CARMEN log (plain, .gz or .bz2) with odometry in its scan lines, or a "
+                   "ROS bag with sensor_msgs/LaserScan whose poses in --fixed-frame (odom) serve as odometry")
     start = p.add_mutually_exclusive_group()
     start.add_argument("--init", type=_options.pose2d, metavar="X,Y,THETA",
                        help="initial pose in the map (metres, radians); tracking from there")
@@ -29,6 +31,7 @@ def add_parser(subparsers):
     p.add_argument("--reference", metavar="LOG",
                    help="a corrected log of the same run: report the error against its poses")
     p.add_argument("--every", type=_options.count, default=1, help="use every N-th scan (default: %(default)s)")
+    _sources.add_bag_options(p, "sensor_msgs/LaserScan", "odom", poses=False)
     return p
 
 
@@ -48,15 +51,16 @@ def run(args) -> int:
                   {"MAP.yaml": args.map, "LOG": args.log, "--reference": args.reference})
     t0 = time.perf_counter()
     grid = OccupancyGrid2D.load(args.map)
-    log = read_carmen(args.log, every=args.every)
-    if not len(log):
+    source = _sources.laser_source(args, args.log, every=args.every)
+    scans = list(source)
+    _sources.report("localize", source, max_range_option=False)
+    if not scans:
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
-    _notes.carmen_assumptions("localize", log.stats, max_range_option=False)
-    print(f"read {len(log):,} scans from {args.log} and a {grid.shape[1]} × {grid.shape[0]} map in "
+    print(f"read {len(scans):,} scans from {args.log} and a {grid.shape[1]} × {grid.shape[0]} map in "
           f"{time.perf_counter() - t0:.2f} s")
     glob = args.init is None
     loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain)
-    result = replay(loc, log.scans, init=args.init, cov=np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]),
+    result = replay(loc, scans, init=args.init, cov=np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]),
                     global_localization=glob, progress=sys.stderr.isatty())
     write_track_csv(args.output, result)
     ms = 1000.0 * result.seconds[result.updated]
@@ -67,7 +71,7 @@ def run(args) -> int:
         print(f"warning: {w}")
     if args.reference:
         ref = read_carmen(args.reference)
-        pairs = pair_scans(log.scans, ref.scans)
+        pairs = pair_scans(scans, ref.scans)
         ok = pairs >= 0
         pe, he = track_errors(result.poses[pairs[ok]], np.array([s.pose for s in ref.scans])[ok])
         print(f"against {int(ok.sum()):,} reference poses: position error mean {pe.mean():.3f} m, "

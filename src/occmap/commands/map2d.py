@@ -1,5 +1,6 @@
-"""``occmap map2d LOG -o MAP.yaml``: a 2D occupancy grid from a CARMEN laser log, written as a ROS
-map_server pair (the ``.pgm`` beside the YAML) and optionally a picture."""
+"""``occmap map2d LOG -o MAP.yaml``: a 2D occupancy grid from a CARMEN laser log or the
+LaserScan topic of a ROS bag (placed by tf, odometry or a pose file), written as a ROS map_server
+pair (the ``.pgm`` beside the YAML) and optionally a picture."""
 
 from __future__ import annotations
 
@@ -7,13 +8,15 @@ import sys
 import time
 from pathlib import Path
 
-from . import _notes, _options, _scan_match, _tiles
+from . import _notes, _options, _scan_match, _sources, _tiles
 from ._outputs import check_outputs, check_suffix
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("map2d", help="build a 2D occupancy grid from a CARMEN laser log (plain, .gz or .bz2)")
-    p.add_argument("log", help="CARMEN log with FLASER / RLASER / ROBOTLASER1 lines")
+    p = subparsers.add_parser("map2d", help="build a 2D occupancy grid from a CARMEN laser log (plain, .gz or .bz2) "
+                              "or a ROS bag's LaserScan topic")
+    p.add_argument("log", help="CARMEN log with FLASER / RLASER / ROBOTLASER1 lines, or a ROS bag (.bag, ROS 2 "
+                   "folder, .db3, .mcap) with sensor_msgs/LaserScan")
     p.add_argument("-o", "--output",
                    help="map_server YAML to write (.yaml or .yml; the .pgm goes beside it); with --tiles, the whole "
                    "store's known cells")
@@ -34,6 +37,7 @@ def add_parser(subparsers):
                    "that many grazing beams cross more continuous)")
     _scan_match.add_option(p)
     _tiles.add_tile_options(p, 256, "cells")
+    _sources.add_bag_options(p, "sensor_msgs/LaserScan", "odom")
     return p
 
 
@@ -41,7 +45,7 @@ def _run_tiled(args, model) -> int:
     from ..errors import InvalidArgumentError
     from ..world.build import build_grid
     from ..world.grid_tiles import TiledGrid2D
-    from ..world.sources import CarmenScans
+    from ..sources import CarmenScans
 
     if args.png is not None:
         raise InvalidArgumentError("with --tiles, --png is not made (export a box, then draw it)")
@@ -63,6 +67,7 @@ def _run_tiled(args, model) -> int:
 def run(args) -> int:
     from ..errors import InvalidArgumentError
     from ..grid2d import LidarModel
+    from ..io.bags import is_bag
     from ..io.carmen import read_carmen
     from ..mapping2d import map_scans
     from ..scan import stack_scans
@@ -76,6 +81,9 @@ def run(args) -> int:
         image = Path(args.output).with_suffix(".pgm")
     check_outputs({"-o": args.output, "the map's image": image, "--png": args.png}, {"LOG": args.log})
     model = LidarModel(args.prob_hit, args.prob_miss)  # checks the pair before the log is read
+    if is_bag(args.log):
+        return _run_bag(args, model)
+    _sources.refuse_bag_options(args, "a CARMEN log (it carries its poses)")
     if args.tiles is not None:
         if args.scan_match:
             raise InvalidArgumentError("--scan-match builds one map in memory: leave out --tiles")
@@ -91,6 +99,35 @@ def run(args) -> int:
     stack = stack_scans(_scan_match.scan_matched(log.scans)) if args.scan_match else log.stack()
     summary = map_scans(stack, args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model,
                          max_extent=args.max_extent)
+    return _write(args, summary, t0)
+
+
+def _run_bag(args, model) -> int:
+    from .._progress import Progress
+    from ..errors import InvalidArgumentError
+    from ..mapping2d import map_scan_stream
+    from ..sources import BagScans
+
+    if args.scan_match:
+        raise InvalidArgumentError("--scan-match reads CARMEN logs so far; match a bag's scans through "
+                                   "occmap.slam.match_scans (docs/maps.md)")
+    if args.tiles is not None:
+        raise InvalidArgumentError("--tiles reads files scan by scan; a bag is mapped in one process (drop --tiles)")
+    if args.lenient:
+        raise InvalidArgumentError("--lenient skips malformed CARMEN lines; a bag has none")
+    t0 = time.perf_counter()
+    source = BagScans(args.log, every=args.every, max_range=args.max_range, **_sources.bag_options(args))
+    summary = map_scan_stream(source, args.resolution, args.max_range, model=model, max_extent=args.max_extent,
+                              progress=Progress(len(source), "messages"))
+    _sources.report("map2d", source)
+    if not summary.scans:
+        raise InvalidArgumentError(f"{args.log}: none of the {len(source):,} scans on {source.topic} could be placed "
+                                   "in the map (see the notes above)")
+    _sources.print_use(source, summary.scans, "scans")
+    return _write(args, summary, t0)
+
+
+def _write(args, summary, t0: float) -> int:
     image = summary.grid.save(args.output)
     for line in summary.lines():
         print(line)

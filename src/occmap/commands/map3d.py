@@ -1,12 +1,12 @@
 """``occmap map3d CLOUD... -o MAP.bt``: a 3D occupancy octree (OctoMap's semantics) from point
-clouds with their sensor poses, written as ``.bt``, ``.ot`` or ``.ply``."""
+clouds with their sensor poses (from the files, a pose file, or tf in a ROS bag's PointCloud2
+topic), written as ``.bt``, ``.ot`` or ``.ply``."""
 
 from __future__ import annotations
 
-import sys
 import time
 
-from . import _notes, _options, _tiles
+from . import _notes, _options, _sources, _tiles
 from ._octree_files import check_octree_output, save_octree
 from ._outputs import check_outputs
 
@@ -14,7 +14,8 @@ from ._outputs import check_outputs
 def add_parser(subparsers):
     p = subparsers.add_parser("map3d", help="build a 3D occupancy octree (OctoMap .bt/.ot) from point clouds with sensor poses")
     p.add_argument("inputs", nargs="+", help="point clouds (.pcd .ply .xyz/.txt/.dat[.gz|.bz2|.xz] .bin .3d) or "
-                   "OctoMap ScanGraphs (.graph); each cloud carries its sensor pose (PCD viewpoint, 3DTK .frames)")
+                   "OctoMap ScanGraphs (.graph); each cloud carries its sensor pose (PCD viewpoint, 3DTK .frames) "
+                   "unless --poses gives them; or one ROS bag with sensor_msgs/PointCloud2")
     p.add_argument("-o", "--output", help="octree to write (.bt maximum likelihood, .ot full values, .ply occupied "
                    "voxels); with --tiles, the whole store joined into one .bt/.ot")
     p.add_argument("--resolution", type=_options.positive, default=0.1, help="voxel size in metres (default: %(default)s)")
@@ -23,31 +24,35 @@ def add_parser(subparsers):
     p.add_argument("--discretize", action="store_true", help="merge points falling in one voxel before ray casting")
     p.add_argument("--png", help="also write a top-down height picture")
     _tiles.add_tile_options(p, 512, "voxels")
+    _sources.add_bag_options(p, "sensor_msgs/PointCloud2", "map")
     return p
 
 
-def _clouds(paths):
-    """``(file, cloud)`` in order: ScanGraphs give one cloud per node."""
-    from ..io.pointclouds import read_cloud
-    from ..io.scangraph import read_scangraph
+def _source(args):
+    """The clouds to insert: one bag's topic, or the files (poses from ``--poses`` or their own)."""
+    from ..errors import InvalidArgumentError
+    from ..io.bags import is_bag
+    from ..sources import BagClouds, CloudFiles
 
-    for path in paths:
-        if str(path).endswith(".graph"):
-            for node in read_scangraph(path).nodes:
-                yield path, node
-        else:
-            yield path, read_cloud(path)
+    bags = [p for p in args.inputs if is_bag(p)]
+    if bags:
+        if len(args.inputs) > 1:
+            raise InvalidArgumentError(f"one bag at a time: {bags[0]} came with {len(args.inputs) - 1} more inputs")
+        if args.tiles is not None:
+            raise InvalidArgumentError("--tiles reads files scan by scan; a bag is mapped in one process "
+                                       "(drop --tiles)")
+        return BagClouds(bags[0], **_sources.bag_options(args))
+    _sources.refuse_bag_options(args, "point-cloud files", takes_poses=True)
+    return CloudFiles(args.inputs, poses=_sources.pose_track(args))
 
 
-def _run_tiled(args) -> int:
+def _run_tiled(args, source) -> int:
     from ..errors import InvalidArgumentError
     from ..world.build import build_octree
     from ..world.octree_tiles import TiledOcTree
-    from ..world.sources import CloudFiles
 
     if args.png is not None or (args.output is not None and not args.output.lower().endswith((".bt", ".ot"))):
         raise InvalidArgumentError("with --tiles, -o is a .bt or .ot export of the whole store and --png is not made")
-    source = CloudFiles(args.inputs)
     summary = build_octree(args.tiles, source, args.resolution, args.tile_size,
                            max_range=-1.0 if args.max_range is None else args.max_range, discretize=args.discretize,
                            **_tiles.build_options(args))
@@ -62,6 +67,8 @@ def _run_tiled(args) -> int:
 
 def run(args) -> int:
     from .._clock import WorkClock
+    from .._progress import Progress
+    from .._threads import read_ahead
     from ..errors import InvalidArgumentError
     from ..octree import OcTree
 
@@ -71,30 +78,31 @@ def run(args) -> int:
     if args.output is not None:
         check_octree_output(args.output)
     check_outputs({"-o": args.output, "--png": args.png}, {f"input {p}": p for p in args.inputs})
+    source = _source(args)
     if args.tiles is not None:
-        return _run_tiled(args)
+        return _run_tiled(args, source)
     max_range = -1.0 if args.max_range is None else args.max_range
     t0 = time.perf_counter()
     tree = OcTree(args.resolution)
-    show = sys.stderr.isatty()
+    progress = Progress(len(source), "clouds")
     points = dropped = outside = scans = 0
     no_pose = []
     clock = WorkClock()
-    for path, cloud in _clouds(args.inputs):
+    for k, cloud in enumerate(read_ahead(source)):  # the next cloud read while this one is inserted
         if not cloud.has_pose:
-            no_pose.append(str(path))
+            no_pose.append(source.name(k))
         with clock.running():
             s = tree.insert_point_cloud(cloud.world_points(), cloud.origin, max_range, args.discretize)
         scans += 1
         points += s["points"]
         dropped += s["dropped"] + cloud.dropped
         outside += s["outside_key_range"]
-        if show:
-            print(f"\rscan {scans}: {points:,} points, {tree.num_nodes():,} nodes", end="", file=sys.stderr, flush=True)
-    if show:
-        print(file=sys.stderr)
+        progress.update(scans + sum(source.dropped.values()), f"{points:,} points, {tree.num_nodes():,} nodes")
+    progress.close()
+    _sources.report("map3d", source)
     if not scans:
-        raise InvalidArgumentError("no point clouds given")
+        raise InvalidArgumentError("no point clouds given" if not len(source) else f"none of the {len(source):,} "
+                                   "clouds could be placed in the map (see the notes above)")
     _notes.identity_poses("map3d", no_pose, scans)
     if outside:
         _notes.note("map3d", f"points outside the octree's key range (±{32768 * args.resolution:g} m at "
@@ -102,6 +110,7 @@ def run(args) -> int:
                              "(--tiles has no such limit)")
     save_octree(tree, args.output)
     rate = points / clock.seconds if clock.seconds > 0 else float("inf")
+    _sources.print_use(source, scans, "clouds")
     print(f"{scans} scans, {points:,} points ({dropped:,} dropped: no return, not finite or out of range) at {args.resolution:g} m")
     print(f"inserted in {clock.seconds:.3f} s ({rate:,.0f} points/s); {tree.num_nodes():,} nodes, "
           f"{tree.num_leaves():,} leaves, {tree.memory_usage() / 2**20:.1f} MiB")

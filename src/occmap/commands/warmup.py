@@ -303,7 +303,7 @@ def grid_tiles(folder: Path) -> None:
     grid.occupancy_at(poses[:, :2])
     grid.export((-2.0, -2.0, 2.0, 2.0), folder / "grid_tiles.yaml")
     from ..world.build import build_grid
-    from ..world.sources import CarmenScans
+    from ..sources import CarmenScans
 
     build_grid(folder / "grid_build", CarmenScans(_office_log(folder)), 0.05, 64)  # scan by scan, as map2d --tiles
     TiledGrid2D.open(folder / "grid_build").export(None, folder / "grid_build.yaml")

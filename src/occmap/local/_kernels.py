@@ -325,10 +325,47 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
 
 
 @kernel
-def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, out):
+def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, kinds, open_, occupied):
+    """For each return (``kinds[i] == 1``) at world point ``pts[i]``: ``occupied[i]``, its cell is
+    observed and occupied (``u ≥ thr_occ``); ``open_[i]``, its cell and its eight neighbours are
+    observed and free (``u < thr_free``) and no cell within ``reach`` cells (a square, inside the
+    window) is observed and occupied. Both false for the other points."""
+    H, W = cells.shape[0], cells.shape[1]
+    for i in range(pts.shape[0]):
+        open_[i] = False
+        occupied[i] = False
+        if kinds[i] != 1:
+            continue
+        gx, gy = cell_of(pts[i, 0], pts[i, 1], 0.0, 0.0, inv_res)
+        wx = gx - gx0
+        wy = gy - gy0
+        if not (0 <= wx < W and 0 <= wy < H):
+            continue
+        r = slot(wy, sr, H)
+        c = slot(wx, sc, W)
+        occupied[i] = stamps[r, c, 1] != UNSEEN and cells[r, c, 0] >= thr_occ
+        ok = 1 <= wx < W - 1 and 1 <= wy < H - 1 and not occupied[i]
+        for yy in range(max(wy - reach, 0), min(wy + reach + 1, H)):
+            if not ok:
+                break
+            r = slot(yy, sr, H)
+            for xx in range(max(wx - reach, 0), min(wx + reach + 1, W)):
+                c = slot(xx, sc, W)
+                seen = stamps[r, c, 1] != UNSEEN
+                near = abs(xx - wx) <= 1 and abs(yy - wy) <= 1
+                if (seen and cells[r, c, 0] >= thr_occ) or (near and not (seen and cells[r, c, 0] < thr_free)):
+                    ok = False
+                    break
+        open_[i] = ok
+    return open_
+
+
+@kernel
+def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, extra, out):
     """The inflated costmap, in window order, into ``out`` (uint8 (H, W)).
 
-    A cell is lethal (254) when observed and ``u ≥ thr_occ``, free when observed and
+    A cell is lethal (254) when observed and ``u ≥ thr_occ`` or when ``extra`` (bool (H, W), window
+    order: objects placed by the caller) holds it, free when observed and
     ``u < thr_free``, unknown (255) otherwise. Inflation from the exact squared Euclidean distance
     ``d²`` (cells, between centres) to the nearest lethal cell, needed only up to ``R`` cells: the
     column distances (capped at R + 1) then, per row, the minimum over the 2R + 1 columns around
@@ -353,8 +390,8 @@ def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, o
                 c = x + off
                 u = cells[r, c, 0]
                 seen = stamps[r, c, 1] != UNSEEN
-                lethal = seen & (u >= thr_occ)
-                free = seen & (u < thr_free)
+                lethal = (seen & (u >= thr_occ)) | extra[y, x]
+                free = seen & (u < thr_free) & ~lethal
                 out[y, x] = 255 - np.uint8(lethal) - 255 * np.uint8(free)
                 gv = min(g[yp, x] + 1, C) if y > 0 else C  # row 0: nothing above
                 g[y, x] = 0 if lethal else gv

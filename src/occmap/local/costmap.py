@@ -112,7 +112,7 @@ def inflate(lethal, unknown=None, resolution: float = 0.05, inflation_radius: fl
     out = np.empty((H, W), dtype=np.uint8)
     if H and W:
         K.costmap(cells, stamps, 0, 0, 0.5, -0.5, p.radius_cells, p.table, p.inscribed_d2,
-                  np.empty((H, W), dtype=np.uint8 if p.radius_cells < 254 else np.int32), out)
+                  np.empty((H, W), dtype=np.uint8 if p.radius_cells < 254 else np.int32), np.zeros((H, W), bool), out)
     return out
 
 

@@ -45,7 +45,9 @@ from ..logodds import logit, occupancy_classes, occupancy_values
 from ..raster.ring import slot
 from ..raster.update import UNSEEN, ScanCodes
 from . import _kernels as K
-from .costmap import InflationParams, as_footprint, inscribed_radius as _inscribed_radius
+from .costmap import InflationParams, as_footprint, circumscribed_radius, inscribed_radius as _inscribed_radius
+from .tracking.layer import ObjectLayer
+from .tracking.tracker import TrackerParams
 
 __all__ = ["LocalMap", "PathCheck"]
 
@@ -97,12 +99,19 @@ class LocalMap(OneCallAtATime):
     center : (x, y)
         Where the window starts, centred (default the world origin). Like :meth:`move_to`, at
         most :data:`MAX_CELL_INDEX` cells from the world origin.
+    tracking : bool
+        Track moving objects (:mod:`occmap.local.tracking.layer`): returns where the map has seen
+        free space, or on a tracked object, go to tracks instead of the static layer; the costmap
+        and path checks see where the objects are and will be (:meth:`tracks`,
+        :meth:`predicted_occupancy`, ``costmap(at=t)``, ``check_path(..., stamps=...)``).
+    tracker : TrackerParams or None
+        The tracker's settings.
     """
 
     def __init__(self, size=(40.0, 40.0), resolution: float = 0.1, half_life: float | None = None, *,
                  occupied_threshold: float = 0.65, free_threshold: float = 0.196, model: LidarModel | None = None, prior: float = 0.5,
                  clamp=(0.1192, 0.971), inflation_radius: float = 0.55, cost_scaling_factor: float = 10.0,
-                 footprint=0.1, center=(0.0, 0.0)):
+                 footprint=0.1, center=(0.0, 0.0), tracking: bool = False, tracker: TrackerParams | None = None):
         self.resolution = checks.resolution(resolution)
         self.half_life = None if half_life is None else checks.positive("half_life", half_life, "seconds")
         try:
@@ -130,6 +139,8 @@ class LocalMap(OneCallAtATime):
         self._footprint = as_footprint(footprint)
         self.inflation = InflationParams(self.resolution, inflation_radius, cost_scaling_factor,
                                          _inscribed_radius(footprint))
+        self._objects = ObjectLayer(tracker) if tracking else None
+        self._no_objects = np.zeros((H, W), dtype=bool)
         self._cells = np.zeros((H, W, 2), dtype=np.float32)
         self._stamps = self._cells.view(np.int32)
         self._rmark = np.zeros((H, W), dtype=np.int32)
@@ -147,6 +158,8 @@ class LocalMap(OneCallAtATime):
         self._cost_cache = None
         self.stats = {"scans": 0, "points": 0, "dropped": 0, "dropped_poses": 0, "beyond_max_range": 0,
                       "rays": 0, "cells_updated": 0, "cells_cleared_by_moves": 0}
+        if self._objects is not None:
+            self.stats.update(self._objects.counts())
         cx, cy = (checks.finite("center", v) for v in center)
         self._gx0, self._gy0 = self._corner_for(cx, cy)
 
@@ -271,9 +284,15 @@ class LocalMap(OneCallAtATime):
 
     # ------------------------------------------------------------------ sensing
 
-    def _insert(self, px, py, ends, kinds, dropped: int, maxed: int) -> dict:
+    def _insert(self, px, py, ends, kinds, dropped: int, maxed: int, max_range: float | None = None) -> dict:
         """Insert one scan's ray ends from the sensor at (px, py); record and return its counts
-        (the keys of :attr:`stats`, ``docs/architecture.md``)."""
+        (the keys of :attr:`stats`, ``docs/architecture.md``). With tracking, the returns of
+        moving objects clear only and go to the tracks."""
+        if self._objects is not None:
+            open_, occupied = self._classify_returns(ends, kinds)
+            self._objects.sort_returns(ends, kinds, open_, occupied, (px, py), self._time, max_range,
+                                       (self.origin, self.resolution, self.shape))
+            self.stats.update(self._objects.counts())
         g = self._g
         lp = self.l_prior
         hits, rays, updated, visited = K.integrate(
@@ -288,6 +307,20 @@ class LocalMap(OneCallAtATime):
         self.stats["cells_updated"] += hits + updated
         self._changed()
         return {**counts, "hits": int(hits), "free_updates": int(updated), "cells_visited": int(visited)}
+
+    def _classify_returns(self, ends: np.ndarray, kinds: np.ndarray):
+        """``(open, occupied)`` per ray end (bool (N,), false but for returns): the return's cell
+        known occupied; the return in open free space — its cell and neighbours known free and no
+        cell within the layer's ``open_margin`` known occupied (not the edge of a wall that grazing
+        rays have cleared or that a small pose error shifts)."""
+        open_ = np.empty(len(kinds), dtype=np.bool_)
+        occupied = np.empty(len(kinds), dtype=np.bool_)
+        reach = int(math.ceil(self._objects.open_margin / self.resolution - 1e-9))
+        g = self._g
+        K.classify_returns(self._cells, self._stamps, self._sr, self._sc, self._gx0, self._gy0, 1.0 / self.resolution,
+                           (self.l_free - self.l_prior) / g, (self.l_occupied - self.l_prior) / g, reach, ends, kinds,
+                           open_, occupied)
+        return open_, occupied
 
     def _dropped_pose(self, n: int) -> dict:
         """A scan or cloud whose sensor pose is not finite: counted, nothing inserted."""
@@ -327,7 +360,7 @@ class LocalMap(OneCallAtATime):
         ends = np.empty((R.size, 2))
         kinds = np.empty(R.size, dtype=np.int8)
         dropped, maxed = K.scan_ends(P, R, A, mr, ends, kinds)
-        return self._insert(P[0], P[1], ends, kinds, dropped, maxed)
+        return self._insert(P[0], P[1], ends, kinds, dropped, maxed, mr)
 
     def insert_point_cloud(self, points, origin, stamp, z_min: float, z_max: float) -> dict:
         """Insert a 3D cloud: ``points`` (N, 3) in the world frame, seen from the sensor at
@@ -399,20 +432,65 @@ class LocalMap(OneCallAtATime):
         (``p ≥ occupied_threshold``), else 0 free."""
         return occupancy_classes(self.log_odds_at(points), self.l_occupied)
 
-    def costmap(self) -> tuple[np.ndarray, np.ndarray]:
+    def costmap(self, at: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(cost, origin)``: Nav2 costs (uint8 (H, W), row 0 at the origin; see
-        :mod:`occmap.local.costmap`) and the window origin (x, y). Computed once per change of
-        the map (the array is shared with later calls until then: copy it to keep it)."""
-        if self._cost_cache is None:
-            H, W = self.shape
-            out = np.empty((H, W), dtype=np.uint8)
-            g = self._g
-            p = self.inflation
-            K.costmap(self._cells, self._stamps, self._sr, self._sc, (self.l_occupied - self.l_prior) / g,
-                      (self.l_free - self.l_prior) / g, p.radius_cells, p.table, p.inscribed_d2, self._g_scratch, out)
-            out.flags.writeable = False
+        :mod:`occmap.local.costmap`) and the window origin (x, y).
+
+        ``at``: the time (seconds, at or after the last update) the costs are for; ``None`` is
+        now. With tracking, moving objects are obstacles where they are predicted to be then (see
+        :class:`~occmap.local.tracking.layer.ObjectLayer`); without it nothing moves and every
+        time gives today's costs. The costs of now are computed once per change of the map (the
+        array is shared with later calls until then: copy it to keep it)."""
+        now = at is None or (self._time is not None and checks.finite("at", at) == self._time)
+        if not now and self._time is not None and at < self._time:
+            raise InvalidArgumentError(f"at = {at!r} lies before the map's time {self._time!r}: costs go forward only")
+        if now and self._cost_cache is not None:
+            return self._cost_cache, self.origin
+        if self._objects is None:
+            out = self._costs(self._no_objects)
+        else:
+            extra, graded = self._objects.lethal(self._time if now else at, self.origin, self.resolution, self.shape)
+            out = self._costs(extra)
+            if graded.any():  # free and inflated cells an object may cover cost more
+                out = np.where((out < 253) & (graded > out), graded, out)
+                out.flags.writeable = False
+        if now:
             self._cost_cache = out
-        return self._cost_cache, self.origin
+        return out, self.origin
+
+    def _costs(self, extra: np.ndarray) -> np.ndarray:
+        """The inflated costmap of the static layer with the cells of ``extra`` lethal too."""
+        H, W = self.shape
+        out = np.empty((H, W), dtype=np.uint8)
+        g = self._g
+        p = self.inflation
+        K.costmap(self._cells, self._stamps, self._sr, self._sc, (self.l_occupied - self.l_prior) / g,
+                  (self.l_free - self.l_prior) / g, p.radius_cells, p.table, p.inscribed_d2, self._g_scratch, extra,
+                  out)
+        out.flags.writeable = False
+        return out
+
+    def tracks(self):
+        """The moving objects tracked at the last update (:class:`~occmap.local.tracking.Tracks`:
+        arrays ``id``, ``x``, ``y``, ``vx``, ``vy``, ``heading``, ``length``, ``width``,
+        ``confirmed``, ``lost``, ``covariance``); needs ``tracking=True``."""
+        return self._layer().tracker.tracks()
+
+    def predicted_occupancy(self, at: float) -> np.ndarray:
+        """Probability (float32 (H, W), row 0 at the origin) that a tracked object covers each
+        cell's centre at time ``at`` (seconds, at or after the last update); needs ``tracking=True``."""
+        return self._layer().occupancy(checks.finite("at", at), self.origin, self.resolution, self.shape)
+
+    @property
+    def objects(self) -> ObjectLayer | None:
+        """The moving-object layer (its ``tracker`` predicts tracks to any later time), ``None``
+        without tracking."""
+        return self._objects
+
+    def _layer(self) -> ObjectLayer:
+        if self._objects is None:
+            raise InvalidArgumentError("this local map does not track moving objects: create it with tracking=True")
+        return self._objects
 
     def lethal(self) -> np.ndarray:
         """Bool (H, W), window order: cells at or above the occupied threshold."""
@@ -454,7 +532,7 @@ class LocalMap(OneCallAtATime):
         self.stats["dropped"] += int(bad)
         return out.reshape(p.shape[:-1])
 
-    def check_path(self, poses, footprint=None, unknown_is_collision: bool = False) -> PathCheck:
+    def check_path(self, poses, footprint=None, unknown_is_collision: bool = False, stamps=None) -> PathCheck:
         """Check poses (N, 3) ``(x, y, θ)`` against the costmap with a footprint (a polygon (M, 2)
         in the body frame, or a radius; default the map's).
 
@@ -462,15 +540,47 @@ class LocalMap(OneCallAtATime):
         inside; for a radius, the cell under the pose and those whose centre lies within the
         radius. Returns :class:`PathCheck`: the maximum cost per pose, the index of the first
         pose touching a lethal cell (or an unknown one, with ``unknown_is_collision``), −1 if
-        none, and the count of non-finite poses (dropped: cost 255, never a collision)."""
+        none, and the count of non-finite poses (dropped: cost 255, never a collision).
+
+        ``stamps`` (N,): the time of each pose (seconds, at or after the last update). With
+        tracking, each pose is then checked against the moving objects predicted to its own time:
+        a pose whose footprint (its circumscribed disc) meets a tracked object with probability at
+        least the layer's threshold is lethal (254), a lesser probability ``p`` costs
+        ``252 · p / threshold`` (from ``p`` = 0.05); the static layer and the moving returns no
+        track explains are checked as without stamps. Without tracking the stamps change nothing."""
         P = np.ascontiguousarray(poses, dtype=np.float64)
         if P.ndim != 2 or P.shape[1] != 3:
             raise ShapeError(f"poses must have shape (N, 3), got {P.shape}")
         fp, radius = self._footprint if footprint is None else as_footprint(footprint)
-        cost, _ = self.costmap()
+        timed = stamps is not None and self._objects is not None
+        if stamps is not None:
+            T = np.asarray(stamps, dtype=np.float64)
+            if T.shape != (len(P),):
+                raise ShapeError(f"stamps must have shape ({len(P)},), one per pose, got {T.shape}")
+            if not np.isfinite(T).all():
+                raise NonFiniteError("stamps hold NaN or infinity")
+            if self._time is not None and (T < self._time).any():
+                raise InvalidArgumentError(f"stamp {float(T.min())!r} lies before the map's time {self._time!r}: "
+                                           "paths are checked forward in time")
+        if timed:
+            cost = self._costs(self._objects.lethal(None, self.origin, self.resolution, self.shape)[0])
+        else:
+            cost, _ = self.costmap()
         out = np.empty(len(P), dtype=np.uint8)
         first, bad = K.check_path(cost, self._gx0, self._gy0, 1.0 / self.resolution, P,
                                   np.ascontiguousarray(fp), radius, bool(unknown_is_collision), out)
+        if timed:
+            good = np.isfinite(P).all(axis=1)
+            reach = radius if radius >= 0.0 else circumscribed_radius(fp)
+            p = np.zeros(len(P))
+            p[good] = self._objects.path_probability(P[good, :2], T[good], reach)
+            thr = self._objects.threshold
+            hit = p >= thr
+            graded = np.where(hit, 254, np.where(p >= 0.05, np.minimum(252.0 * p / thr, 252.0), 0)).astype(np.uint8)
+            out = np.where(good & (out < 253), np.maximum(out, graded), np.where(hit, np.maximum(out, 254), out))
+            if hit.any():
+                k = int(np.flatnonzero(hit)[0])
+                first = k if first < 0 else min(int(first), k)
         self.stats["dropped_poses"] += int(bad)
         return PathCheck(out, int(first), int(bad))
 

@@ -1,8 +1,9 @@
 """Frames of a replay through a :class:`LocalMap` (``occmap local``, in
 :mod:`occmap.commands.local`): the costmap drawn with its Nav2 values (white free, yellow → red
-graded, purple inscribed, black lethal, grey unknown), north up, the robot as a blue dot. Frames are
-palette images (the cost is the colour index, no quantisation), so a few hundred frames write in
-seconds.
+graded, purple inscribed, black lethal, grey unknown), north up, the robot as a blue dot, and with
+tracking the confirmed tracks as green boxes with a line to where each will be one second later.
+Frames are palette images (the cost is the colour index, no quantisation), so a few hundred frames
+write in seconds.
 """
 
 from __future__ import annotations
@@ -12,11 +13,13 @@ import numpy as np
 __all__ = ["cost_palette", "frame_image"]
 
 _ROBOT = 130  # palette index of the robot marker (graded costs use indices 1 … 126)
+_TRACK = 131  # palette index of tracked objects
 
 
 def cost_palette() -> list[int]:
     """768 palette entries: index 0 free (white), 1–126 graded costs (yellow → red), 130 the
-    robot (blue), 253 inscribed (purple), 254 lethal (black), 255 unknown (grey)."""
+    robot (blue), 131 tracked objects (green), 253 inscribed (purple), 254 lethal (black), 255
+    unknown (grey)."""
     pal = np.zeros((256, 3), dtype=np.uint8)
     pal[:] = (255, 0, 255)
     pal[0] = (255, 255, 255)
@@ -25,15 +28,20 @@ def cost_palette() -> list[int]:
     pal[1:127, 1] = np.rint(230 * (1 - t)).astype(np.uint8)
     pal[1:127, 2] = np.rint(120 * (1 - t)).astype(np.uint8)
     pal[_ROBOT] = (30, 90, 255)
+    pal[_TRACK] = (0, 170, 60)
     pal[253] = (120, 40, 140)
     pal[254] = (0, 0, 0)
     pal[255] = (200, 200, 205)
     return pal.reshape(-1).tolist()
 
 
-def frame_image(cost: np.ndarray, robot_cell=None, scale: int = 1):
-    """A palette ``PIL.Image`` of a costmap (row 0 at the bottom, as the map's y grows up)."""
-    from PIL import Image
+def frame_image(cost: np.ndarray, robot_cell=None, scale: int = 1, objects=None):
+    """A palette ``PIL.Image`` of a costmap (row 0 at the bottom, as the map's y grows up).
+
+    ``objects``: ``(corners (T, 4, 2), ahead (T, 2))`` in window cells (x = column, y = row, cell
+    centres at integer + 0.5), each object's footprint and where its centre will be; drawn as
+    outlines and a line from the centre."""
+    from PIL import Image, ImageDraw
 
     idx = cost.copy()
     graded = (cost >= 1) & (cost <= 252)
@@ -45,4 +53,16 @@ def frame_image(cost: np.ndarray, robot_cell=None, scale: int = 1):
     img.putpalette(cost_palette())
     if scale > 1:
         img = img.resize((img.width * scale, img.height * scale), Image.NEAREST)
+    if objects is not None:
+        corners, ahead = objects
+        H = cost.shape[0]
+        draw = ImageDraw.Draw(img)
+
+        def px(p):  # window cells (x, y up) to image pixels (y down)
+            return float(p[0]) * scale, (H - float(p[1])) * scale
+
+        for box, end in zip(corners, ahead):
+            pts = [px(p) for p in box]
+            draw.polygon(pts, outline=_TRACK)
+            draw.line([px(box.mean(axis=0)), px(end)], fill=_TRACK, width=max(1, scale // 2))
     return img

@@ -4,7 +4,7 @@ process builds (issue 17).
 
 :class:`TiledOcTree` (:mod:`.octree_tiles`) is the tiled octree, :class:`TiledGrid2D`
 (:mod:`.grid_tiles`) the tiled 2D grid; :mod:`.store` the folder;
-:mod:`.build` the parallel build; :mod:`.sources` the scan sources a build reads.
+:mod:`.build` the parallel build; the scan sources a build reads are :mod:`occmap.sources`.
 """
 
 from .grid_tiles import TiledGrid2D

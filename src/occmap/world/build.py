@@ -217,7 +217,7 @@ def build_part(path, how, source, scans, region, memory_limit, threads, name: in
 
 def build_octree(path, source, resolution: float | None = None, tile_size: int | None = None, *,
                  max_range: float = -1.0, discretize: bool = False, **options) -> BuildSummary:
-    """Insert the point clouds of ``source`` (:mod:`.sources`), in order, into the tiled octree
+    """Insert the point clouds of ``source`` (:mod:`occmap.sources`), in order, into the tiled octree
     stored at ``path`` (``max_range``, ``discretize`` as for ``insert_point_cloud``); see
     :func:`build`."""
     return build(path, Clouds(max_range, discretize), source, resolution, tile_size, **options)
@@ -225,7 +225,7 @@ def build_octree(path, source, resolution: float | None = None, tile_size: int |
 
 def build_grid(path, source, resolution: float | None = None, tile_size: int | None = None, *,
                max_range: float | None = None, model=None, **options) -> BuildSummary:
-    """Insert the laser scans of ``source`` (:class:`.sources.CarmenScans`), in order, into the
+    """Insert the laser scans of ``source`` (:class:`occmap.sources.CarmenScans`), in order, into the
     tiled grid stored at ``path``, as ``occmap map2d`` does (:class:`LaserScans`); see
     :func:`build`."""
     return build(path, LaserScans(max_range, model), source, resolution, tile_size, **options)
@@ -233,7 +233,7 @@ def build_grid(path, source, resolution: float | None = None, tile_size: int | N
 
 def build(path, how, source, resolution: float | None = None, tile_size: int | None = None, *, workers: int = 1,
           scheduler: str | None = None, memory_limit: int | None = None, progress=None, **params) -> BuildSummary:
-    """Insert the scans of ``source`` (:mod:`.sources`), in order, as ``how`` says
+    """Insert the scans of ``source`` (:mod:`occmap.sources`), in order, as ``how`` says
     (:class:`Clouds` or :class:`LaserScans`), into the tiled map stored at ``path``: a new store
     (``resolution``, ``tile_size`` (default the map's), ``params`` as for the map's class) or one
     that exists (mapping resumes).

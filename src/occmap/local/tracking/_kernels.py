@@ -1,0 +1,389 @@
+"""Numba kernels of the tracker: optimal assignment (the Hungarian method), the clustering, box
+fitting and occlusion test of detections, and the probability that a place lies under a tracked
+object. Plain arrays in and out; the callers check shapes and values."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..._jit import kernel
+
+
+@kernel
+def min_cost_assignment(cost, out):
+    """Rows matched to distinct columns at least total cost, for ``cost`` ``(n, m)`` with
+    ``n ≤ m`` and finite entries: ``out[i]`` = the column of row ``i``.
+
+    Shortest augmenting paths with row and column potentials (Kuhn–Munkres as in Jonker and
+    Volgenant 1987): ``O(n² m)``."""
+    n, m = cost.shape
+    u = np.zeros(n + 1)
+    v = np.zeros(m + 1)
+    owner = np.zeros(m + 1, np.int64)  # owner[j]: the row (1-based) holding column j; 0 none
+    way = np.zeros(m + 1, np.int64)
+    minv = np.empty(m + 1)
+    used = np.empty(m + 1, np.bool_)
+    for i in range(1, n + 1):
+        owner[0] = i
+        j0 = 0
+        minv[:] = np.inf
+        used[:] = False
+        while True:
+            used[j0] = True
+            i0 = owner[j0]
+            delta = np.inf
+            j1 = 0
+            for j in range(1, m + 1):
+                if not used[j]:
+                    cur = cost[i0 - 1, j - 1] - u[i0] - v[j]
+                    if cur < minv[j]:
+                        minv[j] = cur
+                        way[j] = j0
+                    if minv[j] < delta:
+                        delta = minv[j]
+                        j1 = j
+            for j in range(m + 1):
+                if used[j]:
+                    u[owner[j]] += delta
+                    v[j] -= delta
+                else:
+                    minv[j] -= delta
+            j0 = j1
+            if owner[j0] == 0:
+                break
+        while j0 != 0:  # flip the augmenting path
+            j1 = way[j0]
+            owner[j0] = owner[j1]
+            j0 = j1
+    for j in range(1, m + 1):
+        if owner[j] != 0:
+            out[owner[j] - 1] = j - 1
+    return out
+
+
+@kernel
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@kernel
+def cluster_points(points, gap, labels):
+    """Single-linkage clusters of points ``(N, 2)``: two points share a cluster when a chain of
+    points at most ``gap`` apart joins them. ``labels[i]`` = cluster of point ``i``, numbered
+    ``0, 1, …`` in order of first point; returns the number of clusters. Points are binned into
+    cells of side ``gap`` and compared with the 3 × 3 cells around theirs."""
+    n = points.shape[0]
+    inv = 1.0 / gap
+    cx = np.empty(n, np.int64)
+    cy = np.empty(n, np.int64)
+    for i in range(n):
+        cx[i] = np.int64(np.floor(points[i, 0] * inv))
+        cy[i] = np.int64(np.floor(points[i, 1] * inv))
+    ox = cx.min() if n else 0
+    oy = cy.min() if n else 0
+    span = (cy.max() - oy + 3) if n else 1
+    key = (cx - ox + 1) * span + (cy - oy + 1)
+    order = np.argsort(key)
+    skey = key[order]
+    parent = np.arange(n)
+    g2 = gap * gap
+    for a in range(n):
+        i = order[a]
+        for dx in range(-1, 2):
+            for dy in range(-1, 2):
+                k = key[i] + dx * span + dy
+                lo = np.searchsorted(skey, k)
+                b = lo
+                while b < n and skey[b] == k:
+                    j = order[b]
+                    if j > i:
+                        ex = points[i, 0] - points[j, 0]
+                        ey = points[i, 1] - points[j, 1]
+                        if ex * ex + ey * ey <= g2:
+                            ri = _root(parent, i)
+                            rj = _root(parent, j)
+                            if ri != rj:
+                                parent[max(ri, rj)] = min(ri, rj)
+                    b += 1
+    count = 0
+    number = np.full(n, -1, np.int64)
+    for i in range(n):
+        r = _root(parent, i)
+        if number[r] < 0:
+            number[r] = count
+            count += 1
+        labels[i] = number[r]
+    return count
+
+
+@kernel
+def fit_boxes(points, starts, steps, min_distance, out):
+    """Oriented boxes around point clusters by L-shape fitting with the closeness criterion (Zhang
+    et al., "Efficient L-shape fitting for vehicle detection using laser scanners", IV 2017).
+
+    Cluster ``k`` is ``points[starts[k]:starts[k + 1]]``. For each of ``steps`` directions θ in
+    [0, π/2) the points are projected on ``e1 = (cos θ, sin θ)`` and ``e2 = (−sin θ, cos θ)``; the
+    score sums, over points, ``1 / max(d, min_distance)`` with ``d`` the distance to the nearer of
+    the box's two nearest edges; the best θ gives the box. ``out[k]`` = (centre x, centre y,
+    heading of the longer side in [−π/2, π/2), length, width)."""
+    for k in range(starts.shape[0] - 1):
+        a = starts[k]
+        b = starts[k + 1]
+        best = -1.0
+        best_t = 0.0
+        for s in range(steps):
+            t = 0.5 * np.pi * s / steps
+            c = np.cos(t)
+            sn = np.sin(t)
+            lo1 = np.inf
+            hi1 = -np.inf
+            lo2 = np.inf
+            hi2 = -np.inf
+            for i in range(a, b):
+                p1 = c * points[i, 0] + sn * points[i, 1]
+                p2 = -sn * points[i, 0] + c * points[i, 1]
+                lo1 = min(lo1, p1)
+                hi1 = max(hi1, p1)
+                lo2 = min(lo2, p2)
+                hi2 = max(hi2, p2)
+            score = 0.0
+            for i in range(a, b):
+                p1 = c * points[i, 0] + sn * points[i, 1]
+                p2 = -sn * points[i, 0] + c * points[i, 1]
+                d = min(min(hi1 - p1, p1 - lo1), min(hi2 - p2, p2 - lo2))
+                score += 1.0 / max(d, min_distance)
+            if score > best:
+                best = score
+                best_t = t
+        c = np.cos(best_t)
+        sn = np.sin(best_t)
+        lo1 = np.inf
+        hi1 = -np.inf
+        lo2 = np.inf
+        hi2 = -np.inf
+        for i in range(a, b):
+            p1 = c * points[i, 0] + sn * points[i, 1]
+            p2 = -sn * points[i, 0] + c * points[i, 1]
+            lo1 = min(lo1, p1)
+            hi1 = max(hi1, p1)
+            lo2 = min(lo2, p2)
+            hi2 = max(hi2, p2)
+        m1 = 0.5 * (lo1 + hi1)
+        m2 = 0.5 * (lo2 + hi2)
+        out[k, 0] = c * m1 - sn * m2
+        out[k, 1] = sn * m1 + c * m2
+        if hi1 - lo1 >= hi2 - lo2:
+            out[k, 2] = best_t
+            out[k, 3] = hi1 - lo1
+            out[k, 4] = hi2 - lo2
+        else:
+            out[k, 2] = best_t - 0.5 * np.pi
+            out[k, 3] = hi2 - lo2
+            out[k, 4] = hi1 - lo1
+    return out
+
+
+@kernel
+def nearest_by_bearing(scene, sx, sy, bins, out):
+    """Range of the nearest point of ``scene`` (K, 2) seen from ``(sx, sy)`` in each of ``bins``
+    equal bearing sectors over the full circle (``out`` (bins,), +inf where none)."""
+    out[:] = np.inf
+    scale = bins / (2.0 * np.pi)
+    for j in range(scene.shape[0]):
+        dx = scene[j, 0] - sx
+        dy = scene[j, 1] - sy
+        b = int((np.arctan2(dy, dx) + np.pi) * scale) % bins
+        out[b] = min(out[b], np.hypot(dx, dy))
+    return out
+
+
+@kernel
+def occluded_ends(points, starts, sx, sy, nearest, angle, depth, out):
+    """Whether something nearer hides an end of each cluster from the sensor at ``(sx, sy)``:
+    ``out[k]`` is true when, in the bearing sectors of ``nearest`` (the scene's nearest range per
+    sector, :func:`nearest_by_bearing`) within ``angle`` (rad) beyond either angular end of
+    cluster ``k`` (``points[starts[k]:starts[k + 1]]``), a return lies at least ``depth`` (m)
+    nearer than that end."""
+    bins = nearest.shape[0]
+    scale = bins / (2.0 * np.pi)
+    reach = int(np.ceil(angle * scale))
+    for k in range(starts.shape[0] - 1):
+        a = starts[k]
+        b = starts[k + 1]
+        mx = 0.0
+        my = 0.0
+        for i in range(a, b):
+            mx += points[i, 0] - sx
+            my += points[i, 1] - sy
+        mid = np.arctan2(my, mx)
+        lo = np.inf
+        hi = -np.inf
+        r_lo = 0.0
+        r_hi = 0.0
+        for i in range(a, b):
+            dx = points[i, 0] - sx
+            dy = points[i, 1] - sy
+            rel = np.arctan2(dy, dx) - mid
+            rel = rel - 2.0 * np.pi * np.floor((rel + np.pi) / (2.0 * np.pi))
+            if rel < lo:
+                lo = rel
+                r_lo = np.hypot(dx, dy)
+            if rel > hi:
+                hi = rel
+                r_hi = np.hypot(dx, dy)
+        b_lo = int((mid + lo + np.pi) * scale)
+        b_hi = int((mid + hi + np.pi) * scale)
+        hidden = False
+        for j in range(1, reach + 1):
+            if nearest[(b_lo - j) % bins] < r_lo - depth or nearest[(b_hi + j) % bins] < r_hi - depth:
+                hidden = True
+                break
+        out[k] = hidden
+    return out
+
+
+@kernel
+def _interval_probability(d, half, sigma):
+    """P(|d + e| ≤ half) for e ~ N(0, σ²): a box edge-to-edge along one axis, smeared."""
+    if sigma <= 0.0:
+        return 1.0 if abs(d) <= half else 0.0
+    k = 1.0 / (sigma * np.sqrt(2.0))
+    return 0.5 * (math.erf((half - d) * k) - math.erf((-half - d) * k))
+
+
+@kernel
+def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
+    """Adds, into ``out`` (H, W, window order, cell (0, 0) with its outer corner at ``(ox, oy)``,
+    side ``res``), the probability that each cell centre lies under one of the boxes ``sizes``
+    (T, 2) grown by ``grow`` on every side, centred at ``states[:, :2]`` with heading
+    ``states[:, 2]``, their centres Gaussian with covariance ``covs[:, :2, :2]`` and heading spread
+    ``covs[:, 2, 2]`` (its effect at the box's ends taken as extra spread across each axis).
+    Objects are taken as independent: ``out ← 1 − (1 − out)(1 − p)``."""
+    H, W = out.shape
+    for t in range(states.shape[0]):
+        x = states[t, 0]
+        y = states[t, 1]
+        c = np.cos(states[t, 2])
+        s = np.sin(states[t, 2])
+        ha = 0.5 * sizes[t, 0] + grow
+        hb = 0.5 * sizes[t, 1] + grow
+        sxx = covs[t, 0, 0]
+        sxy = covs[t, 0, 1]
+        syy = covs[t, 1, 1]
+        vth = covs[t, 2, 2]
+        va = c * c * sxx + 2.0 * c * s * sxy + s * s * syy + hb * hb * vth
+        vb = s * s * sxx - 2.0 * c * s * sxy + c * c * syy + ha * ha * vth
+        sa = np.sqrt(max(va, 0.0))
+        sb = np.sqrt(max(vb, 0.0))
+        reach = np.sqrt(ha * ha + hb * hb) + 3.0 * max(sa, sb)
+        i0 = max(int(np.floor((y - reach - oy) / res)), 0)
+        i1 = min(int(np.floor((y + reach - oy) / res)), H - 1)
+        j0 = max(int(np.floor((x - reach - ox) / res)), 0)
+        j1 = min(int(np.floor((x + reach - ox) / res)), W - 1)
+        for i in range(i0, i1 + 1):
+            py = oy + (i + 0.5) * res - y
+            for j in range(j0, j1 + 1):
+                px = ox + (j + 0.5) * res - x
+                da = c * px + s * py
+                db = -s * px + c * py
+                p = _interval_probability(da, ha, sa) * _interval_probability(db, hb, sb)
+                out[i, j] = 1.0 - (1.0 - out[i, j]) * (1.0 - p)
+    return out
+
+
+@kernel
+def point_probability(points, states, covs, sizes, grow, out):
+    """``out[i]`` = probability that point ``i`` (N, 2) lies under at least one box ``j`` of
+    ``states[i, j]`` (N, T, 5), ``covs[i, j]`` (N, T, 5, 5), ``sizes[j]`` (T, 2) grown by
+    ``grow`` — the objects predicted to point ``i``'s time (the model of
+    :func:`footprint_probability`)."""
+    for i in range(points.shape[0]):
+        free = 1.0
+        for t in range(states.shape[1]):
+            c = np.cos(states[i, t, 2])
+            s = np.sin(states[i, t, 2])
+            ha = 0.5 * sizes[t, 0] + grow
+            hb = 0.5 * sizes[t, 1] + grow
+            sxx = covs[i, t, 0, 0]
+            sxy = covs[i, t, 0, 1]
+            syy = covs[i, t, 1, 1]
+            vth = covs[i, t, 2, 2]
+            va = c * c * sxx + 2.0 * c * s * sxy + s * s * syy + hb * hb * vth
+            vb = s * s * sxx - 2.0 * c * s * sxy + c * c * syy + ha * ha * vth
+            px = points[i, 0] - states[i, t, 0]
+            py = points[i, 1] - states[i, t, 1]
+            p = (_interval_probability(c * px + s * py, ha, np.sqrt(max(va, 0.0)))
+                 * _interval_probability(-s * px + c * py, hb, np.sqrt(max(vb, 0.0))))
+            free *= 1.0 - p
+        out[i] = 1.0 - free
+    return out
+
+
+@kernel
+def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span, out):
+    """Points that belong to a component mostly moving: the points ``(N, 2)`` are put in the grid
+    of ``H × W`` cells of side ``res`` whose cell (0, 0) has its outer corner at ``(ox, oy)``;
+    cells within ``reach`` cells of each other (a square) join; a component whose points are at
+    least half ``moving`` and whose cells span at most ``max_span`` metres (the bounding box's
+    diagonal) has all its points set in ``out``, but those ``blocked``. Only components that hold
+    a moving point are searched: the cost follows them, not the scan."""
+    count = np.zeros((H, W), np.int32)
+    movers = np.zeros((H, W), np.int32)
+    cy = np.full(pts.shape[0], -1, np.int64)
+    cx = np.full(pts.shape[0], -1, np.int64)
+    for i in range(pts.shape[0]):
+        x = int(np.floor((pts[i, 0] - ox) / res))
+        y = int(np.floor((pts[i, 1] - oy) / res))
+        if 0 <= x < W and 0 <= y < H:
+            cy[i] = y
+            cx[i] = x
+            count[y, x] += 1
+            movers[y, x] += moving[i]
+    label = np.zeros((H, W), np.int32)  # 0 unvisited, k > 0 component k, promoted when good[k]
+    good = np.zeros(1, np.bool_)
+    stack = np.empty(H * W, np.int64)
+    comp = 0
+    for i in range(pts.shape[0]):
+        if not moving[i] or cy[i] < 0 or label[cy[i], cx[i]] != 0:
+            continue
+        comp += 1
+        if comp >= good.shape[0]:
+            grown = np.zeros(2 * good.shape[0], np.bool_)
+            grown[:good.shape[0]] = good
+            good = grown
+        top = 0
+        stack[0] = cy[i] * W + cx[i]
+        label[cy[i], cx[i]] = comp
+        n_all = 0
+        n_mov = 0
+        x0 = W
+        x1 = -1
+        y0 = H
+        y1 = -1
+        while top >= 0:
+            k = stack[top]
+            top -= 1
+            y = k // W
+            x = k % W
+            n_all += count[y, x]
+            n_mov += movers[y, x]
+            x0 = min(x0, x)
+            x1 = max(x1, x)
+            y0 = min(y0, y)
+            y1 = max(y1, y)
+            for yy in range(max(y - reach, 0), min(y + reach + 1, H)):
+                for xx in range(max(x - reach, 0), min(x + reach + 1, W)):
+                    if count[yy, xx] > 0 and label[yy, xx] == 0:
+                        label[yy, xx] = comp
+                        top += 1
+                        stack[top] = yy * W + xx
+        span = res * np.hypot(x1 - x0 + 1, y1 - y0 + 1)
+        good[comp] = 2 * n_mov >= n_all and span <= max_span
+    for i in range(pts.shape[0]):
+        out[i] = cy[i] >= 0 and good[label[cy[i], cx[i]]] and not blocked[i]
+    return out

@@ -1,0 +1,124 @@
+"""Extended Kalman filter for moving objects on the constant turn rate and velocity (CTRV) model,
+batched over tracks: states ``(N, 5)``, covariances ``(N, 5, 5)``, no Python loop over tracks.
+
+State ``s = (x, y, θ, v, ω)``: centre (m, world frame), heading (rad), speed along the heading
+(m/s) and yaw rate (rad/s). Over ``dt`` the object follows the arc of constant ``v`` and ``ω``,
+written as its chord (length ``v·dt·sinc(ω·dt/2)`` along ``θ + ω·dt/2``) exactly as
+:func:`occmap.geometry.motion.unicycle_step` moves poses, so ``ω → 0`` needs no special case.
+Process noise is white longitudinal acceleration (std ``accel`` m/s²) and yaw acceleration (std
+``yaw_accel`` rad/s²) held over the step (Schubert, Richter and Wanielik, "Comparison and evaluation
+of advanced motion models for vehicle tracking", FUSION 2008).
+
+Measurements (each returns the innovation ``y``, its Jacobian ``H`` and the caller gives ``R``):
+
+- :func:`pose_innovation`: a detected footprint's centre ``(x, y)`` and, for L-shaped views (two faces seen),
+  its heading. A box's heading is known only modulo π, so the heading innovation is wrapped to
+  ``(−π/2, π/2]``.
+- :func:`radial_velocity_innovation`: a Doppler radar's radial velocity of the object, ego motion
+  removed, along a world bearing ``φ``: ``h(s) = v·cos(θ − φ)``.
+
+:func:`update` applies them in Joseph form (keeps ``P`` symmetric and positive semi-definite).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...geometry.so2 import wrap_angle
+
+__all__ = ["STATE", "pose_innovation", "predict", "radial_velocity_innovation", "update"]
+
+#: Names of the state's components, in order.
+STATE = ("x", "y", "heading", "speed", "yaw_rate")
+
+_SERIES_BELOW = 1e-2
+
+
+def _sinc_and_derivative(h: np.ndarray):
+    """``sin(h)/h`` and its derivative, by their Taylor series near zero."""
+    small = np.abs(h) < _SERIES_BELOW
+    hs = np.where(small, 1.0, h)
+    h2 = h * h
+    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(hs) / hs)
+    d = np.where(small, -h / 3.0 + h * h2 / 30.0, (hs * np.cos(hs) - np.sin(hs)) / (hs * hs))
+    return sinc, d
+
+
+def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: float):
+    """States and covariances ``dt`` seconds later (``dt``, ``accel`` and ``yaw_accel`` scalars or
+    ``(N,)``; ``dt ≥ 0``); returns new arrays."""
+    x, y, th, v, w = states.T
+    dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), x.shape)
+    h = 0.5 * w * dt
+    sinc, dsinc = _sinc_and_derivative(h)
+    a = th + h
+    ca, sa = np.cos(a), np.sin(a)
+    chord = v * dt * sinc
+    out = states.copy()
+    out[:, 0] = x + chord * ca
+    out[:, 1] = y + chord * sa
+    out[:, 2] = wrap_angle(th + 2.0 * h)
+    n = states.shape[0]
+    F = np.broadcast_to(np.eye(5), (n, 5, 5)).copy()
+    F[:, 0, 2] = -chord * sa
+    F[:, 1, 2] = chord * ca
+    F[:, 0, 3] = dt * sinc * ca
+    F[:, 1, 3] = dt * sinc * sa
+    half = 0.5 * dt
+    F[:, 0, 4] = v * dt * (dsinc * half * ca - sinc * sa * half)
+    F[:, 1, 4] = v * dt * (dsinc * half * sa + sinc * ca * half)
+    F[:, 2, 4] = dt
+    G = np.zeros((n, 5, 2))
+    G[:, 0, 0] = half * dt * np.cos(th)
+    G[:, 1, 0] = half * dt * np.sin(th)
+    G[:, 3, 0] = dt
+    G[:, 2, 1] = half * dt
+    G[:, 4, 1] = dt
+    q = np.zeros((n, 2, 2))
+    q[:, 0, 0] = np.square(accel)
+    q[:, 1, 1] = np.square(yaw_accel)
+    Q = G @ q @ G.transpose(0, 2, 1)
+    P = F @ covs @ F.transpose(0, 2, 1) + Q
+    return out, 0.5 * (P + P.transpose(0, 2, 1))
+
+
+def pose_innovation(states: np.ndarray, z: np.ndarray, with_heading: bool):
+    """Innovation ``(N, m)`` and Jacobian ``(N, m, 5)`` of centre measurements ``z`` ``(N, 2)``,
+    or centre and heading ``(N, 3)`` when ``with_heading`` (``m`` = 2 or 3)."""
+    m = 3 if with_heading else 2
+    y = z[:, :m] - states[:, :m]
+    if with_heading:
+        y[:, 2] = wrap_angle(2.0 * y[:, 2]) / 2.0  # a box's heading is known modulo π
+    H = np.zeros((states.shape[0], m, 5))
+    for k in range(m):
+        H[:, k, k] = 1.0
+    return y, H
+
+
+def radial_velocity_innovation(states: np.ndarray, bearing: np.ndarray, radial_velocity: np.ndarray):
+    """Innovation ``(N, 1)`` and Jacobian ``(N, 1, 5)`` of radial velocities (m/s, ego motion
+    removed, positive away from the sensor) seen along world bearings ``bearing`` (rad)."""
+    d = states[:, 2] - bearing
+    v = states[:, 3]
+    y = (radial_velocity - v * np.cos(d))[:, None]
+    H = np.zeros((states.shape[0], 1, 5))
+    H[:, 0, 2] = -v * np.sin(d)
+    H[:, 0, 3] = np.cos(d)
+    return y, H
+
+
+def innovation_covariance(covs: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """``S = H P Hᵀ + R`` per track."""
+    return H @ covs @ H.transpose(0, 2, 1) + R
+
+
+def update(states: np.ndarray, covs: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray):
+    """States and covariances after measurements with innovations ``y`` ``(N, m)``, Jacobians ``H``
+    ``(N, m, 5)`` and noise ``R`` ``(N, m, m)``; returns new arrays."""
+    S = innovation_covariance(covs, H, R)
+    K = np.linalg.solve(S, H @ covs).transpose(0, 2, 1)  # P Hᵀ S⁻¹, S and P symmetric
+    out = states + (K @ y[..., None])[..., 0]
+    out[:, 2] = wrap_angle(out[:, 2])
+    A = np.eye(5) - K @ H
+    P = A @ covs @ A.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
+    return out, 0.5 * (P + P.transpose(0, 2, 1))

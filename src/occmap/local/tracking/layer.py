@@ -1,0 +1,145 @@
+"""The moving-object layer of a local map: which returns moving objects explain, their tracks, and
+where they will be.
+
+Per scan (:meth:`ObjectLayer.sort_returns`) a return is taken as *moving* when its cell and its
+neighbours are known free in the static layer and no cell within ``open_margin`` of it known
+occupied (something stands where the map has seen through, away from walls), when it falls on a confirmed track's footprint predicted to the scan (grown by
+``cover_margin``), or when it belongs to a small cluster of returns mostly moving and its cell is
+not known occupied (the part of an object in cells not seen yet). Moving returns do not mark
+the static layer — their rays still clear it up to them — so a moving object leaves no trail; they
+are clustered into detections (:mod:`.detection`) that update the tracks (:mod:`.tracker`).
+Returns in unknown cells away from tracks are static: a parked car stays in the map.
+
+Where objects will be (:meth:`ObjectLayer.occupancy`): every confirmed track (lost ones too, while
+they coast) predicted with its covariance to the time asked; per cell the probability that its
+centre lies under the object's footprint (:func:`~._kernels.footprint_probability`). Cells at
+``threshold`` or above are obstacles of the costmap at that time (:meth:`ObjectLayer.lethal`), as
+are the moving returns of the last scan that no confirmed track explains (they stay where they
+were seen); cells an object may cover with less probability cost in proportion (below lethal).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ... import checks
+from ...errors import ShapeError
+from . import _kernels as K
+from .detection import DETECTION_GAP, detect_objects
+from .tracker import Tracker, TrackerParams
+
+__all__ = ["ObjectLayer"]
+
+
+class ObjectLayer:
+    """Tracks of moving objects for a local map (see the module's description).
+
+    Parameters
+    ----------
+    params : TrackerParams or None
+        The tracker's settings.
+    cover_margin : float
+        Metres around a track's predicted footprint within which returns are the object's.
+    threshold : float
+        Probability from which a cell under a predicted object is an obstacle.
+    open_margin : float
+        Metres around a return's cell in which no cell may be known occupied for the return to be
+        moving (walls that grazing rays clear, or that pose errors shift, are not).
+    """
+
+    def __init__(self, params: TrackerParams | None = None, cover_margin: float = 0.2, threshold: float = 0.5,
+                 open_margin: float = 0.2):
+        self.tracker = Tracker(params)
+        self.cover_margin = checks.non_negative("cover_margin", cover_margin, "metres")
+        self.open_margin = checks.non_negative("open_margin", open_margin, "metres")
+        self.threshold = checks.probability("threshold", threshold)
+        self.moving = np.empty((0, 2))
+        self.stats = {"moving_returns": 0}
+
+    def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
+                     sensor, stamp: float, max_range: float | None = None, grid=None) -> None:
+        """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
+        clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
+        ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
+        holds free (and open around) or occupied; ``grid`` ``(origin, resolution, (H, W))`` is the
+        map's window, in which the returns are joined into objects."""
+        hit = np.flatnonzero(kinds == 1)
+        pts = np.ascontiguousarray(ends[hit])
+        moving = known_free[hit]
+        if len(self.tracker) and len(pts):
+            moving = moving | self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True)
+        if moving.any() and grid is not None:
+            # an object moving into cells the map has not seen free yet (away from the sensor,
+            # out of its own shadow) is one object, not a moving part and a static one; returns
+            # in cells known occupied (a wall a person passes) stay static
+            origin, resolution, (H, W) = grid
+            promoted = np.empty(len(pts), np.bool_)
+            K.promote_components(pts, moving, np.ascontiguousarray(known_occupied[hit]), float(origin[0]),
+                                 float(origin[1]), float(resolution), H, W,
+                                 int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
+                                 float(np.hypot(*self.tracker.params.max_size)), promoted)
+            moving |= promoted
+        kinds[hit[moving]] = 2
+        self.moving = pts[moving]
+        self.stats["moving_returns"] += int(moving.sum())
+        sensor = np.asarray(sensor, dtype=np.float64)[:2]
+        self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range), sensor)
+
+    def counts(self) -> dict:
+        """Running counts: returns taken as moving, tracks started, confirmed and dropped."""
+        t = self.tracker.stats
+        return {"moving_returns": self.stats["moving_returns"], "tracks_started": t["tracks_started"],
+                "tracks_confirmed": t["tracks_confirmed"], "tracks_dropped": t["tracks_dropped"]}
+
+    def occupancy(self, at: float, origin, resolution: float, shape) -> np.ndarray:
+        """Probability (float32 (H, W), row 0 at ``origin``) that each cell's centre lies under a
+        confirmed object at time ``at`` (seconds, not before the last scan)."""
+        _, states, covs, sizes = self.tracker.predicted(at)
+        out = np.zeros(shape, dtype=np.float64)
+        if len(states):
+            K.footprint_probability(states, covs, sizes, 0.0, float(origin[0]), float(origin[1]), float(resolution),
+                                    out)
+        return out.astype(np.float32)
+
+    def lethal(self, at: float | None, origin, resolution: float, shape):
+        """``(lethal, cost)`` of moving objects at time ``at``: obstacle cells (bool (H, W)) where
+        the predicted occupancy reaches ``threshold`` and where the last scan's moving returns no
+        confirmed track explains lie; and Nav2 costs (uint8 (H, W)) below lethal for the cells an
+        object may cover, ``252 · p / threshold`` for occupancy ``p`` from 0.05 up (none for
+        ``at=None``: the returns alone)."""
+        if at is None:
+            out, cost = np.zeros(shape, bool), np.zeros(shape, np.uint8)
+        else:
+            p = self.occupancy(at, origin, resolution, shape)
+            out = p >= self.threshold
+            cost = np.where(p >= 0.05, np.minimum(252.0 * p / self.threshold, 252.0), 0.0).astype(np.uint8)
+        pts = self.moving
+        if len(pts):
+            ids, states, covs, sizes = self.tracker.predicted(self.tracker.time)
+            if len(ids):
+                inside = np.zeros(len(pts))
+                K.point_probability(pts, np.broadcast_to(states, (len(pts),) + states.shape),
+                                    np.broadcast_to(covs, (len(pts),) + covs.shape), sizes, self.cover_margin,
+                                    inside)
+                pts = pts[inside < 0.5]
+            cells = np.floor((pts - np.asarray(origin)) / resolution).astype(np.int64)
+            H, W = shape
+            ok = (cells[:, 0] >= 0) & (cells[:, 0] < W) & (cells[:, 1] >= 0) & (cells[:, 1] < H)
+            out[cells[ok, 1], cells[ok, 0]] = True
+        return out, cost
+
+    def path_probability(self, points, stamps, radius: float) -> np.ndarray:
+        """Probability (N,) that a disc of ``radius`` m at each world point ``(N, 2)`` meets a
+        confirmed object at the point's time ``stamps`` (N,) (seconds, not before the last scan)."""
+        p = np.ascontiguousarray(points, dtype=np.float64)
+        t = np.asarray(stamps, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != 2 or t.shape != (p.shape[0],):
+            raise ShapeError(f"points (N, 2) and stamps (N,) must match, got {p.shape} and {t.shape}")
+        _, states, covs, sizes = self.tracker.predicted(t)
+        out = np.zeros(len(p))
+        if sizes.shape[0]:
+            K.point_probability(p, np.ascontiguousarray(states), np.ascontiguousarray(covs), sizes,
+                                checks.non_negative("radius", radius, "metres"), out)
+        return out

@@ -1,0 +1,499 @@
+"""Multi-object tracking: one CTRV extended Kalman filter per object (:mod:`.ekf`), Mahalanobis
+gating, global nearest-neighbour assignment (:mod:`.assignment`) and track management.
+
+A scan's detections (:class:`~.detection.Detections`) update the tracks in four steps:
+
+1. **Predict** every track to the scan's stamp.
+2. **Measure against each track**: a box seen from the sensor shows only its near faces, so its
+   centre lies nearer to the sensor than the object's. For each track–detection pair the box's
+   corners are projected on the track's axes; along an axis where the seen extent is shorter than
+   the track's size, the edge nearer to the sensor is kept and the centre put half the size behind
+   it. That centre is the pair's measurement.
+3. **Gate and assign**: pairs with squared Mahalanobis distance of the centres above ``gate`` are
+   not allowed; among the rest the assignment of least total ``d² + ln det S`` that matches the
+   most pairs is taken (the cost of a Gaussian likelihood), first for the confirmed tracks, then
+   for the others with the detections left.
+4. **Manage**: a matched track is updated (its heading too when the box is L-shaped, choosing the
+   box axis nearer to the track's heading); its size grows to the largest extent seen (capped).
+   A detection left over starts a *tentative* track; once it has moved ``init_distance`` or been
+   seen whole for ``init_span`` seconds its velocity is set from the displacement (see
+   :meth:`Tracker._correct`). A tentative track is *confirmed* once it has
+   been detected in ``confirm_hits`` of its last ``confirm_window`` scans, has moved at least
+   ``min_travel`` from where it started (walls and parked cars that leak into the detections do
+   not move), knows its speed to ``confirm_speed_sigma`` and moves at ``confirm_speed`` at least. A track not detected for ``max_coast`` seconds (``tentative_coast`` while tentative)
+   is dropped, as is one whose position standard deviation passes ``max_position_sigma``.
+
+Speeds are kept non-negative: a state with ``v < 0`` is turned around (``θ + π``, ``−v``), so the
+heading is the direction of travel.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from ... import checks
+from ...errors import InvalidArgumentError
+from ...geometry.so2 import wrap_angle
+from . import ekf
+from .assignment import assign
+from .detection import Detections
+
+__all__ = ["TrackerParams", "Tracker", "Tracks"]
+
+TENTATIVE, CONFIRMED = 0, 1
+#: Tracks shorter than this (m) are taken as round objects (people), longer ones as vehicles.
+MIN_VEHICLE_LENGTH = 1.0
+#: A line of returns at least this long (m) gives a direction.
+MIN_FACE_LENGTH = 1.0
+
+
+@dataclass(frozen=True)
+class TrackerParams:
+    """Tracker settings (SI units; see the module's description for their role)."""
+
+    accel: float = 2.0
+    person_accel: float = 1.0
+    yaw_accel: float = 0.7
+    position_sigma: float = 0.15
+    heading_sigma: float = math.radians(8.0)
+    gate: float = 13.8  # χ² with 2 degrees of freedom at 99.9 %
+    confirm_hits: int = 3
+    confirm_window: int = 5
+    min_travel: float = 0.5
+    confirm_speed_sigma: float = 1.0
+    confirm_speed: float = 0.3
+    lost_after: float = 0.3
+    max_coast: float = 1.0
+    tentative_coast: float = 0.3
+    max_position_sigma: float = 3.0
+    max_size: tuple = (8.0, 3.0)
+    vehicle_size: tuple = (4.4, 1.8)
+    vehicle_width: float = 1.2
+    min_moving_speed: float = 3.0
+    max_speed: float = 20.0
+    footprint_margin: float = 0.5
+    settled_heading_sigma: float = math.radians(10.0)
+    initial_speed_sigma: float = 10.0
+    init_span: float = 0.2
+    init_distance: float = 1.0
+    initial_yaw_rate_sigma: float = 0.5
+    radial_velocity_sigma: float = 0.2
+
+    def __post_init__(self):
+        for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after", "max_coast",
+                     "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed", "footprint_margin",
+                     "settled_heading_sigma", "confirm_speed_sigma", "confirm_speed", "init_span", "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma",
+                     "radial_velocity_sigma"):
+            checks.positive(name, getattr(self, name))
+        checks.non_negative("min_travel", self.min_travel, "metres")
+        if not 1 <= self.confirm_hits <= self.confirm_window <= 8:
+            raise InvalidArgumentError(f"need 1 ≤ confirm_hits ({self.confirm_hits}) ≤ confirm_window "
+                                       f"({self.confirm_window}) ≤ 8")
+
+
+class Tracks(NamedTuple):
+    """Tracks at one time, one entry each: ``id``, centre ``x``, ``y`` (m), velocity ``vx``, ``vy``
+    (m/s), ``heading`` (rad, direction of travel), ``length``, ``width`` (m), ``confirmed`` (a
+    confirmed track detected within ``lost_after`` seconds), ``lost`` (a confirmed track not
+    detected for longer: predicted only, until ``max_coast``) and the state covariance
+    ``covariance`` ``(N, 5, 5)`` over ``(x, y, heading, speed, yaw_rate)``."""
+
+    id: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    heading: np.ndarray
+    length: np.ndarray
+    width: np.ndarray
+    confirmed: np.ndarray
+    lost: np.ndarray
+    covariance: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+
+def _corners(det: Detections) -> np.ndarray:
+    """Corners ``(M, 4, 2)`` of detected boxes."""
+    c, s = np.cos(det.heading), np.sin(det.heading)
+    hl, hw = det.length / 2.0, det.width / 2.0
+    u = np.array([-1.0, 1.0, 1.0, -1.0])
+    w = np.array([-1.0, -1.0, 1.0, 1.0])
+    ax = u[None] * hl[:, None]
+    ay = w[None] * hw[:, None]
+    return np.stack([det.x[:, None] + c[:, None] * ax - s[:, None] * ay,
+                     det.y[:, None] + s[:, None] * ax + c[:, None] * ay], -1)
+
+
+def _directed(det: Detections) -> np.ndarray:
+    """Detections whose box has a direction: L-shaped, or a face at least
+    :data:`MIN_FACE_LENGTH` long (its direction is the object's side or its end)."""
+    return det.oriented | (det.length >= MIN_FACE_LENGTH)
+
+
+def _turn_around(states: np.ndarray, covs: np.ndarray) -> None:
+    """In place: states with negative speed get ``θ + π`` and ``−v`` (the same motion)."""
+    back = states[:, 3] < 0.0
+    if back.any():
+        states[back, 2] = wrap_angle(states[back, 2] + math.pi)
+        states[back, 3] = -states[back, 3]
+        flip = np.diag([1.0, 1.0, 1.0, -1.0, 1.0])
+        covs[back] = flip @ covs[back] @ flip
+
+
+def _nearest_axis(box_heading, heading):
+    """The direction among ``box_heading + k·π/2`` nearest to ``heading`` (radians)."""
+    return box_heading + 0.5 * math.pi * np.round((heading - box_heading) / (0.5 * math.pi))
+
+
+def _frames(heading, size, centre, sensor, box_heading, directed):
+    """Axes ``(..., 2, 2)`` (rows) in which a detection centred at ``centre`` (..., 2) is measured
+    for a track of ``heading`` (...) and ``size`` (..., 2), and the size along them. A vehicle
+    (length ≥ :data:`MIN_VEHICLE_LENGTH`) is measured along its length and its side: the axes of a
+    ``directed`` detection's box (``box_heading``, the one of its axes nearest to the track's
+    heading), else the track's own (a track's heading must not place the centre that corrects the
+    heading); a smaller object, taken as round, along the line of sight and across it, its size the
+    largest seen."""
+    along = np.where(directed, _nearest_axis(box_heading, heading), heading)
+    c, s = np.cos(along), np.sin(along)
+    track = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2)
+    d = centre - sensor
+    u = d / np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)[..., None]
+    sight = np.stack([u, np.stack([-u[..., 1], u[..., 0]], -1)], -2)
+    small = size[..., 0] < MIN_VEHICLE_LENGTH
+    axes = np.where(small[..., None, None], sight, track)
+    return axes, np.where(small[..., None], size.max(axis=-1, keepdims=True), size)
+
+
+class Tracker:
+    """Tracks of moving objects, updated scan by scan (see the module's description).
+
+    >>> tracker = Tracker()
+    >>> tracker.update(0.1, detect_objects(points), sensor=(x, y))  # doctest: +SKIP
+    >>> tracker.tracks().confirmed  # doctest: +SKIP
+    """
+
+    def __init__(self, params: TrackerParams | None = None):
+        self.params = TrackerParams() if params is None else params
+        self.time: float | None = None
+        self._next_id = 0
+        self.id = np.empty(0, np.int64)
+        self.state = np.empty((0, 5))
+        self.cov = np.empty((0, 5, 5))
+        self.status = np.empty(0, np.int8)
+        self.size = np.empty((0, 2))
+        self.birth = np.empty((0, 2))
+        self.born = np.empty(0)
+        self.travel = np.empty(0)
+        self.last_hit = np.empty(0)
+        self.updates = np.empty(0, np.int64)
+        self.hit_bits = np.empty(0, np.uint8)
+        self.clean = np.empty(0, bool)  # the last detection was whole (not occluded)
+        self.stats = {"updates": 0, "detections": 0, "tracks_started": 0, "tracks_confirmed": 0, "tracks_dropped": 0}
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+    # ------------------------------------------------------------------ time
+
+    def _noise(self, size):
+        """Process noise ``(accel, yaw_accel)`` per track: people (round tracks) change their
+        speed less than vehicles."""
+        small = size[:, 0] < MIN_VEHICLE_LENGTH
+        p = self.params
+        return np.where(small, p.person_accel, p.accel), np.full(len(size), p.yaw_accel)
+
+    def _advance(self, stamp: float) -> None:
+        stamp = checks.finite("stamp", stamp)
+        if self.time is not None:
+            dt = stamp - self.time
+            if dt < 0.0:
+                raise InvalidArgumentError(f"stamp {stamp!r} goes backwards: the tracker is at {self.time!r} s")
+            if dt > 0.0 and len(self):
+                p = self.params
+                self.state, self.cov = ekf.predict(self.state, self.cov, dt, *self._noise(self.size))
+        self.time = stamp
+
+    def predicted(self, t, confirmed_only: bool = True):
+        """``(ids (T,), states, covariances, sizes (T, 2))`` of the tracks predicted to time ``t``
+        (seconds, at or after the last update), without changing them: states ``(T, 5)`` and
+        covariances ``(T, 5, 5)`` for one time, ``(K, T, 5)`` and ``(K, T, 5, 5)`` for times
+        ``(K,)``. ``confirmed_only``: the confirmed tracks (lost ones included), else all."""
+        times = np.asarray(t, dtype=np.float64)
+        if not np.isfinite(times).all():
+            raise InvalidArgumentError(f"prediction times must be finite, got {t!r}")
+        now = self.time if self.time is not None else float(times.min(initial=0.0))
+        if (times < now).any():
+            raise InvalidArgumentError(f"t = {float(times.min())!r} lies before the tracker's time {now!r}: "
+                                       "predictions go forward only")
+        keep = self.status == CONFIRMED if confirmed_only else np.ones(len(self), bool)
+        s, c, size = self.state[keep], self.cov[keep], self.size[keep]
+        k, n = times.size, len(s)
+        flat_s = np.broadcast_to(s, (k, n, 5)).reshape(-1, 5)
+        flat_c = np.broadcast_to(c, (k, n, 5, 5)).reshape(-1, 5, 5)
+        dt = np.repeat(times.reshape(-1) - now, n)
+        if n:
+            accel, yaw = self._noise(np.broadcast_to(size, (k, n, 2)).reshape(-1, 2))
+            flat_s, flat_c = ekf.predict(flat_s, flat_c, dt, accel, yaw)
+        shape = times.shape + (n,)
+        return self.id[keep], flat_s.reshape(shape + (5,)), flat_c.reshape(shape + (5, 5)), size
+
+    def covers(self, points, t: float, margin: float, confirmed_only: bool = False) -> np.ndarray:
+        """Whether each world point ``(N, 2)`` lies within a track's footprint (predicted to
+        ``t``) grown by ``margin`` metres."""
+        _, s, _, size = self.predicted(t, confirmed_only=confirmed_only)
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        dx = p[:, None, 0] - s[None, :, 0]
+        dy = p[:, None, 1] - s[None, :, 1]
+        c, sn = np.cos(s[:, 2]), np.sin(s[:, 2])
+        half = 0.5 * size + margin
+        return ((np.abs(c * dx + sn * dy) <= half[:, 0]) & (np.abs(-sn * dx + c * dy) <= half[:, 1])).any(axis=1)
+
+    # ------------------------------------------------------------------ measurement
+
+    def _measure(self, corners: np.ndarray, axes: np.ndarray, size: np.ndarray, sensor: np.ndarray, occluded=False,
+                 track=None):
+        """What a detected box says of an object of size ``size`` (``(..., 2)`` along ``axes``
+        ``(..., 2, 2)``), from its corners ``(..., 4, 2)`` seen from ``sensor``: ``(centre (..., 2),
+        covariance (..., 2, 2), seen extent (..., 2), side (..., 2))``.
+
+        Along an axis where the sensor lies beyond the extent seen, the near edge is the object's
+        (``side`` +1: the object lies toward +axis from its lower edge, −1 from its upper edge)
+        and the centre half the size behind it. Elsewhere — the sensor within the extent
+        (``side`` 0), or the axis of an ``occluded`` box (``(...)``) more across the line of sight
+        (where the occluder may cut it) — the box only bounds the centre: it lies where an object of that size
+        still covers all that is seen. Given the ``track``'s centre (..., 2) the measurement is the
+        point of that interval nearest to it (none of a bias a part seen for many scans would
+        build up); without it the interval's middle, uncertain by its length (uniform)."""
+        p = self.params
+        proj = np.einsum("...cj,...aj->...ac", corners, axes)
+        lo, hi = proj.min(-1), proj.max(-1)
+        seen = hi - lo
+        s_proj = np.einsum("...aj,j->...a", axes, sensor)
+        full = np.maximum(size, seen)
+        side = np.where(s_proj < lo, 1.0, np.where(s_proj > hi, -1.0, 0.0))
+        # an occluder cuts a box's angular extent: the axis across the line of sight
+        mid = np.einsum("...a,...aj->...j", 0.5 * (lo + hi), axes) - sensor
+        across = np.abs(np.einsum("...aj,...j->...a", axes, mid))
+        cut = across == across.min(axis=-1, keepdims=True)
+        unsure = (side == 0) | (np.asarray(occluded)[..., None] & cut)
+        first, last = hi - 0.5 * full, lo + 0.5 * full  # centres that cover what is seen
+        if track is None:
+            bound = 0.5 * (first + last)
+            var = p.position_sigma ** 2 + np.where(unsure, (full - seen) ** 2 / 12.0, 0.0)
+        else:
+            bound = np.clip(np.einsum("...aj,...j->...a", axes, track), first, last)
+            var = np.full(bound.shape, p.position_sigma ** 2)
+        centre = np.where(unsure, bound, np.where(side > 0, lo + 0.5 * full, hi - 0.5 * full))
+        return (np.einsum("...a,...aj->...j", centre, axes), np.einsum("...ai,...a,...aj->...ij", axes, var, axes),
+                seen, side)
+
+    def update(self, stamp: float, detections: Detections, sensor) -> None:
+        """Bring the tracks to ``stamp`` (s, not before the last) with one scan's detections seen
+        from ``sensor`` (x, y) in the world frame."""
+        p = self.params
+        sensor = np.asarray(sensor, dtype=np.float64).reshape(-1)[:2]
+        self._advance(stamp)
+        self.stats["updates"] += 1
+        self.stats["detections"] += len(detections)
+        n, m = len(self), len(detections)
+        self.hit_bits = (self.hit_bits << 1).astype(np.uint8)
+        rows = cols = np.empty(0, np.int64)
+        if n and m:
+            centres = np.stack([detections.x, detections.y], -1)
+            directed = _directed(detections)
+            axes, size = _frames(self.state[:, None, 2], self.size[:, None], centres[None], sensor,
+                                 detections.heading[None], directed[None])
+            z, R, _, _ = self._measure(_corners(detections)[None], axes, size, sensor, detections.occluded[None],
+                                       self.state[:, None, :2])
+            r = z - self.state[:, None, :2]
+            S = self.cov[:, None, :2, :2] + R
+            # a track seen once has no velocity yet: it may have gone anywhere within max_speed
+            young = self.updates == 0
+            reach = (p.max_speed * (self.time - self.last_hit[young]) / 3.0) ** 2
+            S[young] += reach[:, None, None, None] * np.eye(2)
+            d2 = np.einsum("nmi,nmi->nm", r, np.linalg.solve(S, r[..., None])[..., 0])
+            cost = np.where(d2 <= p.gate, d2 + np.log(np.linalg.det(S)), np.inf)
+            rows, cols = self._assign(cost)
+            if len(rows):
+                self._resize(*self._correct(rows, cols, z[rows, cols], R[rows, cols], detections), detections, sensor)
+        self._manage(rows)
+        spawn = np.setdiff1d(np.arange(m), cols)
+        if len(spawn) and len(self):
+            # a part of an object that a nearer one splits off from the rest starts no track
+            spawn = spawn[~self.covers(np.stack([detections.x[spawn], detections.y[spawn]], -1), self.time,
+                                       p.footprint_margin)]
+        if len(spawn):
+            self._spawn(detections, spawn)
+        _turn_around(self.state, self.cov)
+
+    def _assign(self, cost: np.ndarray):
+        """Confirmed tracks choose first; the others share the detections left."""
+        first = np.flatnonzero(self.status == CONFIRMED)
+        r1, c1 = assign(cost[first])
+        r1 = first[r1]
+        rest = np.flatnonzero(self.status != CONFIRMED)
+        free = np.setdiff1d(np.arange(cost.shape[1]), c1)
+        r2, c2 = assign(cost[np.ix_(rest, free)])
+        rows = np.concatenate([r1, rest[r2]])
+        cols = np.concatenate([c1, free[c2]])
+        return rows, cols
+
+    def _correct(self, rows, cols, centres, R_centre, det: Detections):
+        """Update matched tracks; returns ``(rows, cols)`` of those that have a velocity now.
+
+        A track without a velocity yet (seen once, or only since its last restart) waits for
+        ``init_span`` seconds or ``init_distance`` metres of motion between whole views and takes
+        its velocity from that displacement; a view an occluder cuts restarts it there (such a
+        box's centre moves with the occluder, not with the object)."""
+        p = self.params
+        young = self.updates[rows] == 0
+        here = np.stack([det.x[cols], det.y[cols]], -1)
+        restart = young & ~(self.clean[rows] & ~det.occluded[cols])
+        d = here - self.birth[rows]
+        elapsed = self.time - self.born[rows]
+        dist = np.hypot(d[:, 0], d[:, 1])
+        ready = young & ~restart & ((elapsed >= p.init_span) | (dist >= p.init_distance))
+        waiting = young & ~ready
+        if waiting.any():
+            r, c = rows[waiting], cols[waiting]
+            self.state[r, :2] = here[waiting]
+            self.state[r, 2] = det.heading[c]
+            self.state[r, 3:] = 0.0
+            self.size[r] = np.minimum(np.stack([det.length[c], det.width[c]], -1), p.max_size)
+        if restart.any():
+            r = rows[restart]
+            self.birth[r] = here[restart]
+            self.born[r] = self.time
+        if ready.any():
+            r, c = rows[ready], cols[ready]
+            dt, dd = elapsed[ready], dist[ready]
+            heading = np.arctan2(d[ready, 1], d[ready, 0])
+            # an L-shaped box knows the heading better than two noisy centres: its axis nearest
+            aligned = _nearest_axis(det.heading[c], heading)
+            self.state[r, 2] = np.where(det.oriented[c], wrap_angle(aligned), heading)
+            self.state[r, :2] = here[ready]
+            self.state[r, 3] = dd / dt
+            self.state[r, 4] = 0.0
+            var_p = p.position_sigma ** 2
+            cov = np.zeros((len(r), 5, 5))
+            cov[:, 0, 0] = cov[:, 1, 1] = var_p
+            cov[:, 2, 2] = np.where(det.oriented[c], p.heading_sigma ** 2,
+                                    np.minimum(2.0 * var_p / np.maximum(dd, 1e-9) ** 2, (math.pi / 2) ** 2))
+            cov[:, 3, 3] = 2.0 * var_p / dt ** 2 + (p.accel * dt) ** 2
+            cov[:, 4, 4] = p.initial_yaw_rate_sigma ** 2
+            self.cov[r] = cov
+        rest = ~young
+        if rest.any():
+            r, c = rows[rest], cols[rest]
+            z = np.concatenate([centres[rest], np.zeros((len(r), 1))], 1)
+            oriented = _directed(det)[c] & (self.updates[r] >= 2) & (self.size[r, 0] >= MIN_VEHICLE_LENGTH)
+            z[:, 2] = _nearest_axis(det.heading[c], self.state[r, 2])
+            for with_heading in (False, True):
+                k = oriented == with_heading
+                if not k.any():
+                    continue
+                y, H = ekf.pose_innovation(self.state[r[k]], z[k], with_heading)
+                R = np.zeros((int(k.sum()), 3, 3))
+                R[:, :2, :2] = R_centre[rest][k]
+                R[:, 2, 2] = p.heading_sigma ** 2
+                R = R if with_heading else R[:, :2, :2]
+                self.state[r[k]], self.cov[r[k]] = ekf.update(self.state[r[k]], self.cov[r[k]], y, H, R)
+        self.updates[rows[~waiting]] += 1
+        self.last_hit[rows] = self.time
+        self.clean[rows] = ~det.occluded[cols]
+        self.hit_bits[rows] |= 1
+        d = self.state[rows, :2] - self.birth[rows]
+        self.travel[rows] = np.maximum(self.travel[rows], np.hypot(d[:, 0], d[:, 1]))
+        return rows[~waiting], cols[~waiting]
+
+    def _resize(self, rows, cols, det: Detections, sensor) -> None:
+        """After an update: sizes grow to the largest extent seen along the measuring axes of the
+        updated heading (capped; a round object stays round; a moving object as wide as a car is
+        taken as at least ``vehicle_size`` until seen whole), and the face seen stays where it is:
+        along an axis measured from one edge the centre moves away from it by half the growth.
+        A track at its second detection has just got its heading: its size is what is seen now
+        along it, its centre measured anew."""
+        p = self.params
+        centres = np.stack([det.x[cols], det.y[cols]], -1)
+        first = self.updates[rows] == 1
+        size = np.where(first[:, None], 0.0, self.size[rows])
+        axes, size = _frames(self.state[rows, 2], size, centres, sensor, det.heading[cols], _directed(det)[cols])
+        corners = _corners(det)[cols]
+        _, _, seen, side = self._measure(corners, axes, size, sensor)
+        small = size[:, 0] < MIN_VEHICLE_LENGTH
+        # sizes grow only from whole views (a box an occluder cuts may hold the occluder's returns),
+        # a vehicle's only in settled axes (a box measured in a wrong heading looks wider)
+        settled = ~det.occluded[cols] & (small | (det.oriented[cols]
+                                                  & (self.cov[rows, 2, 2] <= p.settled_heading_sigma ** 2)))
+        grown = np.where((settled | first)[:, None], np.maximum(size, seen), size)
+        grown[small] = grown[small].max(axis=1, keepdims=True)
+        car = (grown.max(axis=1) >= p.vehicle_width) & (self.state[rows, 3] >= p.min_moving_speed)
+        grown[car] = np.where(settled[car, None], np.maximum(grown[car], p.vehicle_size), p.vehicle_size)
+        grown = np.minimum(grown, p.max_size)
+        self.state[rows, :2] += np.einsum("ka,kaj->kj", side * 0.5 * (grown - size), axes)
+        if first.any():
+            centre, _, _, _ = self._measure(corners[first], axes[first], grown[first], sensor)
+            self.state[rows[first], :2] = centre
+        self.size[rows] = grown
+
+    def _manage(self, matched) -> None:
+        p = self.params
+        window = (1 << p.confirm_window) - 1
+        hits = np.unpackbits((self.hit_bits & window)[:, None], axis=1).sum(axis=1)
+        promote = ((self.status == TENTATIVE) & (hits >= p.confirm_hits) & (self.travel >= p.min_travel)
+                   & (self.updates >= 2) & (self.cov[:, 3, 3] <= p.confirm_speed_sigma ** 2)
+                   & (self.state[:, 3] >= p.confirm_speed))
+        self.status[promote] = CONFIRMED
+        self.stats["tracks_confirmed"] += int(promote.sum())
+        idle = self.time - self.last_hit
+        limit = np.where(self.status == CONFIRMED, p.max_coast, p.tentative_coast)
+        lost = (idle > limit) | (np.sqrt(self.cov[:, 0, 0] + self.cov[:, 1, 1]) > p.max_position_sigma)
+        if lost.any():
+            self.stats["tracks_dropped"] += int(lost.sum())
+            self._keep(~lost)
+
+    def _keep(self, keep) -> None:
+        for name in ("id", "state", "cov", "status", "size", "birth", "born", "travel", "last_hit", "updates", "hit_bits", "clean"):
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _spawn(self, det: Detections, which) -> None:
+        p = self.params
+        k = len(which)
+        state = np.zeros((k, 5))
+        state[:, 0], state[:, 1], state[:, 2] = det.x[which], det.y[which], det.heading[which]
+        cov = np.zeros((k, 5, 5))
+        cov[:, 0, 0] = cov[:, 1, 1] = p.position_sigma ** 2
+        cov[:, 2, 2] = (math.pi / 2.0) ** 2
+        cov[:, 3, 3] = p.initial_speed_sigma ** 2
+        cov[:, 4, 4] = p.initial_yaw_rate_sigma ** 2
+        self.id = np.concatenate([self.id, np.arange(self._next_id, self._next_id + k)])
+        self._next_id += k
+        self.state = np.concatenate([self.state, state])
+        self.cov = np.concatenate([self.cov, cov])
+        self.status = np.concatenate([self.status, np.full(k, TENTATIVE, np.int8)])
+        self.size = np.concatenate([self.size, np.minimum(np.stack([det.length[which], det.width[which]], -1),
+                                                          p.max_size)])
+        self.birth = np.concatenate([self.birth, state[:, :2]])
+        self.born = np.concatenate([self.born, np.full(k, self.time)])
+        self.travel = np.concatenate([self.travel, np.zeros(k)])
+        self.last_hit = np.concatenate([self.last_hit, np.full(k, self.time)])
+        self.updates = np.concatenate([self.updates, np.zeros(k, np.int64)])
+        self.hit_bits = np.concatenate([self.hit_bits, np.ones(k, np.uint8)])
+        self.clean = np.concatenate([self.clean, ~det.occluded[which]])
+        self.stats["tracks_started"] += k
+
+    # ------------------------------------------------------------------ read-out
+
+    def tracks(self) -> Tracks:
+        """The tracks alive at the last update (tentative ones included; see ``confirmed``)."""
+        s = self.state
+        lost = self.time - self.last_hit > self.params.lost_after
+        return Tracks(self.id.copy(), s[:, 0].copy(), s[:, 1].copy(), s[:, 3] * np.cos(s[:, 2]),
+                      s[:, 3] * np.sin(s[:, 2]), s[:, 2].copy(), self.size[:, 0].copy(), self.size[:, 1].copy(),
+                      (self.status == CONFIRMED) & ~lost, (self.status == CONFIRMED) & lost, self.cov.copy())

@@ -1,0 +1,226 @@
+"""Scan sources read from ROS bags: the ``sensor_msgs/LaserScan`` or ``sensor_msgs/PointCloud2``
+messages of one topic, each placed in a fixed frame, streamed.
+
+Where each message was taken comes, in this order, from:
+
+* a pose file (:class:`~occmap.io.poses.PoseTrack`): by the message's header stamp for a track
+  with stamps (TUM), else pose ``k`` for message ``k``;
+* tf: ``T_fixed_sensor`` looked up in the bag's :class:`~occmap.geometry.frames.FrameTree`
+  (``/tf`` and ``/tf_static``, read in a first pass over those topics alone) from the fixed frame
+  to the message's ``header.frame_id`` at its header stamp, interpolated between tf samples. An
+  odometry topic (``nav_msgs/Odometry``) joins the tree as the link ``header.frame_id →
+  child_frame_id`` of its messages, so odometry serves where a bag has no tf, or only a static
+  sensor mount.
+
+A message whose stamp lies outside the tf samples (or beyond the pose file's tolerance) is not
+guessed at: it is dropped and counted in ``dropped`` under its reason, as are scans with no beams
+and clouds with no finite points. A sensor frame that tf does not join to the fixed frame at all
+stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming both frames and the
+time. Memory holds the frame tree and one message.
+
+The fixed frame defaults to the root of the sensor frame's tf tree (``odom`` or ``map`` in a
+usual robot's), and to ``fallback_frame`` when tf does not know the sensor frame.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import replace
+from typing import Iterator
+
+import numpy as np
+
+from ..cloud import PointCloud
+from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, UnknownFrameError
+from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree, read_odometry
+from ..io.bags._header import frame_name
+from ..io.bags.transforms import ODOMETRY
+
+__all__ = ["BagClouds", "BagScans"]
+
+#: A laser whose scan plane leans further than this from the fixed frame's xy plane is counted as tilted.
+TILT_NOTE = math.radians(5.0)
+
+
+class _BagSource:
+    """What the two bag sources share: the topic, the poses, the stream and its counts."""
+
+    MSGTYPE = ""
+    FALLBACK_FRAME = ""
+
+    def __init__(self, path, topic: str | None = None, fixed_frame: str | None = None,
+                 odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1):
+        self.path = str(path)
+        self.every = int(every)
+        self.tolerance = float(tolerance)
+        self.dropped: Counter = Counter()
+        self.tilted = 0  # laser scans whose plane leans more than TILT_NOTE (see BagScans)
+        self.pose_track = poses
+        self._tree = None
+        bag = self._bag = open_bag(path)  # kept for the first iteration: opening a ROS 2 bag costs 0.1 s
+        try:
+            self.topic = _pick_topic(bag, topic, self.MSGTYPE)
+            self.count = bag.topics[self.topic].count
+            self.sensor_frame = _first_frame(bag, self.topic)
+            self.fixed_frame = fixed_frame or ""
+            if poses is not None:
+                if poses.stamps is None:
+                    poses.by_index(self.count, f"messages on {self.topic}")
+            else:
+                self._tree = self._frame_tree(bag, odom_topic)
+                self.fixed_frame = self.fixed_frame or _root(self._tree, self.sensor_frame) or self.FALLBACK_FRAME
+        except BaseException:
+            bag.close()
+            raise
+
+    def _frame_tree(self, bag, odom_topic):
+        """tf, with the odometry topic's link, or an error when there is nothing to place scans by."""
+        tree = read_frame_tree(bag)
+        if odom_topic is not None:
+            odometry = read_odometry(bag, odom_topic)
+            if len(odometry.stamps):
+                tree.set_transform(odometry.frame_id, odometry.child_frame_id, odometry.poses, odometry.stamps)
+        if not tree.frames:
+            odoms = [t.name for t in bag.topics.values() if t.msgtype == ODOMETRY]
+            raise InvalidArgumentError(
+                f"{self.path}: its {self.topic} messages have no poses: the bag has no tf (/tf, /tf_static)"
+                + (f" (odometry on {', '.join(odoms)}: give --odom-topic)" if odoms else " and no odometry")
+                + "; give a pose file with --poses, or build the poses from the scans with --scan-match")
+        return tree
+
+    def __len__(self) -> int:
+        """Messages the stream looks at (every ``every``-th of the topic's)."""
+        return -(-self.count // self.every)
+
+    def __iter__(self) -> Iterator:
+        bag, self._bag = self._bag or open_bag(self.path), None
+        self.dropped.clear()
+        self.tilted = 0
+        with bag:
+            for k, m in enumerate(bag.messages(self.topic, self.MSGTYPE)):
+                if k % self.every:
+                    continue
+                where = f"{self.path}: topic {self.topic!r}, message {k} (recorded at {m.time:.9f} s)"
+                item = self._decode(m.msg, where)
+                if item is None:
+                    continue
+                record, frame, stamp = item
+                pose = self._pose(k, frame, stamp, where)
+                if pose is not None:
+                    yield self._place(record, pose)
+
+    def _pose(self, k: int, frame: str, stamp: float, where: str):
+        """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
+        if self.pose_track is not None:
+            if self.pose_track.stamps is None:
+                return self.pose_track.poses[k].matrix
+            pose, ok = self.pose_track.at([stamp], self.tolerance)
+            if not ok[0]:
+                self.dropped[f"no pose in {self.pose_track.path} within {self.tolerance:g} s"] += 1
+                return None
+            return pose.matrix[0]
+        try:
+            return self._tree.lookup(self.fixed_frame, frame, stamp).matrix
+        except ExtrapolationError:
+            self.dropped["no tf at that time (outside the tf data)"] += 1
+            return None
+        except (UnknownFrameError, ConnectivityError) as e:
+            raise InvalidArgumentError(f"{where}: no tf from {self.fixed_frame!r} to the sensor frame {frame!r} at "
+                                       f"{stamp:.9f} s ({e}); --fixed-frame names the frame to map in") from None
+
+
+class BagScans(_BagSource):
+    """The ``sensor_msgs/LaserScan`` messages of a bag topic as :class:`~occmap.scan.LaserScan`
+    records in the fixed frame (see :mod:`occmap.sources.bags`).
+
+    The planar pose ``(x, y, theta)`` is the sensor's position and the heading of its x axis
+    projected on the fixed frame's xy plane; a laser mounted upside down (its z axis pointing down)
+    sweeps clockwise there, so its beam angles are negated. Scans whose plane leans more than 5°
+    are kept and counted in ``tilted``: a 2D map sees their beams as if level.
+    ``topic`` defaults to the bag's only LaserScan topic; ``max_range`` (metres), when given,
+    replaces the messages' ``range_max``, as it does for a CARMEN log.
+    """
+
+    MSGTYPE = "sensor_msgs/msg/LaserScan"
+    FALLBACK_FRAME = "odom"
+
+    def __init__(self, path, *args, max_range: float | None = None, **kwargs):
+        super().__init__(path, *args, **kwargs)
+        self.max_range = None if max_range is None else float(max_range)
+
+    def _decode(self, msg, where):
+        scan, frame = decode_laser_scan(msg, where)
+        if not len(scan):
+            self.dropped["scan with no beams"] += 1
+            return None
+        if self.max_range is not None:
+            scan = replace(scan, max_range=self.max_range)
+        return scan, frame, scan.stamp
+
+    def _place(self, scan, T):
+        up = T[2, 2]
+        if math.acos(min(1.0, abs(float(up)))) > TILT_NOTE:
+            self.tilted += 1
+        pose = np.array([T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])])
+        return replace(scan, pose=pose, angles=-scan.angles if up < 0 else scan.angles)
+
+
+class BagClouds(_BagSource):
+    """The ``sensor_msgs/PointCloud2`` messages of a bag topic as
+    :class:`~occmap.cloud.PointCloud` records posed in the fixed frame (see
+    :mod:`occmap.sources.bags`); points with a non-finite coordinate are left out (the cloud's
+    ``dropped``). ``topic`` defaults to the bag's only PointCloud2 topic."""
+
+    MSGTYPE = "sensor_msgs/msg/PointCloud2"
+    FALLBACK_FRAME = "map"
+
+    def _decode(self, msg, where):
+        cloud = decode_point_cloud2(msg, where=where)
+        if not len(cloud.points):
+            self.dropped["cloud with no points" if not cloud.dropped else "cloud with no finite points"] += 1
+            return None
+        return cloud, cloud.frame_id, cloud.stamp
+
+    def _place(self, cloud, T):
+        return PointCloud(cloud.points, T, cloud.stamp, cloud.dropped)
+
+
+def _pick_topic(bag, topic: str | None, msgtype: str) -> str:
+    """``topic``, checked to hold ``msgtype``; by default the bag's only topic of that type."""
+    name = msgtype.rsplit("/", 1)[-1]
+    if topic is not None:
+        if topic not in bag.topics:
+            raise InvalidArgumentError(f"{bag.path}: no topic {topic!r}; its topics: {_listing(bag)}")
+        if bag.topics[topic].msgtype != msgtype:
+            raise InvalidArgumentError(f"{bag.path}: topic {topic!r} holds {bag.topics[topic].msgtype}, not {msgtype}")
+        return topic
+    found = [t.name for t in bag.topics.values() if t.msgtype == msgtype]
+    if len(found) != 1:
+        raise InvalidArgumentError(f"{bag.path}: {'no' if not found else 'several'} {name} topics; "
+                                   f"{'name one with' if found else 'its topics:'} "
+                                   + (f"--topic ({', '.join(found)})" if found else _listing(bag)))
+    return found[0]
+
+
+def _listing(bag) -> str:
+    return ", ".join(f"{t.name} ({t.msgtype})" for t in bag.topics.values()) or "(none)"
+
+
+def _first_frame(bag, topic: str) -> str:
+    """The frame of the first message on ``topic`` ("" when it has none)."""
+    stream = bag.messages(topic)
+    try:
+        first = next(stream, None)
+    finally:
+        stream.close()
+    return "" if first is None else frame_name(first.msg.header.frame_id)
+
+
+def _root(tree, frame: str) -> str | None:
+    """The root of ``frame``'s tree, or None when tf does not know the frame."""
+    if frame not in tree:
+        return None
+    while (parent := tree.parent(frame)) is not None:
+        frame = parent
+    return frame

@@ -1,0 +1,169 @@
+"""The tracker's parts: the CTRV filter against exact motion and finite differences, the
+assignment against scipy, clustering against scipy's single linkage, box fitting on exact
+rectangles, and tracks of synthetic objects."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.optimize import linear_sum_assignment
+
+from occmap.errors import InvalidArgumentError
+from occmap.geometry.motion import unicycle_step
+from occmap.local.tracking import ekf
+from occmap.local.tracking.assignment import assign
+from occmap.local.tracking.detection import Detections, detect_objects
+from occmap.local.tracking.tracker import Tracker
+
+RNG = np.random.default_rng(7)
+
+
+def _states(n=8):
+    s = np.c_[RNG.normal(size=(n, 2)) * 10, RNG.uniform(-3, 3, n), RNG.uniform(-2, 15, n), RNG.uniform(-1, 1, n)]
+    s[0, 4] = 0.0
+    s[1, 4] = 1e-9
+    return s
+
+
+def test_predict_moves_states_exactly_as_the_unicycle():
+    s = _states()
+    out, _ = ekf.predict(s, np.broadcast_to(np.eye(5), (len(s), 5, 5)), 0.37, 1.0, 1.0)
+    np.testing.assert_allclose(out[:, :3], unicycle_step(s[:, :3], s[:, 3], s[:, 4], 0.37), atol=1e-12)
+    np.testing.assert_array_equal(out[:, 3:], s[:, 3:])
+
+
+def test_predict_covariance_uses_the_jacobian_of_the_motion():
+    s = _states()
+    dt, h = 0.25, 1e-6
+    zero = np.zeros((1, 5, 5))
+    for k in range(len(s)):
+        F = np.empty((5, 5))
+        for j in range(5):
+            up, down = s[k:k + 1].copy(), s[k:k + 1].copy()
+            up[0, j] += h
+            down[0, j] -= h
+            d = ekf.predict(up, zero, dt, 1, 1)[0][0] - ekf.predict(down, zero, dt, 1, 1)[0][0]
+            d[2] = math.remainder(d[2], 2 * math.pi)
+            F[:, j] = d / (2 * h)
+        A = RNG.normal(size=(5, 5))
+        P = A @ A.T
+        _, Pk = ekf.predict(s[k:k + 1], P[None], dt, 1e-12, 1e-12)  # no process noise: F·P·Fᵀ
+        np.testing.assert_allclose(Pk[0], F @ P @ F.T, rtol=1e-5, atol=1e-7)
+
+
+def test_update_shrinks_the_covariance_and_keeps_it_symmetric():
+    s = _states(4)
+    A = RNG.normal(size=(4, 5, 5))
+    P = A @ A.transpose(0, 2, 1) + np.eye(5)
+    z = s[:, :3] + 0.1
+    y, H = ekf.pose_innovation(s, z, with_heading=True)
+    R = np.broadcast_to(np.diag([0.01, 0.01, 0.001]), (4, 3, 3))
+    s2, P2 = ekf.update(s, P, y, H, R)
+    np.testing.assert_array_equal(P2, P2.transpose(0, 2, 1))
+    assert np.all(np.trace(P2, axis1=1, axis2=2) < np.trace(P, axis1=1, axis2=2))
+    assert np.all(np.linalg.eigvalsh(P2) > 0)
+    # the estimate moves toward the measurement
+    assert np.all(np.abs(z[:, :2] - s2[:, :2]) < np.abs(z[:, :2] - s[:, :2]))
+
+
+def test_box_heading_is_known_modulo_pi():
+    s = np.zeros((1, 5))
+    y, _ = ekf.pose_innovation(s, np.array([[0.0, 0.0, math.pi - 0.1]]), with_heading=True)
+    assert y[0, 2] == pytest.approx(-0.1)
+
+
+def test_radial_velocity_of_a_car_seen_from_the_side_and_from_behind():
+    s = np.array([[0.0, 0.0, 0.0, 10.0, 0.0], [0.0, 0.0, 0.0, 10.0, 0.0]])
+    y, H = ekf.radial_velocity_innovation(s, np.array([0.0, math.pi / 2]), np.array([10.0, 0.0]))
+    np.testing.assert_allclose(y[:, 0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(H[0, 0], [0, 0, 0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(H[1, 0], [0, 0, 10, 0, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(5, 5), (3, 7), (9, 4), (1, 1)])
+def test_assignment_is_optimal(shape):
+    for _ in range(20):
+        c = RNG.random(shape) * 10
+        rows, cols = assign(c)
+        r2, c2 = linear_sum_assignment(c)
+        assert c[rows, cols].sum() == pytest.approx(c[r2, c2].sum())
+        assert len(rows) == min(shape)
+
+
+def test_assignment_never_matches_outside_the_gate_and_matches_the_most_pairs():
+    c = np.array([[1.0, np.inf, np.inf], [0.5, 100.0, np.inf], [np.inf, np.inf, np.inf]])
+    rows, cols = assign(c)
+    # row 0 can only take column 0: the most pairs are (0, 0) and (1, 1), dearer than (1, 0) alone
+    assert rows.tolist() == [0, 1] and cols.tolist() == [0, 1]
+    assert assign(np.full((2, 2), np.inf))[0].size == 0
+    with pytest.raises(InvalidArgumentError):
+        assign([[np.nan]])
+
+
+def test_clusters_equal_single_linkage():
+    for gap in (0.3, 0.7):
+        p = np.concatenate([RNG.normal(size=(40, 2)) * 0.4 + c for c in ([0, 0], [3, 0], [0, 4], [5, 5])])
+        d = detect_objects(p, gap=gap, min_points=1)
+        truth = fcluster(linkage(p, "single"), gap, criterion="distance")
+        assert len(d) == len(np.unique(truth))
+        assert sorted(d.points.tolist()) == sorted(np.bincount(truth)[1:].tolist())
+
+
+@pytest.mark.parametrize("heading", [0.0, 0.4, -1.2, 1.5707])
+def test_box_fit_recovers_an_l_shaped_view(heading):
+    L, W = 4.5, 1.8
+    c, s = math.cos(heading), math.sin(heading)
+    # two faces of the box, as a sensor at one corner's side sees them
+    along = np.linspace(-L / 2, L / 2, 60)
+    across = np.linspace(-W / 2, W / 2, 25)
+    local = np.concatenate([np.c_[along, np.full(60, -W / 2)], np.c_[np.full(25, L / 2), across]])
+    world = local @ np.array([[c, s], [-s, c]]) + [10.0, -3.0]
+    d = detect_objects(world)
+    assert len(d) == 1 and d.oriented[0]
+    assert d.length[0] == pytest.approx(L, abs=0.05) and d.width[0] == pytest.approx(W, abs=0.05)
+    assert abs(math.remainder(d.heading[0] - heading, math.pi)) < math.radians(1.5)
+    assert (d.x[0], d.y[0]) == pytest.approx((10.0, -3.0), abs=0.05)
+
+
+def _detection(x, y, size=0.5):
+    return Detections(np.array([x]), np.array([y]), np.array([0.0]), np.array([size]), np.array([size]),
+                      np.array([10]), np.array([False]), np.array([False]))
+
+
+def test_a_walking_person_is_confirmed_and_tracked():
+    tracker = Tracker()
+    rng = np.random.default_rng(1)
+    for k in range(40):
+        t = 0.1 * k
+        tracker.update(t, _detection(5.0 + 1.2 * t + rng.normal(0, 0.02), 2.0 + 0.6 * t + rng.normal(0, 0.02)),
+                       sensor=(5.0 + 1.2 * t, 10.0))  # seen from the side: the centre is not shifted
+    tr = tracker.tracks()
+    assert len(tr) == 1 and tr.confirmed[0]
+    assert tr.vx[0] == pytest.approx(1.2, abs=0.15) and tr.vy[0] == pytest.approx(0.6, abs=0.15)
+    assert math.hypot(tr.x[0] - 9.68, tr.y[0] - 4.34) < 0.3  # the detected box is 0.5 m, the track grows it
+
+
+def test_something_that_does_not_move_is_never_confirmed():
+    tracker = Tracker()
+    for k in range(30):
+        tracker.update(0.1 * k, _detection(3.0, 3.0), sensor=(0.0, 0.0))
+    assert len(tracker) == 1 and not tracker.tracks().confirmed[0]
+
+
+def test_a_track_not_seen_for_longer_than_max_coast_is_dropped():
+    tracker = Tracker()
+    for k in range(20):
+        tracker.update(0.1 * k, _detection(0.1 * k * 10, 0.0), sensor=(0.0, -10.0))
+    assert tracker.tracks().confirmed.all()
+    tracker.update(2.9, Detections.empty(), sensor=(0.0, -10.0))
+    assert len(tracker) == 1
+    tracker.update(3.0 + tracker.params.max_coast, Detections.empty(), sensor=(0.0, -10.0))
+    assert len(tracker) == 0 and tracker.stats["tracks_dropped"] == 1
+
+
+def test_time_must_not_go_backwards():
+    tracker = Tracker()
+    tracker.update(1.0, Detections.empty(), sensor=(0, 0))
+    with pytest.raises(InvalidArgumentError, match="backwards"):
+        tracker.update(0.5, Detections.empty(), sensor=(0, 0))
