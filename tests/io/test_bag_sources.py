@@ -384,3 +384,38 @@ def test_bag_options_are_refused_for_other_inputs(data_dir, tmp_path, capsys):
     assert main(["map3d", str(pcd), "--calib", str(pcd), "-o", str(tmp_path / "m.bt")]) == 2
     assert "--calib and --pose-format go with --poses FILE" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_map2d_scan_matches_a_bag_without_poses(tmp_path, intel, capsys):
+    from dataclasses import replace
+
+    from occmap.mapping2d import map_scan_stream
+    from occmap.scan import with_poses
+    from occmap.slam import match_scans
+
+    from occmap.sim.world2d import World2D, simulate_scans
+
+    world = World2D.default()  # dense scans, 0.1 m apart: the ranges alone place them
+    sim = simulate_scans(world, world.default_trajectory(1000)[:120], n_beams=181, fov=np.pi, max_range=10.0,
+                         sigma=0.01, rng=4, stamps=1.0 + 0.1 * np.arange(120))
+    path = write_bag(tmp_path, "mcap", laser_bag(sim, tf=False))
+    out = tmp_path / "m.yaml"
+    assert main(["map2d", str(path), "--scan-match", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "scan matching: 120 scans, 119 matched, 0 failed and 0 rejected" in printed
+    scans = [replace(s, odom=s.pose) for s in BagScans(path, unposed=True)]  # the mount's pose, the prior
+    api = map_scan_stream(with_poses(scans, match_scans(scans).poses), 0.05, None).grid  # what map2d does
+    api.save(tmp_path / "api.yaml")
+    assert (tmp_path / "api.pgm").read_bytes() == (tmp_path / "m.pgm").read_bytes()
+    # with tf the bag's poses are the matcher's prior: Intel's scans, too far apart for the ranges
+    # alone (0.67 m and 22° between them), are matched
+    posed = write_bag(tmp_path, "mcap", laser_bag(intel[:120]), name="tf")
+    assert main(["map2d", str(posed), "--scan-match", "-o", str(tmp_path / "p.yaml")]) == 0
+    assert "120 scans, 119 matched, 0 failed and 0 rejected" in capsys.readouterr().out
+
+
+def test_shared_bag_maps_with_scan_matching(data_dir, tmp_path, capsys):
+    assert main(["map2d", str(data_dir / SHARED_BAG), "--scan-match", "-o", str(tmp_path / "m.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "360 scans, 359 matched, 0 failed and 0 rejected" in out
+    assert "in the frame of its first scan (scan-matched): 360 messages, 360 scans used" in out

@@ -94,6 +94,7 @@ def print_use(source, used: int, unit: str) -> None:
     from ..sources import BagClouds, BagScans
 
     if isinstance(source, (BagScans, BagClouds)):
-        frame = source.fixed_frame or f"the frame of {source.pose_track.path}"
+        frame = source.fixed_frame or (f"the frame of {source.pose_track.path}" if source.pose_track is not None
+                                       else "the frame of its first scan (scan-matched)")
         print(f"{source.topic} in {frame}: {len(source):,} messages, {used:,} {unit} used, "
               f"{sum(source.dropped.values()):,} dropped")

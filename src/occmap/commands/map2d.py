@@ -5,6 +5,7 @@ pair (the ``.pgm`` beside the YAML) and optionally a picture."""
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 import time
 from pathlib import Path
 
@@ -108,17 +109,21 @@ def _run_bag(args, model) -> int:
     from ..mapping2d import map_scan_stream
     from ..sources import BagScans
 
-    if args.scan_match:
-        raise InvalidArgumentError("--scan-match reads CARMEN logs so far; match a bag's scans through "
-                                   "occmap.slam.match_scans (docs/maps.md)")
     if args.tiles is not None:
         raise InvalidArgumentError("--tiles reads files scan by scan; a bag is mapped in one process (drop --tiles)")
     if args.lenient:
         raise InvalidArgumentError("--lenient skips malformed CARMEN lines; a bag has none")
     t0 = time.perf_counter()
-    source = BagScans(args.log, every=args.every, max_range=args.max_range, **_sources.bag_options(args))
-    summary = map_scan_stream(source, args.resolution, args.max_range, model=model, max_extent=args.max_extent,
-                              progress=Progress(len(source), "messages"))
+    source = BagScans(args.log, every=args.every, max_range=args.max_range, unposed=args.scan_match,
+                      **_sources.bag_options(args))
+    if args.scan_match:
+        # poses from tf, odometry or a pose file, where the bag has them, are the matcher's prior
+        scans = [replace(s, odom=s.pose) if source.fixed_frame or source.pose_track else s for s in source]
+        summary = map_scan_stream(_scan_match.scan_matched(scans), args.resolution, args.max_range, model=model,
+                                  max_extent=args.max_extent, progress=Progress(len(scans), "scans"))
+    else:
+        summary = map_scan_stream(source, args.resolution, args.max_range, model=model, max_extent=args.max_extent,
+                                  progress=Progress(len(source), "messages"))
     _sources.report("map2d", source)
     if not summary.scans:
         raise InvalidArgumentError(f"{args.log}: none of the {len(source):,} scans on {source.topic} could be placed "

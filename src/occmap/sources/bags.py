@@ -50,7 +50,8 @@ class _BagSource:
     FALLBACK_FRAME = ""
 
     def __init__(self, path, topic: str | None = None, fixed_frame: str | None = None,
-                 odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1):
+                 odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1,
+                 unposed: bool = False):
         self.path = str(path)
         self.every = int(every)
         self.tolerance = float(tolerance)
@@ -68,20 +69,24 @@ class _BagSource:
                 if poses.stamps is None:
                     poses.by_index(self.count, f"messages on {self.topic}")
             else:
-                self._tree = self._frame_tree(bag, odom_topic)
-                self.fixed_frame = self.fixed_frame or _root(self._tree, self.sensor_frame) or self.FALLBACK_FRAME
+                self._tree = self._frame_tree(bag, odom_topic, unposed)
+                if self._tree is not None:
+                    self.fixed_frame = self.fixed_frame or _root(self._tree, self.sensor_frame) or self.FALLBACK_FRAME
         except BaseException:
             bag.close()
             raise
 
-    def _frame_tree(self, bag, odom_topic):
-        """tf, with the odometry topic's link, or an error when there is nothing to place scans by."""
+    def _frame_tree(self, bag, odom_topic, unposed: bool):
+        """tf, with the odometry topic's link; when there is nothing to place scans by, None if the
+        caller takes ``unposed`` messages (scan matching gives them poses), else an error."""
         tree = read_frame_tree(bag)
         if odom_topic is not None:
             odometry = read_odometry(bag, odom_topic)
             if len(odometry.stamps):
                 tree.set_transform(odometry.frame_id, odometry.child_frame_id, odometry.poses, odometry.stamps)
         if not tree.frames:
+            if unposed:
+                return None
             odoms = [t.name for t in bag.topics.values() if t.msgtype == ODOMETRY]
             raise InvalidArgumentError(
                 f"{self.path}: its {self.topic} messages have no poses: the bag has no tf (/tf, /tf_static)"
@@ -120,6 +125,8 @@ class _BagSource:
                 self.dropped[f"no pose in {self.pose_track.path} within {self.tolerance:g} s"] += 1
                 return None
             return pose.matrix[0]
+        if self._tree is None:  # unposed: at the origin, for scan matching to place
+            return np.eye(4)
         try:
             return self._tree.lookup(self.fixed_frame, frame, stamp).matrix
         except ExtrapolationError:
