@@ -122,6 +122,23 @@ def cluster_points(points, gap, labels):
 
 
 @kernel
+def _extents(points, a, b, c, s):
+    """Extent ``(lo1, hi1, lo2, hi2)`` of ``points[a:b]`` along ``(c, s)`` and ``(−s, c)``."""
+    lo1 = np.inf
+    hi1 = -np.inf
+    lo2 = np.inf
+    hi2 = -np.inf
+    for i in range(a, b):
+        p1 = c * points[i, 0] + s * points[i, 1]
+        p2 = -s * points[i, 0] + c * points[i, 1]
+        lo1 = min(lo1, p1)
+        hi1 = max(hi1, p1)
+        lo2 = min(lo2, p2)
+        hi2 = max(hi2, p2)
+    return lo1, hi1, lo2, hi2
+
+
+@kernel
 def fit_boxes(points, starts, steps, min_distance, out):
     """Oriented boxes around point clusters by L-shape fitting with the closeness criterion (Zhang
     et al., "Efficient L-shape fitting for vehicle detection using laser scanners", IV 2017).
@@ -140,17 +157,7 @@ def fit_boxes(points, starts, steps, min_distance, out):
             t = 0.5 * np.pi * s / steps
             c = np.cos(t)
             sn = np.sin(t)
-            lo1 = np.inf
-            hi1 = -np.inf
-            lo2 = np.inf
-            hi2 = -np.inf
-            for i in range(a, b):
-                p1 = c * points[i, 0] + sn * points[i, 1]
-                p2 = -sn * points[i, 0] + c * points[i, 1]
-                lo1 = min(lo1, p1)
-                hi1 = max(hi1, p1)
-                lo2 = min(lo2, p2)
-                hi2 = max(hi2, p2)
+            lo1, hi1, lo2, hi2 = _extents(points, a, b, c, sn)
             score = 0.0
             for i in range(a, b):
                 p1 = c * points[i, 0] + sn * points[i, 1]
@@ -162,17 +169,7 @@ def fit_boxes(points, starts, steps, min_distance, out):
                 best_t = t
         c = np.cos(best_t)
         sn = np.sin(best_t)
-        lo1 = np.inf
-        hi1 = -np.inf
-        lo2 = np.inf
-        hi2 = -np.inf
-        for i in range(a, b):
-            p1 = c * points[i, 0] + sn * points[i, 1]
-            p2 = -sn * points[i, 0] + c * points[i, 1]
-            lo1 = min(lo1, p1)
-            hi1 = max(hi1, p1)
-            lo2 = min(lo2, p2)
-            hi2 = max(hi2, p2)
+        lo1, hi1, lo2, hi2 = _extents(points, a, b, c, sn)
         m1 = 0.5 * (lo1 + hi1)
         m2 = 0.5 * (lo2 + hi2)
         out[k, 0] = c * m1 - sn * m2

@@ -62,9 +62,9 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
 
     With the ``sensor`` position (x, y) and the ``scene`` (all returns of the scan, ``(K, 2)``), a
     detection is ``occluded`` when a return within ``angle`` (rad, about two beams; in sectors of
-    0.25°) beyond either of its angular ends is at least ``depth`` m nearer, or (given the sensor's ``max_range``) when a
-    point of it lies within ``depth`` of the range limit, beyond which the rest may lie; without
-    the sensor none is."""
+    0.25°) beyond either of its angular ends is at least ``depth`` m nearer, or (given the sensor's
+    ``max_range``) when a point of it lies within ``depth`` of the range limit, beyond which the
+    rest may lie; without the sensor none is."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ShapeError(f"points must have shape (N, 2), got {p.shape}")

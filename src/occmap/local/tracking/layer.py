@@ -3,12 +3,13 @@ where they will be.
 
 Per scan (:meth:`ObjectLayer.sort_returns`) a return is taken as *moving* when its cell and its
 neighbours are known free in the static layer and no cell within ``open_margin`` of it known
-occupied (something stands where the map has seen through, away from walls), when it falls on a confirmed track's footprint predicted to the scan (grown by
-``cover_margin``), or when it belongs to a small cluster of returns mostly moving and its cell is
-not known occupied (the part of an object in cells not seen yet). Moving returns do not mark
-the static layer — their rays still clear it up to them — so a moving object leaves no trail; they
-are clustered into detections (:mod:`.detection`) that update the tracks (:mod:`.tracker`).
-Returns in unknown cells away from tracks are static: a parked car stays in the map.
+occupied (something stands where the map has seen through, away from walls), when it falls on a
+confirmed track's footprint predicted to the scan (grown by ``cover_margin``), or when it belongs to
+a small cluster of returns mostly moving and its cell is not known occupied (the part of an object
+in cells not seen yet). Moving returns do not mark the static layer — their rays still clear it up
+to them — so a moving object leaves no trail; they are clustered into detections (:mod:`.detection`)
+that update the tracks (:mod:`.tracker`). Returns in unknown cells away from tracks are static: a
+parked car stays in the map.
 
 Where objects will be (:meth:`ObjectLayer.occupancy`): every confirmed track (lost ones too, while
 they coast) predicted with its covariance to the time asked; per cell the probability that its

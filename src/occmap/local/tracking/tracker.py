@@ -14,14 +14,15 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
    most pairs is taken (the cost of a Gaussian likelihood), first for the confirmed tracks, then
    for the others with the detections left.
 4. **Manage**: a matched track is updated (its heading too when the box is L-shaped, choosing the
-   box axis nearer to the track's heading); its size grows to the largest extent seen (capped).
-   A detection left over starts a *tentative* track; once it has moved ``init_distance`` or been
-   seen whole for ``init_span`` seconds its velocity is set from the displacement (see
-   :meth:`Tracker._correct`). A tentative track is *confirmed* once it has
-   been detected in ``confirm_hits`` of its last ``confirm_window`` scans, has moved at least
-   ``min_travel`` from where it started (walls and parked cars that leak into the detections do
-   not move), knows its speed to ``confirm_speed_sigma`` and moves at ``confirm_speed`` at least. A track not detected for ``max_coast`` seconds (``tentative_coast`` while tentative)
-   is dropped, as is one whose position standard deviation passes ``max_position_sigma``.
+   box axis nearer to the track's heading); its size grows to the largest extent seen (capped). A
+   detection left over starts a *tentative* track; once it has moved ``init_distance`` or been seen
+   whole for ``init_span`` seconds its velocity is set from the displacement (see
+   :meth:`Tracker._correct`). A tentative track is *confirmed* once it has been detected in
+   ``confirm_hits`` of its last ``confirm_window`` scans, has moved at least ``min_travel`` from
+   where it started (walls and parked cars that leak into the detections do not move), knows its
+   speed to ``confirm_speed_sigma`` and moves at ``confirm_speed`` at least. A track not detected
+   for ``max_coast`` seconds (``tentative_coast`` while tentative) is dropped, as is one whose
+   position standard deviation passes ``max_position_sigma``.
 
 Speeds are kept non-negative: a state with ``v < 0`` is turned around (``θ + π``, ``−v``), so the
 heading is the direction of travel.
@@ -81,13 +82,12 @@ class TrackerParams:
     init_span: float = 0.2
     init_distance: float = 1.0
     initial_yaw_rate_sigma: float = 0.5
-    radial_velocity_sigma: float = 0.2
 
     def __post_init__(self):
-        for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after", "max_coast",
-                     "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed", "footprint_margin",
-                     "settled_heading_sigma", "confirm_speed_sigma", "confirm_speed", "init_span", "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma",
-                     "radial_velocity_sigma"):
+        for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after",
+                     "max_coast", "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed",
+                     "footprint_margin", "settled_heading_sigma", "confirm_speed_sigma", "confirm_speed", "init_span",
+                     "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma"):
             checks.positive(name, getattr(self, name))
         checks.non_negative("min_travel", self.min_travel, "metres")
         if not 1 <= self.confirm_hits <= self.confirm_window <= 8:
@@ -459,7 +459,8 @@ class Tracker:
             self._keep(~lost)
 
     def _keep(self, keep) -> None:
-        for name in ("id", "state", "cov", "status", "size", "birth", "born", "travel", "last_hit", "updates", "hit_bits", "clean"):
+        for name in ("id", "state", "cov", "status", "size", "birth", "born", "travel", "last_hit", "updates",
+                     "hit_bits", "clean"):
             setattr(self, name, getattr(self, name)[keep])
 
     def _spawn(self, det: Detections, which) -> None:
