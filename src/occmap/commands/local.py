@@ -45,14 +45,11 @@ def _objects(lm, ahead: float):
     ``ahead`` seconds later at their velocity (:func:`occmap.local.replay.frame_image`)."""
     import numpy as np
 
+    from ..local.tracking.detection import box_corners
+
     t = lm.tracks()
     keep = t.confirmed
-    c, s = np.cos(t.heading[keep]), np.sin(t.heading[keep])
-    hl, hw = t.length[keep] / 2, t.width[keep] / 2
-    u = np.array([-1.0, 1.0, 1.0, -1.0])[None] * hl[:, None]
-    v = np.array([-1.0, -1.0, 1.0, 1.0])[None] * hw[:, None]
-    corners = np.stack([t.x[keep, None] + c[:, None] * u - s[:, None] * v,
-                        t.y[keep, None] + s[:, None] * u + c[:, None] * v], -1)
+    corners = box_corners(t.x[keep], t.y[keep], t.heading[keep], t.length[keep], t.width[keep])
     later = np.stack([t.x[keep] + ahead * t.vx[keep], t.y[keep] + ahead * t.vy[keep]], -1)
     return (corners - lm.origin) / lm.resolution, (later - lm.origin) / lm.resolution
 

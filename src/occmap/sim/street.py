@@ -30,6 +30,7 @@ import numpy as np
 
 from .. import checks
 from ..geometry.motion import unicycle_step
+from ..local.tracking.detection import box_corners
 from ..scan import LaserScan
 from .world2d import World2D, simulate_lidar
 
@@ -95,12 +96,7 @@ class Objects(NamedTuple):
 
     def corners(self) -> np.ndarray:
         """Footprint corners ``(N, 4, 2)``, counter-clockwise from rear right."""
-        c, s = np.cos(self.heading), np.sin(self.heading)
-        hl, hw = self.length / 2.0, self.width / 2.0
-        local = np.stack([np.stack([-hl, -hw], -1), np.stack([hl, -hw], -1),
-                          np.stack([hl, hw], -1), np.stack([-hl, hw], -1)], axis=1)
-        return np.stack([self.x[:, None] + c[:, None] * local[..., 0] - s[:, None] * local[..., 1],
-                         self.y[:, None] + s[:, None] * local[..., 0] + c[:, None] * local[..., 1]], axis=-1)
+        return box_corners(self.x, self.y, self.heading, self.length, self.width)
 
 
 class RadarScan(NamedTuple):

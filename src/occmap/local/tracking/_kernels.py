@@ -254,6 +254,16 @@ def _interval_probability(d, half, sigma):
 
 
 @kernel
+def _spread(c, s, ha, hb, cov):
+    """Standard deviations along and across a box of heading ``(cos, sin) = (c, s)`` and half
+    sizes ``ha``, ``hb``: its centre's covariance ``cov[:2, :2]`` in the box's axes, plus the
+    heading variance ``cov[2, 2]`` moving its far edges across each axis."""
+    va = c * c * cov[0, 0] + 2.0 * c * s * cov[0, 1] + s * s * cov[1, 1] + hb * hb * cov[2, 2]
+    vb = s * s * cov[0, 0] - 2.0 * c * s * cov[0, 1] + c * c * cov[1, 1] + ha * ha * cov[2, 2]
+    return np.sqrt(max(va, 0.0)), np.sqrt(max(vb, 0.0))
+
+
+@kernel
 def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
     """Adds, into ``out`` (H, W, window order, cell (0, 0) with its outer corner at ``(ox, oy)``,
     side ``res``), the probability that each cell centre lies under one of the boxes ``sizes``
@@ -269,14 +279,7 @@ def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
         s = np.sin(states[t, 2])
         ha = 0.5 * sizes[t, 0] + grow
         hb = 0.5 * sizes[t, 1] + grow
-        sxx = covs[t, 0, 0]
-        sxy = covs[t, 0, 1]
-        syy = covs[t, 1, 1]
-        vth = covs[t, 2, 2]
-        va = c * c * sxx + 2.0 * c * s * sxy + s * s * syy + hb * hb * vth
-        vb = s * s * sxx - 2.0 * c * s * sxy + c * c * syy + ha * ha * vth
-        sa = np.sqrt(max(va, 0.0))
-        sb = np.sqrt(max(vb, 0.0))
+        sa, sb = _spread(c, s, ha, hb, covs[t])
         reach = np.sqrt(ha * ha + hb * hb) + 3.0 * max(sa, sb)
         i0 = max(int(np.floor((y - reach - oy) / res)), 0)
         i1 = min(int(np.floor((y + reach - oy) / res)), H - 1)
@@ -306,16 +309,10 @@ def point_probability(points, states, covs, sizes, grow, out):
             s = np.sin(states[i, t, 2])
             ha = 0.5 * sizes[t, 0] + grow
             hb = 0.5 * sizes[t, 1] + grow
-            sxx = covs[i, t, 0, 0]
-            sxy = covs[i, t, 0, 1]
-            syy = covs[i, t, 1, 1]
-            vth = covs[i, t, 2, 2]
-            va = c * c * sxx + 2.0 * c * s * sxy + s * s * syy + hb * hb * vth
-            vb = s * s * sxx - 2.0 * c * s * sxy + c * c * syy + ha * ha * vth
+            sa, sb = _spread(c, s, ha, hb, covs[i, t])
             px = points[i, 0] - states[i, t, 0]
             py = points[i, 1] - states[i, t, 1]
-            p = (_interval_probability(c * px + s * py, ha, np.sqrt(max(va, 0.0)))
-                 * _interval_probability(-s * px + c * py, hb, np.sqrt(max(vb, 0.0))))
+            p = _interval_probability(c * px + s * py, ha, sa) * _interval_probability(-s * px + c * py, hb, sb)
             free *= 1.0 - p
         out[i] = 1.0 - free
     return out

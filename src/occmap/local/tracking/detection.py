@@ -16,7 +16,7 @@ from ... import checks
 from ...errors import ShapeError
 from . import _kernels as K
 
-__all__ = ["Detections", "detect_objects"]
+__all__ = ["Detections", "box_corners", "detect_objects"]
 
 #: Largest gap (m) between the returns of one object.
 DETECTION_GAP = 0.5
@@ -52,6 +52,15 @@ class Detections(NamedTuple):
     def empty() -> Detections:
         f = np.empty(0)
         return Detections(f, f, f, f, f, np.empty(0, np.int64), np.empty(0, bool), np.empty(0, bool))
+
+
+def box_corners(x, y, heading, length, width) -> np.ndarray:
+    """Corners ``(N, 4, 2)`` of boxes centred at ``(x, y)`` (N,) with ``heading`` (rad) along
+    their ``length`` and ``width`` across (m): counter-clockwise from the rear right."""
+    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
+    u = np.array([-0.5, 0.5, 0.5, -0.5])[None] * np.asarray(length)[:, None]
+    v = np.array([-0.5, -0.5, 0.5, 0.5])[None] * np.asarray(width)[:, None]
+    return np.stack([np.asarray(x)[:, None] + c * u - s * v, np.asarray(y)[:, None] + s * u + c * v], -1)
 
 
 def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_width: float = 0.3, *, sensor=None,

@@ -41,7 +41,7 @@ from ...errors import InvalidArgumentError
 from ...geometry.so2 import wrap_angle
 from . import ekf
 from .assignment import assign
-from .detection import Detections
+from .detection import Detections, box_corners
 
 __all__ = ["TrackerParams", "Tracker", "Tracks"]
 
@@ -120,14 +120,7 @@ class Tracks(NamedTuple):
 
 def _corners(det: Detections) -> np.ndarray:
     """Corners ``(M, 4, 2)`` of detected boxes."""
-    c, s = np.cos(det.heading), np.sin(det.heading)
-    hl, hw = det.length / 2.0, det.width / 2.0
-    u = np.array([-1.0, 1.0, 1.0, -1.0])
-    w = np.array([-1.0, -1.0, 1.0, 1.0])
-    ax = u[None] * hl[:, None]
-    ay = w[None] * hw[:, None]
-    return np.stack([det.x[:, None] + c[:, None] * ax - s[:, None] * ay,
-                     det.y[:, None] + s[:, None] * ax + c[:, None] * ay], -1)
+    return box_corners(det.x, det.y, det.heading, det.length, det.width)
 
 
 def _directed(det: Detections) -> np.ndarray:
