@@ -18,7 +18,7 @@ from .._jit import kernel, kernel_parallel
 from .._threads import ThreadChoice
 from ..geometry.so2 import wrap_angle_one
 from ..raster.update import clamp_add, hit_stamp, miss_stamp
-from ..raster.walk2d import cell_of, dda_init, miss_walk
+from ..raster.walk2d import cell_of, dda_init, dda_step, miss_walk
 
 
 # ---------------------------------------------------------------------------------------------
@@ -287,3 +287,117 @@ def integrate_sonar(L, stamp, scan0, poses, ranges, bearings, sector_lo, sector_
                         if stamp[iy, ix] < miss_stamp(s):
                             stamp[iy, ix] = miss_stamp(s)
     return used, dropped, maxed
+
+
+# ---------------------------------------------------------------------------------------------
+# radar: one wedge per detection
+
+
+@kernel
+def _first_obstacle(L, x0, y0, x1, y1, ox, oy, gx0, gy0, res, l_obstacle):
+    """Distance from (x0, y0) to the centre of the first cell at or above ``l_obstacle`` on the
+    walk from (x0, y0) to (x1, y1); inf when there is none (cells outside ``L`` are unknown)."""
+    H, W = L.shape
+    steps, state = dda_init(x0, y0, x1, y1, ox, oy, 1.0 / res)
+    for _ in range(steps + 1):
+        ix, iy = state[0] - gx0, state[1] - gy0
+        if 0 <= ix < W and 0 <= iy < H and L[iy, ix] >= l_obstacle:
+            return math.hypot(ox + (state[0] + 0.5) * res - x0, oy + (state[1] + 0.5) * res - y0)
+        state = dda_step(state)
+    return math.inf
+
+
+@kernel
+def integrate_radar(L, stamp, scan0, poses, starts, ranges, azimuths, moving, sigma_range, extent, ghost_margin,
+                    ox, oy, gx0, gy0, res, l_occ, l_free, l_obstacle, l_min, l_max):
+    """Updates for radar detections (:class:`~occmap.grid2d.RadarModel`).
+
+    Sweep ``k`` was seen from ``poses[k]`` (x, y, heading); its detections are
+    ``starts[k] .. starts[k + 1] − 1``, detection ``j`` at ``ranges[j]`` along ``azimuths[j]``
+    (from the heading). In its frame a cell centre has axial offset ``a > 0``, lateral offset
+    ``l`` and distance ``d``; with ``σ_r = max(sigma_range, res/2)`` and ``σ_l = res/2``, cells
+    with ``|l| ≤ extent·σ_l`` get ``l_free · exp(−½(l/σ_l)²)`` where ``d < r − extent·σ_r`` and,
+    unless the detection is ``moving``, ``l_occ · exp(−½((d − r)/σ_r)² − ½(l/σ_l)²)`` where
+    ``|d − r| ≤ extent·σ_r``. A detection whose central ray meets a cell at or above
+    ``l_obstacle`` more than ``ghost_margin`` before ``r − extent·σ_r`` lies behind a known
+    obstacle (a multipath ghost, or clutter beyond a wall) and updates nothing. Where the ray meets
+    such a cell after that (within the margin or the band), the detection is of that surface:
+    no free evidence from a cell before it on, no occupied evidence more than half a cell beyond
+    it (the range error would otherwise thin known surfaces or thicken them on their far side).
+    These tests read the map as it was before the sweep, so a sweep's detections are
+    simultaneous. Returns (detections used, ghosts)."""
+    sr = max(sigma_range, 0.5 * res)
+    sl = 0.5 * res
+    used = 0
+    ghosts = 0
+    free_to = np.empty(ranges.shape[0])
+    hit_to = np.empty(ranges.shape[0])
+    for k in range(poses.shape[0]):
+        s = scan0 + k
+        x0, y0 = poses[k, 0], poses[k, 1]
+        for j in range(starts[k], starts[k + 1]):
+            r = ranges[j]
+            ux, uy = math.cos(poses[k, 2] + azimuths[j]), math.sin(poses[k, 2] + azimuths[j])
+            free_to[j] = r - extent * sr
+            hit_to[j] = r + extent * sr
+            seen_to = free_to[j] - ghost_margin
+            if seen_to > 0.0 and _first_obstacle(L, x0, y0, x0 + seen_to * ux, y0 + seen_to * uy, ox, oy, gx0, gy0,
+                                                 res, l_obstacle) < math.inf:
+                hit_to[j] = -1.0  # a ghost
+                continue
+            # a known surface within the margin and the band: the detection is of it
+            near = max(seen_to, 0.0)
+            surface = near + _first_obstacle(L, x0 + near * ux, y0 + near * uy, x0 + hit_to[j] * ux,
+                                             y0 + hit_to[j] * uy, ox, oy, gx0, gy0, res, l_obstacle)
+            hit_to[j] = min(hit_to[j], surface + 0.5 * res)
+            free_to[j] = min(free_to[j], surface - res)
+        for j in range(starts[k], starts[k + 1]):
+            if hit_to[j] < 0.0:
+                ghosts += 1
+                continue
+            used += 1
+            ux, uy = math.cos(poses[k, 2] + azimuths[j]), math.sin(poses[k, 2] + azimuths[j])
+            _radar_strip(L, stamp, s, x0, y0, ux, uy, ranges[j], free_to[j], hit_to[j], moving[j], sr, sl, extent,
+                         ox, oy, gx0, gy0, res, l_occ, l_free, l_min, l_max)
+    return used, ghosts
+
+
+@kernel
+def _radar_strip(L, stamp, s, x0, y0, ux, uy, r, free_to, hit_to, moving, sr, sl, extent, ox, oy, gx0, gy0, res,
+                 l_occ, l_free, l_min, l_max):
+    """One detection's updates (:func:`integrate_radar`) on the cells of its strip."""
+    H, W = L.shape
+    inv_res = 1.0 / res
+    # walk the strip along its major axis m (x or y); per column of it, the cells of the minor
+    # axis n within the strip's half-width (plus a cell) of the centre line
+    steep = abs(uy) > abs(ux)
+    if steep:
+        m0, n0, um, un, om, on, gm0, gn0, M, N = y0, x0, uy, ux, oy, ox, gy0, gx0, H, W
+    else:
+        m0, n0, um, un, om, on, gm0, gn0, M, N = x0, y0, ux, uy, ox, oy, gx0, gy0, W, H
+    margin = extent * sl + res
+    half = margin / abs(um)
+    reach = max(hit_to, free_to)
+    i0 = max(0, int(math.floor((min(m0, m0 + reach * um) - margin - om) * inv_res)) - gm0)
+    i1 = min(M - 1, int(math.floor((max(m0, m0 + reach * um) + margin - om) * inv_res)) - gm0)
+    for i in range(i0, i1 + 1):
+        cn = n0 + (om + (gm0 + i + 0.5) * res - m0) * un / um
+        k0 = max(0, int(math.floor((cn - half - on) * inv_res)) - gn0)
+        k1 = min(N - 1, int(math.floor((cn + half - on) * inv_res)) - gn0)
+        for kk in range(k0, k1 + 1):
+            ix, iy = (kk, i) if steep else (i, kk)
+            cx = ox + (gx0 + ix + 0.5) * res - x0
+            cy = oy + (gy0 + iy + 0.5) * res - y0
+            a = cx * ux + cy * uy
+            lat = cy * ux - cx * uy
+            if a <= 0.0 or abs(lat) > extent * sl:
+                continue
+            d = math.sqrt(cx * cx + cy * cy)
+            if d < free_to:
+                L[iy, ix] = clamp_add(L[iy, ix], math.exp(-0.5 * (lat / sl) ** 2) * l_free, l_min, l_max)
+                if stamp[iy, ix] < miss_stamp(s):
+                    stamp[iy, ix] = miss_stamp(s)
+            elif d <= hit_to and not moving:
+                w = math.exp(-0.5 * ((d - r) / sr) ** 2 - 0.5 * (lat / sl) ** 2)
+                L[iy, ix] = clamp_add(L[iy, ix], w * l_occ, l_min, l_max)
+                stamp[iy, ix] = hit_stamp(s)

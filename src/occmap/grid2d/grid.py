@@ -20,7 +20,7 @@ from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..logodds import logit, occupancy_classes, occupancy_values, probability
 from ..raster.update import SEEN, UNSEEN, ScanCodes
 from . import _kernels as K
-from .sensor_models import LidarModel, SonarModel
+from .sensor_models import LidarModel, RadarModel, SonarModel, radar_sweeps
 
 #: Default largest side of a growing map, metres (``max_extent``).
 DEFAULT_MAX_EXTENT = 10_000.0
@@ -341,6 +341,60 @@ class OccupancyGrid2D(OneCallAtATime):
             self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior, self.l_min, self.l_max,
         ))
         return self._record(len(P), used, dropped, maxed)
+
+    def insert_radar(self, poses, ranges, azimuths, max_range: float, *, sweeps=None, radial_velocity=None,
+                     ego_velocity=None, model: RadarModel | None = None) -> dict:
+        """Insert radar detections with the wedge model of :class:`RadarModel`.
+
+        ``poses`` (3,) or (N, 3) sensor poses (x, y, heading) of N sweeps; ``ranges`` and
+        ``azimuths`` (M,) the detections (metres; radians from the heading, counter-clockwise);
+        ``sweeps`` (M,) each detection's pose index (needed when N > 1). With
+        ``radial_velocity`` (M,) (m/s, positive moving away, the sensor's own motion included)
+        and ``ego_velocity`` (2,) or (N, 2) (the sensor's world velocity), detections on moving
+        objects only clear. Detections with NaN or infinite values or a range ≤ 0 are dropped and
+        counted; those at or beyond ``max_range`` are counted and say nothing. Sweeps are applied
+        in order, each detection of a sweep on its own. Returns the counts of this call:
+        ``scans`` (sweeps), ``points`` (detections used), ``dropped``, ``beyond_max_range``,
+        ``moving`` (of the used, those that only cleared) and ``ghosts`` (behind a known
+        obstacle: not used).
+        """
+        model = RadarModel() if model is None else model
+        d = radar_sweeps(poses, ranges, azimuths, max_range, model, sweeps, radial_velocity, ego_velocity)
+        order = np.lexsort((d.range, d.azimuth, d.sweep))  # any order in: the same map out
+        S, R, A, M = d.sweep[order], d.range[order], d.azimuth[order], d.moving[order]
+        reach = R + model.extent * max(model.sigma_range, self.resolution)
+        if self.growing and len(R):
+            heading = d.poses[S, 2] + A
+            x = d.poses[S, 0] + reach * np.cos(heading)
+            y = d.poses[S, 1] + reach * np.sin(heading)
+            spread = model.extent * self.resolution
+
+            def culprit(centre):
+                i = _farthest(x, y, centre)[0]
+                return f"the detection at range {float(R[i])!r} of sweep {int(S[i])} (poses[{int(S[i])}] = " \
+                       f"{d.poses[S[i]].tolist()})"
+
+            self._grow_to(min(x.min(), d.poses[:, 0].min()) - spread, min(y.min(), d.poses[:, 1].min()) - spread,
+                          max(x.max(), d.poses[:, 0].max()) + spread, max(y.max(), d.poses[:, 1].max()) + spread,
+                          culprit)
+        bounds = np.searchsorted(S, np.arange(len(d.poses) + 1))
+        (ox, oy), (gx0, gy0) = self._anchor, self._offset
+        l_obstacle = logit(model.obstacle_probability)
+        ghosts = 0
+
+        def integrate(i, j, code):
+            nonlocal ghosts
+            a = bounds[i]
+            used, g = K.integrate_radar(
+                self._L, self._stamp, code, d.poses[i:j], bounds[i:j + 1] - a, R[a:], A[a:], M[a:], model.sigma_range,
+                model.extent, model.ghost_margin, float(ox), float(oy), gx0, gy0, self.resolution,
+                model.l_hit - self.l_prior, model.l_miss - self.l_prior, l_obstacle, self.l_min, self.l_max)
+            ghosts += g
+            return used, 0, 0
+
+        used, _, _ = self._in_runs(len(d.poses), integrate)
+        counts = self._record(len(d.poses), used, d.dropped, d.beyond_max_range)
+        return {**counts, "moving": int(M.sum()), "ghosts": int(ghosts)}
 
     def _in_runs(self, n: int, integrate) -> tuple[int, int, int]:
         """Integrate a call's ``n`` scans as ``integrate(i, j, code)`` over runs ``[i, j)`` whose

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from .. import checks
-from ..errors import InvalidArgumentError
+from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
 from ..geometry.so2 import wrap_angle
 from ..logodds import logit, probability
 
@@ -182,3 +183,125 @@ class SonarModel(_HitMiss):
             lo[i] = 0.5 * (prev - angles[j])
             hi[i] = 0.5 * (nxt - angles[j])
         return lo, hi
+
+
+@dataclass(frozen=True)
+class RadarModel(_HitMiss):
+    """Inverse model of a detection radar: an automotive radar's list of detections, each a range,
+    an azimuth and (optionally) a Doppler radial velocity.
+
+    A detection says an obstacle lies at its point, give or take ``sigma_range`` (1σ, metres)
+    along the beam: cells within ``extent`` σ of it get occupied evidence weighted by the
+    Gaussian of their offset (across the beam by that of a half cell), and the cells of its ray
+    nearer than ``range − extent·σ`` get free evidence. The azimuth error (a degree or so) is
+    larger than the cells: a wedge as wide would clear the walls a beam grazes, and the error moves
+    the point mostly along the surface it lies on, so it is left to the many detections to
+    average out. Missing returns say nothing (a radar misses most of what is there), so
+    readings beyond ``max_range`` clear nothing.
+
+    What a radar adds to a lidar's troubles is handled so:
+
+    * **moving reflectors**: with the radial velocity and the sensor's own velocity, a detection
+      whose ego-compensated radial speed exceeds ``static_speed`` (m/s) is on a moving object: it
+      clears its ray and marks nothing;
+    * **multipath ghosts and clutter beyond walls**: a detection whose ray meets a cell already at
+      least ``obstacle_probability`` likely occupied, more than ``ghost_margin`` metres before
+      its uncertain range, cannot have been seen directly; it updates nothing (counted as
+      ``ghosts``). The margin spares walls seen at grazing angles, where a degree of azimuth
+      error moves the ray's entry into the wall by metres;
+    * **clutter in the open**: false alarms land in random cells; ``prob_hit`` is low enough that
+      one detection leaves a cell below the occupied threshold of a saved map (map_server's
+      0.65), and the free evidence of later sweeps wins.
+
+    Defaults fit a 77 GHz automotive radar (range σ 0.15 m). ``prob_hit`` / ``prob_miss`` are the
+    evidence at the centre of a detection / on its ray (names: ``docs/architecture.md``); the free
+    evidence is weak because a ray's azimuth is uncertain by more than a cell. They were chosen on
+    :class:`occmap.sim.Street` (``benchmarks/bench_radar.py``).
+    """
+
+    sigma_range: float = 0.15
+    extent: float = 2.0
+    prob_hit: float = 0.64
+    prob_miss: float = 0.47
+    static_speed: float = 0.5
+    obstacle_probability: float = 0.8
+    ghost_margin: float = 1.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "sigma_range", checks.positive("sigma_range", self.sigma_range, "metres"))
+        object.__setattr__(self, "extent", checks.positive("extent", self.extent, "standard deviations"))
+        object.__setattr__(self, "prob_hit", _on_side("prob_hit", self.prob_hit, True))
+        object.__setattr__(self, "prob_miss", _on_side("prob_miss", self.prob_miss, False))
+        object.__setattr__(self, "static_speed", checks.positive("static_speed", self.static_speed, "m/s"))
+        object.__setattr__(self, "obstacle_probability",
+                           _on_side("obstacle_probability", self.obstacle_probability, True))
+        object.__setattr__(self, "ghost_margin", checks.non_negative("ghost_margin", self.ghost_margin, "metres"))
+
+
+class RadarSweeps(NamedTuple):
+    """Radar detections checked and sorted for integration (:func:`radar_sweeps`): the kept
+    detections' ``sweep`` (pose index), ``range``, ``azimuth`` and ``moving`` flag, the ``poses``
+    (N, 3), and the counts of the ``dropped`` (unreadable) and ``beyond_max_range`` ones."""
+
+    poses: np.ndarray
+    sweep: np.ndarray
+    range: np.ndarray
+    azimuth: np.ndarray
+    moving: np.ndarray
+    dropped: int
+    beyond_max_range: int
+
+
+def radar_sweeps(poses, ranges, azimuths, max_range: float, model: RadarModel, sweeps=None, radial_velocity=None,
+                 ego_velocity=None) -> RadarSweeps:
+    """Check a call's radar detections and sort them (:class:`RadarModel`'s rules).
+
+    ``poses`` (3,) or (N, 3) sensor poses (x, y, heading); ``ranges``, ``azimuths`` (M,) metres
+    and radians from the heading; ``sweeps`` (M,) the pose index of each detection (needed when
+    N > 1). ``radial_velocity`` (M,) m/s, positive moving away, as the sensor measures it (its own
+    motion included) and ``ego_velocity`` (2,) or (N, 2), the sensor's world velocity: together they
+    flag moving reflectors. Detections with a NaN or infinite value (range, azimuth, radial
+    velocity) or a range ≤ 0 are dropped; those at or beyond ``max_range`` are counted and kept
+    out. Bad shapes, non-finite poses and sweep indices outside the poses raise."""
+    P = np.atleast_2d(np.asarray(poses, dtype=np.float64))
+    R = np.asarray(ranges, dtype=np.float64)
+    A = np.asarray(azimuths, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] != 3 or R.ndim != 1 or A.shape != R.shape:
+        raise ShapeError(f"expected poses (N, 3), ranges (M,), azimuths (M,); got {P.shape}, {R.shape}, {A.shape}")
+    if not np.isfinite(P).all():
+        raise NonFiniteError("radar poses must be finite")
+    if sweeps is None:
+        if P.shape[0] != 1:
+            raise ShapeError(f"{P.shape[0]} poses need sweeps (M,): the pose index of each detection")
+        S = np.zeros(R.shape, dtype=np.int64)
+    else:
+        S = np.asarray(sweeps)
+        if S.shape != R.shape or not np.issubdtype(S.dtype, np.integer):
+            raise ShapeError(f"sweeps must be integers of shape {R.shape}, got {S.dtype} {S.shape}")
+        bad = np.flatnonzero((S < 0) | (S >= P.shape[0]))
+        if bad.size:
+            raise InvalidArgumentError(f"sweeps[{bad[0]}] = {S[bad[0]]} is not a pose index (0..{P.shape[0] - 1})")
+        S = S.astype(np.int64)
+    max_range = checks.positive("max_range", max_range, "metres")
+    ok = np.isfinite(R) & np.isfinite(A) & (R > 0.0)
+    moving = np.zeros(R.shape, dtype=np.bool_)
+    if radial_velocity is not None:
+        if ego_velocity is None:
+            raise InvalidArgumentError("radial_velocity needs ego_velocity (the sensor's world velocity, m/s)")
+        V = np.asarray(radial_velocity, dtype=np.float64)
+        E = np.atleast_2d(np.asarray(ego_velocity, dtype=np.float64))
+        if V.shape != R.shape or E.shape not in ((1, 2), (P.shape[0], 2)):
+            raise ShapeError(f"expected radial_velocity {R.shape} and ego_velocity (2,) or ({P.shape[0]}, 2); "
+                             f"got {V.shape}, {E.shape}")
+        if not np.isfinite(E).all():
+            raise NonFiniteError("ego_velocity must be finite")
+        ok &= np.isfinite(V)
+        heading = P[S, 2] + np.where(ok, A, 0.0)
+        e = E[S if E.shape[0] > 1 else np.zeros_like(S)]
+        along = V + e[:, 0] * np.cos(heading) + e[:, 1] * np.sin(heading)  # the reflector's own radial speed
+        moving = np.abs(along) > model.static_speed
+    beyond = ok & (R >= max_range)
+    keep = ok & ~beyond
+    return RadarSweeps(P, np.ascontiguousarray(S[keep]), np.ascontiguousarray(R[keep]),
+                       np.ascontiguousarray(A[keep]), np.ascontiguousarray(moving[keep]),
+                       int((~ok).sum()), int(beyond.sum()))
