@@ -129,8 +129,7 @@ def test_one_call_equals_sweep_by_sweep_and_a_growing_map_holds_the_detections()
 def test_radar_map_of_the_street_matches_its_truth(seed=0):
     """Issue 19's figure: the street's radar alone (10 Hz for 20 s, clutter, ghosts, moving cars
     and people) maps its static structure with precision ≥ 0.9 and recall ≥ 0.8 of the occupied
-    cells, each against the other dilated by one cell; recall over the cells of static structure
-    that the radar's rays reach first within 30 m. More seeds: ``benchmarks/bench_radar.py``."""
+    cells (:meth:`Street.map_scores`). More seeds: ``benchmarks/bench_radar.py``."""
     street = Street.default()
     res = 0.2
     x0, y0, x1, y1 = street.bounds
@@ -146,11 +145,24 @@ def test_radar_map_of_the_street_matches_its_truth(seed=0):
         ghosts += c["ghosts"]
         moving += c["moving"]
     occupied = (g.probability() >= 0.65)[:shape[0], :shape[1]]
-    truth = street.occupancy(street.duration, res, (x0, y0), shape, static_only=True)
-    seen = street.visible_static(stamps, res, (x0, y0), shape, 30.0)
-    near = np.ones((3, 3), dtype=bool)
-    precision = (occupied & binary_dilation(truth, near)).sum() / occupied.sum()
-    recall = (seen & binary_dilation(occupied, near)).sum() / seen.sum()
+    precision, recall = street.map_scores(occupied, res, (x0, y0), stamps)
     print(f"seed {seed}: precision {precision:.3f}, recall {recall:.3f}, ghosts {ghosts}, moving {moving}")
     assert precision >= 0.9 and recall >= 0.8
     assert ghosts > 0 and moving > 0
+
+
+def test_map_scores_against_scipy_dilation():
+    street = Street.default()
+    res, origin, shape = 0.5, (40.0, -10.0), (40, 80)
+    stamps = [0.0, 10.0]
+    truth = street.occupancy(10.0, res, origin, shape, static_only=True)
+    seen = street.visible_static(stamps, res, origin, shape, 30.0)
+    assert seen.any() and (seen <= binary_dilation(truth, np.ones((3, 3), bool))).all()
+    assert street.map_scores(truth, res, origin, stamps) == (1.0, 1.0)
+    rng = np.random.default_rng(1)
+    guess = truth ^ (rng.random(shape) < 0.05)
+    near = np.ones((3, 3), dtype=bool)
+    expect = ((guess & binary_dilation(truth, near)).sum() / guess.sum(),
+              (seen & binary_dilation(guess, near)).sum() / seen.sum())
+    assert street.map_scores(guess, res, origin, stamps) == pytest.approx(expect, abs=0)
+    assert math.isnan(street.map_scores(np.zeros(shape, bool), res, origin, stamps)[0])

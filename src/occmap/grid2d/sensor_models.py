@@ -216,7 +216,7 @@ class RadarModel(_HitMiss):
     Defaults fit a 77 GHz automotive radar (range σ 0.15 m). ``prob_hit`` / ``prob_miss`` are the
     evidence at the centre of a detection / on its ray (names: ``docs/architecture.md``); the free
     evidence is weak because a ray's azimuth is uncertain by more than a cell. They were chosen on
-    :class:`occmap.sim.Street` (``benchmarks/bench_radar.py``).
+    :class:`occmap.sim.street.Street` (``benchmarks/bench_radar.py``).
     """
 
     sigma_range: float = 0.15

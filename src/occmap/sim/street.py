@@ -136,6 +136,17 @@ def _inside(corners: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return inside
 
 
+def _grown(mask: np.ndarray) -> np.ndarray:
+    """``mask`` dilated by one cell (8-neighbourhood)."""
+    out = mask.copy()
+    H, W = mask.shape
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            out[max(dy, 0):H + min(dy, 0), max(dx, 0):W + min(dx, 0)] |= \
+                mask[max(-dy, 0):H + min(-dy, 0), max(-dx, 0):W + min(-dx, 0)]
+    return out
+
+
 def _walls() -> np.ndarray:
     x0, x1 = _SIDE
     return np.array([
@@ -365,6 +376,22 @@ class Street:
             inside = (ij >= 0).all(axis=1) & (ij[:, 0] < shape[1]) & (ij[:, 1] < shape[0])
             out[ij[inside, 1], ij[inside, 0]] = True
         return out
+
+    def map_scores(self, occupied, resolution: float, origin, stamps, max_range: float = 30.0) -> tuple[float, float]:
+        """How well a map of the street's static structure, ``occupied`` (bool (H, W) on the grid
+        ``origin``), matches the truth: ``(precision, recall)``. Precision: the share of occupied
+        cells within one cell (8-neighbourhood) of a truly occupied one (:meth:`occupancy` at the
+        end, static only); recall: the share of the cells a sensor at the robot could see first
+        within ``max_range`` at ``stamps`` (:meth:`visible_static`) that lie within one cell of
+        an occupied one. Either is NaN when there is nothing to count."""
+        occupied = np.asarray(occupied, dtype=bool)
+        end = max(float(t) for t in stamps)
+        truth = self.occupancy(end, resolution, origin, occupied.shape, static_only=True)
+        seen = self.visible_static(stamps, resolution, origin, occupied.shape, max_range)
+        n_occ, n_seen = int(occupied.sum()), int(seen.sum())
+        precision = (occupied & _grown(truth)).sum() / n_occ if n_occ else math.nan
+        recall = (seen & _grown(occupied)).sum() / n_seen if n_seen else math.nan
+        return float(precision), float(recall)
 
     def occupancy(self, t: float, resolution: float, origin, shape, static_only: bool = False):
         """True occupancy raster ``(H, W)`` at ``t`` on the grid ``origin``/``shape``: the cells
