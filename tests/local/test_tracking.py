@@ -167,3 +167,32 @@ def test_time_must_not_go_backwards():
     tracker.update(1.0, Detections.empty(), sensor=(0, 0))
     with pytest.raises(InvalidArgumentError, match="backwards"):
         tracker.update(0.5, Detections.empty(), sensor=(0, 0))
+
+
+def _walker(tracker, until=2.0):
+    """A person walking +x at 1.2 m/s seen from the side, tracked up to ``until`` seconds."""
+    for k in range(int(round(until / 0.1)) + 1):
+        t = 0.1 * k
+        tracker.update(t, _detection(5.0 + 1.2 * t, 2.0), sensor=(5.0 + 1.2 * t, 10.0))
+    return tracker
+
+
+def test_doppler_corrects_a_track_speed_and_ignores_what_is_off_it_or_out_of_the_gate():
+    tracker = _walker(Tracker())
+    i = 0
+    tracker.state[i, 3] = 2.0  # a wrong speed, uncertain
+    tracker.cov[i, 3, 3] = 1.0
+    x, y = tracker.state[i, :2]
+    sensor = np.array([x - 8.0, y])  # behind it, looking along its motion: radial speed = speed
+    far = np.array([[x + 20.0, y]])  # not on the track
+    bearing = lambda p: np.arctan2(p[:, 1] - sensor[1], p[:, 0] - sensor[0])  # noqa: E731
+    assert tracker.update_radar(tracker.time, far, bearing(far), [5.0]) == 0 and tracker.state[i, 3] == 2.0
+    pts = np.array([[x - 0.1, y], [x + 0.1, y + 0.05]])
+    assert tracker.update_radar(tracker.time, pts, bearing(pts), [1.2, 1.2]) == 1
+    assert abs(tracker.state[i, 3] - 1.2) < 0.1 and tracker.cov[i, 3, 3] < 0.1
+    before = tracker.state[i].copy()
+    assert tracker.update_radar(tracker.time, pts, bearing(pts), [9.0, 9.0]) == 0  # 7.8 m/s off: a ghost
+    np.testing.assert_array_equal(tracker.state[i], before)
+    assert tracker.stats["doppler_updates"] == 1
+    with pytest.raises(InvalidArgumentError, match="same detections"):
+        tracker.update_radar(tracker.time, pts, bearing(pts), [1.0])

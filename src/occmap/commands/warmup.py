@@ -130,6 +130,10 @@ def grids(folder: Path) -> None:
     growing.insert_scan(P[0], R[0], scans[0].angles, max_range=10.0, model=LidarModel(0.7, 0.45))
     growing.insert_scans(P, R, np.repeat(scans[0].angles[None], len(P), axis=0), max_range=8.0)
     growing.log_odds_at(P[:, :2])
+    radar_r, radar_a = R[:2, :20].reshape(-1), np.tile(scans[0].angles[:20], 2)
+    growing.insert_radar(P[0], radar_r[:20], radar_a[:20], 8.0)
+    growing.insert_radar(P[:2], radar_r, radar_a, 8.0, sweeps=np.repeat(np.arange(2), 20),
+                         radial_velocity=np.zeros(40), ego_velocity=np.zeros((2, 2)))
     sonar = simulate_sonar(world, P[0], np.radians(np.arange(0.0, 360.0, 45.0)), rng=2)
     fixed = OccupancyGrid2D.load(folder / "sim_office.yaml")
     fixed.insert_sonar(P[:1], sonar.ranges[None], sonar.angles, 5.0)
@@ -169,6 +173,8 @@ def local_map(folder: Path) -> None:
         local.check_path(path, footprint=0.3, unknown_is_collision=True)
         local.time_to_clear()
         local.occupancy()
+        local.insert_radar((0.0, 0.0, 0.0), np.full(8, 2.0), angles[::45], 0.9, max_range=30.0,
+                           radial_velocity=np.zeros(8), ego_velocity=(1.0, 0.0))
         local.advance_time(1.0)
     lethal = np.zeros((20, 20), bool)
     lethal[10, 10] = True

@@ -240,14 +240,16 @@ class RadarModel(_HitMiss):
 
 class RadarSweeps(NamedTuple):
     """Radar detections checked and sorted for integration (:func:`radar_sweeps`): the kept
-    detections' ``sweep`` (pose index), ``range``, ``azimuth`` and ``moving`` flag, the ``poses``
-    (N, 3), and the counts of the ``dropped`` (unreadable) and ``beyond_max_range`` ones."""
+    detections' ``sweep`` (pose index), ``range``, ``azimuth``, ``moving`` flag and
+    ``radial_speed`` (the reflector's own, ego motion removed; NaN without Doppler), the
+    ``poses`` (N, 3), and the counts of the ``dropped`` (unreadable) and ``beyond_max_range`` ones."""
 
     poses: np.ndarray
     sweep: np.ndarray
     range: np.ndarray
     azimuth: np.ndarray
     moving: np.ndarray
+    radial_speed: np.ndarray
     dropped: int
     beyond_max_range: int
 
@@ -285,6 +287,7 @@ def radar_sweeps(poses, ranges, azimuths, max_range: float, model: RadarModel, s
     max_range = checks.positive("max_range", max_range, "metres")
     ok = np.isfinite(R) & np.isfinite(A) & (R > 0.0)
     moving = np.zeros(R.shape, dtype=np.bool_)
+    along = np.full(R.shape, np.nan)
     if radial_velocity is not None:
         if ego_velocity is None:
             raise InvalidArgumentError("radial_velocity needs ego_velocity (the sensor's world velocity, m/s)")
@@ -303,5 +306,5 @@ def radar_sweeps(poses, ranges, azimuths, max_range: float, model: RadarModel, s
     beyond = ok & (R >= max_range)
     keep = ok & ~beyond
     return RadarSweeps(P, np.ascontiguousarray(S[keep]), np.ascontiguousarray(R[keep]),
-                       np.ascontiguousarray(A[keep]), np.ascontiguousarray(moving[keep]),
+                       np.ascontiguousarray(A[keep]), np.ascontiguousarray(moving[keep]), along[keep],
                        int((~ok).sum()), int(beyond.sum()))

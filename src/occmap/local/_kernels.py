@@ -277,6 +277,38 @@ def scan_ends(pose, ranges, angles, max_range, ends, kinds):
 
 
 @kernel
+def radar_ends(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_obstacle, pose, ranges, azimuths, moving, unseen_before,
+               ends, kinds):
+    """End points and kinds of one radar sweep's detections from sensor pose (x, y, θ): a
+    detection whose ray meets an observed window cell at or above ``thr_obstacle`` before
+    ``ranges[i] − unseen_before`` lies behind a known obstacle (a ghost): kind 0; ``moving`` ones
+    clear up to their point (kind 2); the others are returns (kind 1). Returns the ghosts."""
+    H, W = cells.shape[0], cells.shape[1]
+    x0, y0, th = pose[0], pose[1], pose[2]
+    ghosts = 0
+    for i in range(ranges.shape[0]):
+        ux, uy = math.cos(th + azimuths[i]), math.sin(th + azimuths[i])
+        r = ranges[i]
+        ends[i, 0] = x0 + r * ux
+        ends[i, 1] = y0 + r * uy
+        kinds[i] = 2 if moving[i] else 1
+        seen = r - unseen_before
+        if seen <= 0.0:
+            continue
+        steps, state = dda_setup(x0 * inv_res, y0 * inv_res, (x0 + seen * ux) * inv_res, (y0 + seen * uy) * inv_res)
+        for _ in range(steps + 1):
+            wx, wy = state[0] - gx0, state[1] - gy0
+            if 0 <= wx < W and 0 <= wy < H:
+                rr, cc = slot(wy, sr, H), slot(wx, sc, W)
+                if stamps[rr, cc, 1] != UNSEEN and cells[rr, cc, 0] >= thr_obstacle:
+                    kinds[i] = 0
+                    ghosts += 1
+                    break
+            state = dda_step(state)
+    return ghosts
+
+
+@kernel
 def cloud_ends(points, z_min, z_max, ends, kinds):
     """Kinds of 3D world points: non-finite → 0 (dropped), ``z_min ≤ z ≤ z_max`` → 1 (obstacle),
     else 2 (clears along its projected ray). Writes the (x, y) into ``ends``. Returns dropped."""

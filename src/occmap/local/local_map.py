@@ -40,7 +40,7 @@ import numpy as np
 from .. import checks
 from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
-from ..grid2d.sensor_models import LidarModel
+from ..grid2d.sensor_models import LidarModel, RadarModel, radar_sweeps
 from ..logodds import logit, occupancy_classes, occupancy_values
 from ..raster.ring import slot
 from ..raster.update import UNSEEN, ScanCodes
@@ -284,11 +284,14 @@ class LocalMap(OneCallAtATime):
 
     # ------------------------------------------------------------------ sensing
 
-    def _insert(self, px, py, ends, kinds, dropped: int, maxed: int, max_range: float | None = None) -> dict:
-        """Insert one scan's ray ends from the sensor at (px, py); record and return its counts
-        (the keys of :attr:`stats`, ``docs/architecture.md``). With tracking, the returns of
+    def _insert(self, px, py, ends, kinds, dropped: int, maxed: int, max_range: float | None = None,
+                model=None) -> dict:
+        """Insert one scan's ray ends from the sensor at (px, py) with ``model``'s evidence (the
+        map's by default); record and return its counts (the keys of :attr:`stats`,
+        ``docs/architecture.md``). With tracking and the map's own model (a lidar), the returns of
         moving objects clear only and go to the tracks."""
-        if self._objects is not None:
+        model = self.model if model is None else model
+        if self._objects is not None and model is self.model:
             open_, occupied = self._classify_returns(ends, kinds)
             self._objects.sort_returns(ends, kinds, open_, occupied, (px, py), self._time, max_range,
                                        (self.origin, self.resolution, self.shape))
@@ -298,9 +301,9 @@ class LocalMap(OneCallAtATime):
         hits, rays, updated, visited = K.integrate(
             self._cells, self._stamps, self._rmark, self._sr, self._sc, self._gx0, self._gy0,
             1.0 / self.resolution, float(px), float(py), ends, kinds, self._next_scan(),
-            (self.model.l_hit - lp) / g, (self.model.l_miss - lp) / g, (self.l_min - lp) / g, (self.l_max - lp) / g,
+            (model.l_hit - lp) / g, (model.l_miss - lp) / g, (self.l_min - lp) / g, (self.l_max - lp) / g,
             self.parallel)
-        counts = {"scans": 1, "points": len(kinds) - int(dropped), "dropped": int(dropped), "beyond_max_range": int(maxed),
+        counts = {"scans": 1, "points": int(np.count_nonzero(kinds)), "dropped": int(dropped), "beyond_max_range": int(maxed),
                   "rays": int(rays)}
         for key, value in counts.items():
             self.stats[key] += value
@@ -389,6 +392,48 @@ class LocalMap(OneCallAtATime):
         kinds = np.empty(len(pts), dtype=np.int8)
         dropped = K.cloud_ends(pts, z_min, z_max, ends, kinds)
         return self._insert(o[0], o[1], ends, kinds, dropped, 0)
+
+    def insert_radar(self, pose, ranges, azimuths, stamp, max_range: float, radial_velocity=None, ego_velocity=None,
+                     model: RadarModel | None = None) -> dict:
+        """Insert one radar sweep from sensor pose ``(x, y, theta)`` taken at ``stamp`` seconds.
+
+        ``ranges``, ``azimuths`` (M,) the detections (metres; radians from the heading); with
+        ``radial_velocity`` (M,) (m/s, positive away, the sensor's motion included) and
+        ``ego_velocity`` (2,) (the sensor's world velocity, m/s) the Doppler says which reflectors
+        move. Each detection is a ray to its point with :class:`~occmap.grid2d.RadarModel`'s
+        evidence (``model``; the local map's one-ray-per-end-cell rule, no range band): moving
+        reflectors only clear; one whose ray meets a cell known at least
+        ``model.obstacle_probability`` occupied more than ``ghost_margin`` before its uncertain
+        range is a ghost and does nothing. With tracking, detections on a confirmed track's
+        footprint only clear too, and the moving ones update the tracks' speed and heading
+        (:meth:`~occmap.local.tracking.tracker.Tracker.update_radar`). Detections with NaN or
+        infinite values or a range ≤ 0 are dropped and counted; those at or beyond ``max_range``
+        are counted and say nothing. Returns this sweep's counts, with ``moving`` and ``ghosts``.
+        """
+        model = RadarModel() if model is None else model
+        P = np.asarray(pose, dtype=np.float64)
+        if P.shape != (3,):
+            raise ShapeError(f"pose must be (x, y, theta), got shape {P.shape}")
+        self._advance(stamp)
+        if not np.isfinite(P).all():
+            return self._dropped_pose(int(np.size(ranges)))
+        d = radar_sweeps(P, ranges, azimuths, max_range, model, None, radial_velocity, ego_velocity)
+        ends = np.empty((d.range.size, 2))
+        kinds = np.empty(d.range.size, dtype=np.int8)
+        g = self._g
+        ghosts = K.radar_ends(self._cells, self._stamps, self._sr, self._sc, self._gx0, self._gy0, 1.0 / self.resolution,
+                              (logit(model.obstacle_probability) - self.l_prior) / g, P, d.range, d.azimuth, d.moving,
+                              model.extent * max(model.sigma_range, 0.5 * self.resolution) + model.ghost_margin,
+                              ends, kinds)
+        if self._objects is not None:
+            tracker = self._objects.tracker
+            if len(tracker):  # what falls on a tracked object is the object's, however it moves
+                kinds[(kinds == 1) & tracker.covers(ends, self._time, self._objects.cover_margin)] = 2
+            on = d.moving & (kinds == 2)
+            tracker.update_radar(self._time, ends[on], P[2] + d.azimuth[on], d.radial_speed[on])
+            self.stats.update(self._objects.counts())
+        counts = self._insert(P[0], P[1], ends, kinds, d.dropped, d.beyond_max_range, model=model)
+        return {**counts, "moving": int(d.moving.sum()), "ghosts": int(ghosts)}
 
     # ------------------------------------------------------------------ read-outs
 

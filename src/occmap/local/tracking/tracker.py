@@ -82,9 +82,11 @@ class TrackerParams:
     init_span: float = 0.2
     init_distance: float = 1.0
     initial_yaw_rate_sigma: float = 0.5
+    doppler_sigma: float = 0.2
+    doppler_gate: float = 10.8  # χ² with 1 degree of freedom at 99.9 %
 
     def __post_init__(self):
-        for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after",
+        for name in ("doppler_sigma", "doppler_gate", "accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after",
                      "max_coast", "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed",
                      "footprint_margin", "settled_heading_sigma", "confirm_speed_sigma", "confirm_speed", "init_span",
                      "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma"):
@@ -187,7 +189,8 @@ class Tracker:
         self.updates = np.empty(0, np.int64)
         self.hit_bits = np.empty(0, np.uint8)
         self.clean = np.empty(0, bool)  # the last detection was whole (not occluded)
-        self.stats = {"updates": 0, "detections": 0, "tracks_started": 0, "tracks_confirmed": 0, "tracks_dropped": 0}
+        self.stats = {"updates": 0, "detections": 0, "tracks_started": 0, "tracks_confirmed": 0, "tracks_dropped": 0,
+                      "doppler_updates": 0}
 
     def __len__(self) -> int:
         return int(self.id.shape[0])
@@ -239,13 +242,63 @@ class Tracker:
     def covers(self, points, t: float, margin: float, confirmed_only: bool = False) -> np.ndarray:
         """Whether each world point ``(N, 2)`` lies within a track's footprint (predicted to
         ``t``) grown by ``margin`` metres."""
+        return self._on_footprints(points, t, margin, confirmed_only).any(axis=1)
+
+    def _on_footprints(self, points, t: float, margin: float, confirmed_only: bool) -> np.ndarray:
+        """``(N, T)``: whether world point n lies on track t's footprint predicted to ``t``, grown
+        by ``margin`` (T: the confirmed tracks or all)."""
         _, s, _, size = self.predicted(t, confirmed_only=confirmed_only)
         p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         dx = p[:, None, 0] - s[None, :, 0]
         dy = p[:, None, 1] - s[None, :, 1]
         c, sn = np.cos(s[:, 2]), np.sin(s[:, 2])
         half = 0.5 * size + margin
-        return ((np.abs(c * dx + sn * dy) <= half[:, 0]) & (np.abs(-sn * dx + c * dy) <= half[:, 1])).any(axis=1)
+        return (np.abs(c * dx + sn * dy) <= half[:, 0]) & (np.abs(-sn * dx + c * dy) <= half[:, 1])
+
+    def update_radar(self, stamp: float, points, bearings, radial_speeds) -> int:
+        """Doppler updates from one radar sweep at ``stamp`` (s, not before the last update):
+        detections at world ``points`` (M, 2) whose reflectors move at ``radial_speeds`` (M,)
+        (m/s, ego motion removed, positive away from the sensor) along world ``bearings`` (M,)
+        (rad). A track that has a velocity takes the detections on its footprint (predicted,
+        grown by ``footprint_margin``; a detection on several goes to the nearest centre) as one
+        measurement ``h(s) = v·cos(θ − φ)`` at their mean bearing and speed, noise
+        ``doppler_sigma² / n``, when its squared innovation is within ``doppler_gate`` (a ghost
+        or clutter on the footprint is not). Returns the number of tracks updated."""
+        p = self.params
+        self._advance(stamp)
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        phi = np.asarray(bearings, dtype=np.float64).reshape(-1)
+        vr = np.asarray(radial_speeds, dtype=np.float64).reshape(-1)
+        if not (pts.shape[0] == phi.size == vr.size):
+            raise InvalidArgumentError(f"points {pts.shape}, bearings {phi.shape} and radial_speeds {vr.shape} "
+                                       "must describe the same detections")
+        if not len(self) or not pts.shape[0]:
+            return 0
+        on = self._on_footprints(pts, self.time, p.footprint_margin, confirmed_only=False)
+        on &= (self.updates > 0)[None]
+        d2 = np.where(on, (pts[:, None, 0] - self.state[None, :, 0]) ** 2 + (pts[:, None, 1] - self.state[None, :, 1]) ** 2,
+                      np.inf)
+        owner = np.where(on.any(axis=1), d2.argmin(axis=1), -1)
+        mine = owner >= 0
+        if not mine.any():
+            return 0
+        tracks, n = np.unique(owner[mine], return_counts=True)
+        index = np.searchsorted(tracks, owner[mine])
+        # mean bearing (as a direction) and mean radial speed per track
+        cs = np.zeros((len(tracks), 2))
+        np.add.at(cs, index, np.stack([np.cos(phi[mine]), np.sin(phi[mine])], -1))
+        bearing = np.arctan2(cs[:, 1], cs[:, 0])
+        speed = np.bincount(index, weights=vr[mine], minlength=len(tracks)) / n
+        y, H = ekf.radial_velocity_innovation(self.state[tracks], bearing, speed)
+        R = (p.doppler_sigma ** 2 / n)[:, None, None]
+        S = ekf.innovation_covariance(self.cov[tracks], H, R)[:, 0, 0]
+        ok = y[:, 0] ** 2 <= p.doppler_gate * S
+        if ok.any():
+            t = tracks[ok]
+            self.state[t], self.cov[t] = ekf.update(self.state[t], self.cov[t], y[ok], H[ok], R[ok])
+            _turn_around(self.state, self.cov)
+        self.stats["doppler_updates"] += int(ok.sum())
+        return int(ok.sum())
 
     # ------------------------------------------------------------------ measurement
 

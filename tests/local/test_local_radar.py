@@ -1,0 +1,91 @@
+"""LocalMap.insert_radar: rays with the radar's evidence, moving reflectors and ghosts, bad input,
+and detections on tracked objects."""
+
+import math
+
+import numpy as np
+import pytest
+
+from occmap.errors import InvalidArgumentError, ShapeError
+from occmap.grid2d import RadarModel
+from occmap.local import LocalMap
+from occmap.logodds import logit
+
+MODEL = RadarModel()
+
+
+def lo(lm, x, y):
+    return float(lm.log_odds_at([[x, y]])[0])
+
+
+def test_a_detection_is_a_ray_with_the_radar_evidence():
+    lm = LocalMap((20.0, 20.0), 0.1)
+    c = lm.insert_radar((0.0, 0.0, 0.0), [5.05], [0.0], 0.0, max_range=60.0)
+    assert c["points"] == 1 and c["moving"] == 0 and c["ghosts"] == 0 and c["dropped"] == 0
+    assert lo(lm, 5.05, 0.05) == pytest.approx(logit(MODEL.prob_hit), rel=1e-6)
+    assert lo(lm, 2.05, 0.05) == pytest.approx(logit(MODEL.prob_miss), rel=1e-6)
+    assert math.isnan(lo(lm, 6.0, 0.05))
+
+
+def test_moving_reflectors_clear_and_ghosts_behind_known_walls_do_nothing():
+    lm = LocalMap((20.0, 20.0), 0.1)
+    angles = np.linspace(-0.2, 0.2, 41)
+    for k in range(5):  # a wall at x = 5 from a lidar
+        lm.insert_scan((0.0, 0.0, 0.0), 5.05 / np.cos(angles), angles, 0.1 * k, max_range=30.0)
+    wall = lo(lm, 5.05, 0.05)
+    p = 3.0 * np.array([math.cos(0.1), math.sin(0.1)])
+    seen = lo(lm, *p)
+    c = lm.insert_radar((0.0, 0.0, 0.0), [8.0, 3.0], [0.0, 0.1], 0.5, max_range=60.0,
+                        radial_velocity=[0.0, -4.0], ego_velocity=(0.0, 0.0))
+    assert c["ghosts"] == 1 and c["moving"] == 1 and c["points"] == 1
+    assert lo(lm, 5.05, 0.05) == wall and math.isnan(lo(lm, 8.0, 0.05))  # the ghost: nothing at all
+    assert lo(lm, *p) <= seen < 0  # the mover marks nothing
+
+
+def test_bad_detections_are_dropped_and_bad_calls_raise():
+    lm = LocalMap((20.0, 20.0), 0.1)
+    c = lm.insert_radar((0.0, 0.0, 0.0), [np.nan, 2.0, -1.0, 90.0], [0.0, np.inf, 0.0, 0.0], 1.0, max_range=60.0)
+    assert c["dropped"] == 3 and c["beyond_max_range"] == 1 and c["points"] == 0
+    assert lm.stats["dropped"] == 3
+    c = lm.insert_radar((np.nan, 0.0, 0.0), [1.0], [0.0], 1.1, max_range=60.0)
+    assert c["dropped_pose"] and lm.stats["dropped_poses"] == 1
+    with pytest.raises(InvalidArgumentError, match="backwards"):
+        lm.insert_radar((0.0, 0.0, 0.0), [1.0], [0.0], 0.5, max_range=60.0)
+    with pytest.raises(ShapeError):
+        lm.insert_radar((0.0, 0.0), [1.0], [0.0], 2.0, max_range=60.0)
+    with pytest.raises(InvalidArgumentError, match="ego_velocity"):
+        lm.insert_radar((0.0, 0.0, 0.0), [1.0], [0.0], 2.0, max_range=60.0, radial_velocity=[0.0])
+
+
+def test_detections_on_a_tracked_object_do_not_mark_the_static_layer_and_update_its_speed():
+    lm = LocalMap((40.0, 40.0), 0.1, tracking=True)
+    angles = np.radians(np.arange(-180.0, 180.0, 0.5))
+    person = lambda t: np.array([-6.0 + 1.5 * t, 4.0])  # noqa: E731  walking +x past a sensor at the origin
+    for k in range(30):
+        t = 0.1 * k
+        c = person(t)
+        # the lidar: a 0.5 m disc in open space (and a ring of walls at 15 m)
+        r = np.full(angles.size, 15.0)
+        rel = np.angle(np.exp(1j * (angles - math.atan2(c[1], c[0]))))
+        dist = float(np.hypot(*c))
+        on = np.abs(rel) < math.asin(0.25 / dist)
+        r[on] = dist - 0.25 * np.cos(rel[on] * dist / 0.25)
+        lm.insert_scan((0.0, 0.0, 0.0), r, angles, t, max_range=30.0)
+    tracks = lm.tracks()
+    assert len(tracks) == 1 and tracks.confirmed[0]
+    lm.objects.tracker.state[0, 3] = 3.0  # a wrong speed, uncertain
+    lm.objects.tracker.cov[0, 3, 3] = 1.0
+    t = 3.0
+    c = person(t)
+    # a radar behind the walker on its line: the radial speed is its speed, 1.5 m/s away
+    n = lm.insert_radar((c[0] - 10.0, c[1], 0.0), [10.0], [0.0], t, max_range=60.0, radial_velocity=[1.5],
+                        ego_velocity=(0.0, 0.0))
+    assert n["moving"] == 1 and lm.objects.tracker.stats["doppler_updates"] == 1
+    assert abs(math.hypot(lm.tracks().vx[0], lm.tracks().vy[0]) - 1.5) < 0.2
+    # seen from the side the walker has no radial speed: static by its Doppler, but on the track
+    c = person(3.1)
+    before = lo(lm, *c)
+    n = lm.insert_radar((c[0], c[1] - 8.0, math.pi / 2), [8.0], [0.0], 3.1, max_range=60.0, radial_velocity=[0.0],
+                        ego_velocity=(0.0, 0.0))
+    assert n["moving"] == 0 and n["points"] == 1
+    assert math.isnan(before) and math.isnan(lo(lm, *c)) or lo(lm, *c) <= before
