@@ -353,7 +353,7 @@ def test_tum_poses_place_a_bags_scans_by_stamp(data_dir, tmp_path, capsys):
 
     bag = data_dir / SHARED_BAG
     with open_bag(bag) as b:
-        stamps = np.array([decode_laser_scan(m.msg).scan.stamp for m in b.messages("/scan")])
+        stamps = np.array([decode_laser_scan(m.raw, m.encoding).scan.stamp for m in b.messages("/scan")])
     knots = np.linspace(stamps[0], stamps[len(stamps) // 2], 20)
     track = tmp_path / "track.txt"
     track.write_text("# timestamp tx ty tz qx qy qz qw\n" + "".join(

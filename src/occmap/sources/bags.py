@@ -34,7 +34,7 @@ import numpy as np
 from ..cloud import PointCloud
 from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, UnknownFrameError
 from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree, read_odometry
-from ..io.bags._header import frame_name
+from ..io.bags.wire import Wire
 from ..io.bags.transforms import ODOMETRY
 
 __all__ = ["BagClouds", "BagScans"]
@@ -107,7 +107,7 @@ class _BagSource:
                 if k % self.every:
                     continue
                 where = f"{self.path}: topic {self.topic!r}, message {k} (recorded at {m.time:.9f} s)"
-                item = self._decode(m.msg, where)
+                item = self._decode(m, where)
                 if item is None:
                     continue
                 record, frame, stamp = item
@@ -156,8 +156,8 @@ class BagScans(_BagSource):
         super().__init__(path, *args, **kwargs)
         self.max_range = None if max_range is None else float(max_range)
 
-    def _decode(self, msg, where):
-        scan, frame = decode_laser_scan(msg, where)
+    def _decode(self, m, where):
+        scan, frame = decode_laser_scan(m.raw, m.encoding, where)
         if not len(scan):
             self.dropped["scan with no beams"] += 1
             return None
@@ -182,8 +182,8 @@ class BagClouds(_BagSource):
     MSGTYPE = "sensor_msgs/msg/PointCloud2"
     FALLBACK_FRAME = "map"
 
-    def _decode(self, msg, where):
-        cloud = decode_point_cloud2(msg, where=where)
+    def _decode(self, m, where):
+        cloud = decode_point_cloud2(m.msg, where=where)
         if not len(cloud.points):
             self.dropped["cloud with no points" if not cloud.dropped else "cloud with no finite points"] += 1
             return None
@@ -221,7 +221,7 @@ def _first_frame(bag, topic: str) -> str:
         first = next(stream, None)
     finally:
         stream.close()
-    return "" if first is None else frame_name(first.msg.header.frame_id)
+    return "" if first is None else Wire(first.raw, first.encoding, f"{bag.path}: topic {topic!r}, message 0").header()[1]
 
 
 def _root(tree, frame: str) -> str | None:
