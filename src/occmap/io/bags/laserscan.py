@@ -15,6 +15,7 @@ world through tf.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -46,11 +47,21 @@ def decode_laser_scan(raw, encoding: str, where: str = "LaserScan") -> ScanMessa
     stamp, frame = w.header()
     start, _, step, _, _, lowest, max_range = w.values("7f", "angle_min..range_max")
     ranges = w.array("f4", "ranges").astype(np.float64)
-    w.array("f4", "intensities")  # not kept; read so that a truncated message is told
+    w.skip_array(4, "intensities")  # not kept; read so that a truncated message is told
     if not (math.isfinite(max_range) and max_range > 0):
         raise FormatError(where, f"range_max is {max_range}, not a positive finite number of metres")
     if not (math.isfinite(start) and math.isfinite(step)):
         raise FormatError(where, f"angle_min {start} and angle_increment {step} must be finite")
-    ranges[np.isfinite(ranges) & (ranges < lowest)] = np.nan
-    angles = start + step * np.arange(ranges.shape[0], dtype=np.float64)
-    return ScanMessage(LaserScan(np.zeros(3), ranges, angles, max_range, stamp), frame)
+    low = ranges < lowest
+    if low.any():
+        ranges[low & np.isfinite(ranges)] = np.nan
+    return ScanMessage(LaserScan(np.zeros(3), ranges, beam_angles(start, step, len(ranges)), max_range, stamp), frame)
+
+
+@lru_cache(maxsize=16)
+def beam_angles(start: float, step: float, n: int) -> np.ndarray:
+    """``start + i * step`` for the ``n`` beams, read-only: one array for every scan of a sensor
+    (which :func:`~occmap.scan.stack_scans` then recognises as shared without comparing)."""
+    angles = start + step * np.arange(n, dtype=np.float64)
+    angles.setflags(write=False)
+    return angles

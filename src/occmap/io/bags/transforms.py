@@ -82,8 +82,8 @@ def decode_tf_message(raw, encoding: str, where: str = "TFMessage") -> Transform
         field = f"transforms[{i}]"
         stamps[i], parent = w.header(field + ".header")
         parents.append(parent)
-        children.append(frame_name(w.string(field + ".child_frame_id")))
-        values[i] = w.values("7d", field + ".transform")
+        children.append(frame_name(w.string(field, ".child_frame_id")))
+        values[i] = w.values("7d", field, ".transform")
     return TransformsMessage(parents, children, stamps, values[:, :3], values[:, 3:])
 
 

@@ -31,7 +31,13 @@ __all__ = ["ENCODINGS", "Wire"]
 
 ENCODINGS = ("ros1", "cdr")
 _U32 = {"<": struct.Struct("<I"), ">": struct.Struct(">I")}
-_TIME = {"<": struct.Struct("<iI"), ">": struct.Struct(">iI")}
+# a Header up to its frame's bytes: ROS 1's seq (skipped), the stamp, the frame's length
+_HEADER = {False: {"<": struct.Struct("<4xiII")}, True: {"<": struct.Struct("<iII"), ">": struct.Struct(">iII")}}
+
+
+@cache
+def _dtype(code: str) -> np.dtype:
+    return np.dtype(code)
 
 
 @cache
@@ -64,56 +70,62 @@ class Wire:
         else:
             raise InvalidArgumentError(f"{where}: encoding {encoding!r}, not one of {', '.join(ENCODINGS)}")
 
-    def _take(self, field: str, nbytes: int, align: int, what: str) -> int:
-        """Align to ``align`` (CDR), check ``nbytes`` remain, move past them; their start."""
+    def _take(self, field: str, nbytes: int, align: int, part: str = "") -> int:
+        """Align to ``align`` (CDR), check ``nbytes`` remain, move past them; their start. The
+        error names ``field + part`` (joined only then: the decoders call this for every field)."""
         if self.cdr:
             self.pos += -(self.pos - self.base) % align
         start = self.pos
         if start + nbytes > self.size:
-            raise FormatError(self.where, f"field {field}: {what} from byte {start} needs {start + nbytes} bytes, "
-                              f"the message has {self.size} (truncated)")
+            raise FormatError(self.where, f"field {field}{part}: {nbytes} bytes from byte {start} run past the "
+                              f"message's {self.size} (truncated)")
         self.pos = start + nbytes
         return start
 
-    def values(self, fmt: str, field: str) -> tuple:
+    def values(self, fmt: str, field: str, part: str = "") -> tuple:
         """Primitives of one size in a row, by :mod:`struct` format ``fmt`` (``"7f"``, ``"3d"``)."""
         s, align = _struct(self.order + fmt)
-        return s.unpack_from(self.raw, self._take(field, s.size, align, f"{fmt} ({s.size} bytes)"))
+        return s.unpack_from(self.raw, self._take(field, s.size, align, part))
 
-    def count(self, field: str, least: int = 0) -> int:
+    def count(self, field: str, least: int = 0, part: str = "") -> int:
         """A sequence's ``uint32`` length, checked against the bytes left when each item takes
         at least ``least`` bytes."""
-        n = _U32[self.order].unpack_from(self.raw, self._take(field, 4, 4, "its uint32 length"))[0]
+        n = _U32[self.order].unpack_from(self.raw, self._take(field, 4, 4, part))[0]
         if n * least > self.size - self.pos:
-            raise FormatError(self.where, f"field {field}: {n} items of {least} bytes or more from byte {self.pos} "
-                              f"need more than the message's {self.size} bytes (truncated or corrupt)")
+            raise FormatError(self.where, f"field {field}{part}: {n} items of {least} bytes or more from byte "
+                              f"{self.pos} run past the message's {self.size} bytes (truncated or corrupt)")
         return n
 
     def array(self, dtype: str, field: str) -> np.ndarray:
         """A sequence of numbers of NumPy type ``dtype`` (``"f4"``), a read-only view in the
         message's byte order."""
-        n = self.count(field)
-        kind = np.dtype(self.order + dtype)
-        start = self._take(field, n * kind.itemsize, kind.itemsize, f"{n} {kind.name} values")
-        return np.frombuffer(self.raw, dtype=kind, count=n, offset=start)
+        kind = _dtype(self.order + dtype)
+        n = self.count(field, kind.itemsize)
+        return np.frombuffer(self.raw, dtype=kind, count=n, offset=self._take(field, n * kind.itemsize, kind.itemsize))
 
     def skip(self, nbytes: int, align: int, field: str) -> None:
         """Fields read for their length alone (``nbytes`` bytes aligned to ``align``)."""
-        self._take(field, nbytes, align, f"{nbytes} bytes")
+        self._take(field, nbytes, align)
 
-    def string(self, field: str) -> str:
-        n = self.count(field)
-        start = self._take(field, n, 1, f"a string of {n} bytes")
-        text = self.raw[start: start + n - 1 if self.cdr and n else start + n]
+    def skip_array(self, itemsize: int, field: str) -> None:
+        """A sequence of ``itemsize``-byte numbers read for its length alone."""
+        self._take(field, self.count(field, itemsize) * itemsize, itemsize)
+
+    def string(self, field: str, part: str = "") -> str:
+        return self._text(self.count(field, 1, part), field, part)
+
+    def _text(self, n: int, field: str, part: str) -> str:
+        """The string of ``n`` bytes (CDR: with its NUL) that starts here."""
+        start = self._take(field, n, 1, part)
+        text = bytes(self.raw[start: start + n - 1 if self.cdr and n else start + n])
         try:
-            return bytes(text).decode()
+            return text.decode()
         except UnicodeDecodeError as e:
-            raise FormatError(self.where, f"field {field}: {bytes(text)[:40]!r} is not UTF-8 ({e.reason})") from None
+            raise FormatError(self.where, f"field {field}{part}: {text[:40]!r} is not UTF-8 ({e.reason})") from None
 
     def header(self, field: str = "header") -> tuple[float, str]:
         """A ``std_msgs/Header``: its stamp in seconds and its frame (without ROS 1's leading
         slash)."""
-        if not self.cdr:
-            self.skip(4, 4, f"{field}.seq")
-        sec, nanosec = _TIME[self.order].unpack_from(self.raw, self._take(f"{field}.stamp", 8, 4, "sec and nanosec"))
-        return sec + nanosec * 1e-9, frame_name(self.string(f"{field}.frame_id"))
+        layout = _HEADER[self.cdr][self.order]
+        sec, nanosec, n = layout.unpack_from(self.raw, self._take(field, layout.size, 4, ".stamp"))
+        return sec + nanosec * 1e-9, frame_name(self._text(n, field, ".frame_id"))
