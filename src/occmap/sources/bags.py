@@ -16,7 +16,8 @@ A message whose stamp lies outside the tf samples (or beyond the pose file's tol
 guessed at: it is dropped and counted in ``dropped`` under its reason, as are scans with no beams
 and clouds with no finite points. A sensor frame that tf does not join to the fixed frame at all
 stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming both frames and the
-time. Memory holds the frame tree and one message.
+time. Memory holds the frame tree and one message (a batch of 50 for laser scans, whose poses are
+looked up together).
 
 The fixed frame defaults to the root of the sensor frame's tf tree (``odom`` or ``map`` in a
 usual robot's), and to ``fallback_frame`` when tf does not know the sensor frame.
@@ -32,7 +33,7 @@ from typing import Iterator
 import numpy as np
 
 from ..cloud import PointCloud
-from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, UnknownFrameError
+from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, TransformError, UnknownFrameError
 from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree, read_odometry
 from ..io.bags.wire import Wire
 from ..io.bags.transforms import ODOMETRY
@@ -48,6 +49,7 @@ class _BagSource:
 
     MSGTYPE = ""
     FALLBACK_FRAME = ""
+    BATCH = 1  # messages decoded before their poses are looked up together
 
     def __init__(self, path, topic: str | None = None, fixed_frame: str | None = None,
                  odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1,
@@ -103,17 +105,36 @@ class _BagSource:
         self.dropped.clear()
         self.tilted = 0
         with bag:
+            batch = []
             for k, m in enumerate(bag.messages(self.topic, self.MSGTYPE)):
                 if k % self.every:
                     continue
                 where = f"{self.path}: topic {self.topic!r}, message {k} (recorded at {m.time:.9f} s)"
                 item = self._decode(m, where)
-                if item is None:
-                    continue
-                record, frame, stamp = item
-                pose = self._pose(k, frame, stamp, where)
-                if pose is not None:
+                if item is not None:
+                    batch.append((k, where, *item))
+                if len(batch) == self.BATCH:
+                    yield from self._placed(batch)
+                    batch = []
+            yield from self._placed(batch)
+
+    def _placed(self, batch):
+        """The records of ``batch`` (``(k, where, record, frame, stamp)``) that have a pose, placed;
+        their poses found at once when they share a frame (a lookup costs 20 µs, one of 50 the same)."""
+        if len(batch) > 1 and self.pose_track is None and self._tree is not None \
+                and all(b[3] == batch[0][3] for b in batch):
+            try:
+                poses = self._tree.lookup(self.fixed_frame, batch[0][3], np.array([b[4] for b in batch])).matrix
+            except TransformError:  # a stamp outside the tf data, or no tf at all: told message by message
+                pass
+            else:
+                for (_, _, record, _, _), pose in zip(batch, poses):
                     yield self._place(record, pose)
+                return
+        for k, where, record, frame, stamp in batch:
+            pose = self._pose(k, frame, stamp, where)
+            if pose is not None:
+                yield self._place(record, pose)
 
     def _pose(self, k: int, frame: str, stamp: float, where: str):
         """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
@@ -151,6 +172,7 @@ class BagScans(_BagSource):
 
     MSGTYPE = "sensor_msgs/msg/LaserScan"
     FALLBACK_FRAME = "odom"
+    BATCH = 50
 
     def __init__(self, path, *args, max_range: float | None = None, **kwargs):
         super().__init__(path, *args, **kwargs)
@@ -181,6 +203,7 @@ class BagClouds(_BagSource):
 
     MSGTYPE = "sensor_msgs/msg/PointCloud2"
     FALLBACK_FRAME = "map"
+    BATCH = 1  # a cloud is megabytes; its lookup is nothing beside its insertion
 
     def _decode(self, m, where):
         cloud = decode_point_cloud2(m.msg, where=where)
