@@ -35,8 +35,10 @@ import numpy as np
 from ..cloud import PointCloud
 from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, TransformError, UnknownFrameError
 from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree, read_odometry
-from ..io.bags.wire import Wire
+from ..io.bags.bag import Where
 from ..io.bags.transforms import ODOMETRY
+from ..io.bags.wire import Wire
+from ..scan import LaserScan
 
 __all__ = ["BagClouds", "BagScans"]
 
@@ -109,7 +111,7 @@ class _BagSource:
             for k, m in enumerate(bag.messages(self.topic, self.MSGTYPE)):
                 if k % self.every:
                     continue
-                where = f"{self.path}: topic {self.topic!r}, message {k} (recorded at {m.time:.9f} s)"
+                where = Where(self.path, self.topic, k, m.time)
                 item = self._decode(m, where)
                 if item is not None:
                     batch.append((k, where, *item))
@@ -136,7 +138,7 @@ class _BagSource:
             if pose is not None:
                 yield self._place(record, pose)
 
-    def _pose(self, k: int, frame: str, stamp: float, where: str):
+    def _pose(self, k: int, frame: str, stamp: float, where: Where):
         """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
         if self.pose_track is not None:
             if self.pose_track.stamps is None:
@@ -192,7 +194,9 @@ class BagScans(_BagSource):
         if math.acos(min(1.0, abs(float(up)))) > TILT_NOTE:
             self.tilted += 1
         pose = np.array([T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])])
-        return replace(scan, pose=pose, angles=-scan.angles if up < 0 else scan.angles)
+        # not dataclasses.replace, which costs as much as the rest of the placing
+        return LaserScan(pose, scan.ranges, -scan.angles if up < 0 else scan.angles, scan.max_range, scan.stamp,
+                         scan.odom)
 
 
 class BagClouds(_BagSource):
@@ -244,7 +248,7 @@ def _first_frame(bag, topic: str) -> str:
         first = next(stream, None)
     finally:
         stream.close()
-    return "" if first is None else Wire(first.raw, first.encoding, f"{bag.path}: topic {topic!r}, message 0").header()[1]
+    return "" if first is None else Wire(first.raw, first.encoding, Where(bag.path, topic, 0, first.time)).header()[1]
 
 
 def _root(tree, frame: str) -> str | None:

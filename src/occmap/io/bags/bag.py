@@ -32,7 +32,7 @@ from typing import Iterable, Iterator, NamedTuple
 from ...errors import FormatError, InvalidArgumentError, MissingFileError
 from .ros1_chunks import Ros1Chunks
 
-__all__ = ["Bag", "Message", "Topic", "is_bag", "open_bag"]
+__all__ = ["Bag", "Message", "Topic", "Where", "is_bag", "open_bag"]
 
 _ROS1_MAGIC = b"#ROSBAG V"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -74,6 +74,19 @@ class Message:
 
     def __repr__(self) -> str:
         return f"Message({self.topic!r}, {self.msgtype}, {self.time:.9f} s, {len(self.raw)} bytes {self.encoding})"
+
+
+class Where:
+    """Names message ``index`` of ``topic`` (recorded at ``time`` seconds) of the bag at ``path``
+    in errors; formatted only when an error needs it (decoders take one for every message)."""
+
+    __slots__ = ("path", "topic", "index", "time")
+
+    def __init__(self, path, topic: str, index: int, time: float):
+        self.path, self.topic, self.index, self.time = path, topic, index, time
+
+    def __str__(self) -> str:
+        return f"{self.path}: topic {self.topic!r}, message {self.index} (recorded at {self.time:.9f} s)"
 
 
 def open_bag(path) -> Bag:

@@ -20,6 +20,7 @@ from ...geometry.frames import FrameTree
 from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
 from ._header import frame_name
+from .bag import Where
 from .wire import Wire
 
 __all__ = ["Odometry", "TF_TYPES", "TransformsMessage", "decode_odometry", "decode_tf_message", "read_frame_tree",
@@ -75,16 +76,22 @@ def decode_tf_message(raw, encoding: str, where: str = "TFMessage") -> Transform
     """Decode a ``tf2_msgs/TFMessage`` (or ROS 1's ``tf/tfMessage``) from its serialised bytes
     in ``encoding`` ``"ros1"`` or ``"cdr"`` (see :mod:`.wire`). ``where`` names the message in
     errors; the quaternions are as recorded (:func:`ros_poses` normalises them)."""
+    transforms = _transforms(raw, encoding, where)
+    values = np.array([t[3] for t in transforms], dtype=np.float64).reshape(-1, 7)
+    return TransformsMessage([t[0] for t in transforms], [t[1] for t in transforms],
+                             np.array([t[2] for t in transforms], dtype=np.float64), values[:, :3], values[:, 3:])
+
+
+def _transforms(raw, encoding: str, where) -> list[tuple[str, str, float, tuple]]:
+    """A TFMessage's transforms as ``(parent, child, stamp, (x, y, z, qx, qy, qz, qw))``."""
     w = Wire(raw, encoding, where)
-    n = w.count("transforms", _TRANSFORM_BYTES)
-    parents, children, stamps, values = [], [], np.empty(n), np.empty((n, 7))
-    for i in range(n):
+    out = []
+    for i in range(w.count("transforms", _TRANSFORM_BYTES)):
         field = f"transforms[{i}]"
-        stamps[i], parent = w.header(field + ".header")
-        parents.append(parent)
-        children.append(frame_name(w.string(field, ".child_frame_id")))
-        values[i] = w.values("7d", field, ".transform")
-    return TransformsMessage(parents, children, stamps, values[:, :3], values[:, 3:])
+        stamp, parent = w.header(field + ".header")
+        child = frame_name(w.string(field, ".child_frame_id"))
+        out.append((parent, child, stamp, w.values("7d", field, ".transform")))
+    return out
 
 
 def _odometry(raw, encoding: str, where: str) -> tuple[float, str, str, tuple]:
@@ -110,8 +117,7 @@ def read_odometry(bag, topic: str) -> Odometry:
     order recorded. Raises :class:`FormatError` when the frames change between messages."""
     stamps, poses, frames = [], [], None
     for k, m in enumerate(bag.messages(topic, msgtype=ODOMETRY)):
-        stamp, *pair, pose = _odometry(m.raw, m.encoding, f"{bag.path}: topic {topic!r}, message {k} "
-                                       f"(recorded at {m.time:.9f} s)")
+        stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(bag.path, topic, k, m.time))
         stamps.append(stamp)
         poses.append(pose)
         if frames is None:
@@ -141,22 +147,20 @@ def read_frame_tree(bag, topics=None) -> FrameTree:
     for t in topics:
         if t in bag.topics and bag.topics[t].msgtype not in TF_TYPES:
             raise FormatError(bag.path, f"topic {t!r} holds {bag.topics[t].msgtype}, not {TF_TYPES[0]}")
-    links: dict[tuple[str, str, bool], tuple[list, list, list]] = {}
+    links: dict[tuple[str, str, bool], tuple[list, list]] = {}
     counts: dict[str, int] = {}
     for m in bag.messages(topics):
         static = m.topic.endswith("tf_static")
         k = counts[m.topic] = counts.get(m.topic, -1) + 1
-        tf = decode_tf_message(m.raw, m.encoding, f"{bag.path}: topic {m.topic!r}, message {k} "
-                               f"(recorded at {m.time:.9f} s)")
-        for i, key in enumerate(zip(tf.parents, tf.children)):
-            stamps, trans, quats = links.setdefault((*key, static), ([], [], []))
-            stamps.append(tf.stamps[i])
-            trans.append(tf.translations[i])
-            quats.append(tf.quaternions_xyzw[i])
+        for parent, child, stamp, pose in _transforms(m.raw, m.encoding, Where(bag.path, m.topic, k, m.time)):
+            stamps, poses = links.setdefault((parent, child, static), ([], []))
+            stamps.append(stamp)
+            poses.append(pose)
     span = 0.0 if bag.start is None else bag.end - bag.start
     tree = FrameTree(cache_time=max(10.0, span + 1.0))
-    for (parent, child, static), (stamps, trans, quats) in sorted(links.items(), key=lambda kv: not kv[0][2]):
-        poses = ros_poses(trans, quats, f"{bag.path}: tf link {parent!r} -> {child!r}")
+    for (parent, child, static), (stamps, values) in sorted(links.items(), key=lambda kv: not kv[0][2]):
+        values = np.array(values)
+        poses = ros_poses(values[:, :3], values[:, 3:], f"{bag.path}: tf link {parent!r} -> {child!r}")
         try:
             if static:
                 tree.set_transform(parent, child, SE3(poses.matrix[-1]), static=True)

@@ -49,7 +49,8 @@ def _struct(fmt: str) -> tuple[struct.Struct, int]:
 
 class Wire:
     """A read position in one serialised message (``raw``: bytes, memoryview or a uint8 array)
-    of ``encoding`` ``"ros1"`` or ``"cdr"``; ``where`` names the message in errors.
+    of ``encoding`` ``"ros1"`` or ``"cdr"``; ``where`` names the message in errors (a string, or
+    a :class:`~occmap.io.bags.bag.Where`, formatted only then).
 
     Each read method takes the ROS name of the field it reads, for errors, and moves past it.
     """
