@@ -27,6 +27,7 @@ from .transforms import (
     read_odometry,
     ros_poses,
 )
+from .wire import frame_name
 
 __all__ = [
     "Bag",
@@ -40,6 +41,7 @@ __all__ = [
     "decode_odometry",
     "decode_point_cloud2",
     "decode_tf_message",
+    "frame_name",
     "is_bag",
     "open_bag",
     "point_dtype",

@@ -19,9 +19,8 @@ from ...errors import FormatError, TransformError
 from ...geometry.frames import FrameTree
 from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
-from ._header import frame_name
 from .bag import Where
-from .wire import Wire
+from .wire import Wire, frame_name
 
 __all__ = ["Odometry", "TF_TYPES", "TransformsMessage", "decode_odometry", "decode_tf_message", "read_frame_tree",
            "read_odometry", "ros_poses"]

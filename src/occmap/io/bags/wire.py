@@ -25,9 +25,7 @@ from functools import cache
 import numpy as np
 
 from ...errors import FormatError, InvalidArgumentError
-from ._header import frame_name
-
-__all__ = ["ENCODINGS", "Wire"]
+__all__ = ["ENCODINGS", "Wire", "frame_name"]
 
 ENCODINGS = ("ros1", "cdr")
 _U32 = {"<": struct.Struct("<I"), ">": struct.Struct(">I")}
@@ -45,6 +43,11 @@ def _struct(fmt: str) -> tuple[struct.Struct, int]:
     """The :class:`struct.Struct` of ``fmt`` (a byte order and one type, ``"<7f"``) and the size
     of one of its values, which CDR aligns to."""
     return struct.Struct(fmt), struct.calcsize(fmt[0] + fmt[-1])
+
+
+def frame_name(frame_id: str) -> str:
+    """A frame id without ROS 1's leading slash (``/laser`` → ``laser``), as tf2 strips it."""
+    return frame_id.lstrip("/")
 
 
 class Wire:
