@@ -25,6 +25,7 @@ from functools import cache
 import numpy as np
 
 from ...errors import FormatError, InvalidArgumentError
+
 __all__ = ["ENCODINGS", "Wire", "frame_name"]
 
 ENCODINGS = ("ros1", "cdr")
