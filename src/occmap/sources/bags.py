@@ -130,13 +130,14 @@ class _BagSource:
             except TransformError:  # a stamp outside the tf data, or no tf at all: told message by message
                 pass
             else:
-                for (_, _, record, _, _), pose in zip(batch, poses):
-                    yield self._place(record, pose)
-                return
+                return self._place([b[2] for b in batch], poses)
+        records, poses = [], []
         for k, where, record, frame, stamp in batch:
             pose = self._pose(k, frame, stamp, where)
             if pose is not None:
-                yield self._place(record, pose)
+                records.append(record)
+                poses.append(pose)
+        return self._place(records, np.array(poses).reshape(-1, 4, 4))
 
     def _pose(self, k: int, frame: str, stamp: float, where: Where):
         """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
@@ -189,14 +190,13 @@ class BagScans(_BagSource):
             scan = replace(scan, max_range=self.max_range)
         return scan, frame, scan.stamp
 
-    def _place(self, scan, T):
-        up = T[2, 2]
-        if math.acos(min(1.0, abs(float(up)))) > TILT_NOTE:
-            self.tilted += 1
-        pose = np.array([T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])])
-        # not dataclasses.replace, which costs as much as the rest of the placing
-        return LaserScan(pose, scan.ranges, -scan.angles if up < 0 else scan.angles, scan.max_range, scan.stamp,
-                         scan.odom)
+    def _place(self, scans, T):
+        up = T[:, 2, 2]
+        self.tilted += int(np.count_nonzero(np.arccos(np.minimum(1.0, np.abs(up))) > TILT_NOTE))
+        poses = np.stack([T[:, 0, 3], T[:, 1, 3], np.arctan2(T[:, 1, 0], T[:, 0, 0])], axis=1)
+        # LaserScan(...), not dataclasses.replace, which costs as much as the rest of the placing
+        return [LaserScan(pose, s.ranges, -s.angles if flip else s.angles, s.max_range, s.stamp, s.odom)
+                for s, pose, flip in zip(scans, poses, (up < 0).tolist())]
 
 
 class BagClouds(_BagSource):
@@ -216,8 +216,8 @@ class BagClouds(_BagSource):
             return None
         return cloud, cloud.frame_id, cloud.stamp
 
-    def _place(self, cloud, T):
-        return PointCloud(cloud.points, T, cloud.stamp, cloud.dropped)
+    def _place(self, clouds, T):
+        return [PointCloud(c.points, pose, c.stamp, c.dropped) for c, pose in zip(clouds, T)]
 
 
 def _pick_topic(bag, topic: str | None, msgtype: str) -> str:

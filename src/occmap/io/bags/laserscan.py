@@ -53,7 +53,7 @@ def decode_laser_scan(raw, encoding: str, where: str = "LaserScan") -> ScanMessa
     if not (math.isfinite(start) and math.isfinite(step)):
         raise FormatError(where, f"angle_min {start} and angle_increment {step} must be finite")
     low = ranges < lowest
-    if low.any():
+    if np.count_nonzero(low):
         ranges[low & np.isfinite(ranges)] = np.nan
     return ScanMessage(LaserScan(np.zeros(3), ranges, beam_angles(start, step, len(ranges)), max_range, stamp), frame)
 
