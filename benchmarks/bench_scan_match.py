@@ -116,7 +116,7 @@ def bag(data: Path) -> list[str]:
 
     path = data / "rosbag" / "laser_scan_matcher_demo.bag"
     with open_bag(path) as b:
-        scans = [decode_laser_scan(m.msg).scan for m in b.messages("/scan")]
+        scans = [decode_laser_scan(m.raw, m.encoding).scan for m in b.messages("/scan")]
     poses, secs, stats = timed_run(scans)
     matched = map_scans(stack_scans(with_poses(scans, poses)), 0.025)
     as_recorded = map_scans(stack_scans(scans), 0.025)

@@ -64,7 +64,7 @@ def _bag_info(path) -> int:
 
 def _first_frame(bag, topic) -> str | None:
     """The header frame of the topic's first message, if its messages have a header."""
-    from ..io.bags._header import frame_name
+    from ..io.bags import frame_name
 
     for m in bag.messages(topic):
         header = getattr(m.msg, "header", None)

@@ -16,7 +16,8 @@ A message whose stamp lies outside the tf samples (or beyond the pose file's tol
 guessed at: it is dropped and counted in ``dropped`` under its reason, as are scans with no beams
 and clouds with no finite points. A sensor frame that tf does not join to the fixed frame at all
 stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming both frames and the
-time. Memory holds the frame tree and one message.
+time. Memory holds the frame tree and one message (a batch of 50 for laser scans, whose poses are
+looked up together).
 
 The fixed frame defaults to the root of the sensor frame's tf tree (``odom`` or ``map`` in a
 usual robot's), and to ``fallback_frame`` when tf does not know the sensor frame.
@@ -32,10 +33,12 @@ from typing import Iterator
 import numpy as np
 
 from ..cloud import PointCloud
-from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, UnknownFrameError
+from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, TransformError, UnknownFrameError
 from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree, read_odometry
-from ..io.bags._header import frame_name
+from ..io.bags.bag import Where
 from ..io.bags.transforms import ODOMETRY
+from ..io.bags.wire import Wire
+from ..scan import LaserScan
 
 __all__ = ["BagClouds", "BagScans"]
 
@@ -48,6 +51,7 @@ class _BagSource:
 
     MSGTYPE = ""
     FALLBACK_FRAME = ""
+    BATCH = 1  # messages decoded before their poses are looked up together
 
     def __init__(self, path, topic: str | None = None, fixed_frame: str | None = None,
                  odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1,
@@ -103,19 +107,39 @@ class _BagSource:
         self.dropped.clear()
         self.tilted = 0
         with bag:
+            batch = []
             for k, m in enumerate(bag.messages(self.topic, self.MSGTYPE)):
                 if k % self.every:
                     continue
-                where = f"{self.path}: topic {self.topic!r}, message {k} (recorded at {m.time:.9f} s)"
-                item = self._decode(m.msg, where)
-                if item is None:
-                    continue
-                record, frame, stamp = item
-                pose = self._pose(k, frame, stamp, where)
-                if pose is not None:
-                    yield self._place(record, pose)
+                where = Where(self.path, self.topic, k, m.time)
+                item = self._decode(m, where)
+                if item is not None:
+                    batch.append((k, where, *item))
+                if len(batch) == self.BATCH:
+                    yield from self._placed(batch)
+                    batch = []
+            yield from self._placed(batch)
 
-    def _pose(self, k: int, frame: str, stamp: float, where: str):
+    def _placed(self, batch):
+        """The records of ``batch`` (``(k, where, record, frame, stamp)``) that have a pose, placed;
+        their poses found at once when they share a frame (a lookup costs 20 µs, one of 50 the same)."""
+        if len(batch) > 1 and self.pose_track is None and self._tree is not None \
+                and all(b[3] == batch[0][3] for b in batch):
+            try:
+                poses = self._tree.lookup(self.fixed_frame, batch[0][3], np.array([b[4] for b in batch])).matrix
+            except TransformError:  # a stamp outside the tf data, or no tf at all: told message by message
+                pass
+            else:
+                return self._place([b[2] for b in batch], poses)
+        records, poses = [], []
+        for k, where, record, frame, stamp in batch:
+            pose = self._pose(k, frame, stamp, where)
+            if pose is not None:
+                records.append(record)
+                poses.append(pose)
+        return self._place(records, np.array(poses).reshape(-1, 4, 4))
+
+    def _pose(self, k: int, frame: str, stamp: float, where: Where):
         """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
         if self.pose_track is not None:
             if self.pose_track.stamps is None:
@@ -151,13 +175,14 @@ class BagScans(_BagSource):
 
     MSGTYPE = "sensor_msgs/msg/LaserScan"
     FALLBACK_FRAME = "odom"
+    BATCH = 50
 
     def __init__(self, path, *args, max_range: float | None = None, **kwargs):
         super().__init__(path, *args, **kwargs)
         self.max_range = None if max_range is None else float(max_range)
 
-    def _decode(self, msg, where):
-        scan, frame = decode_laser_scan(msg, where)
+    def _decode(self, m, where):
+        scan, frame = decode_laser_scan(m.raw, m.encoding, where)
         if not len(scan):
             self.dropped["scan with no beams"] += 1
             return None
@@ -165,12 +190,13 @@ class BagScans(_BagSource):
             scan = replace(scan, max_range=self.max_range)
         return scan, frame, scan.stamp
 
-    def _place(self, scan, T):
-        up = T[2, 2]
-        if math.acos(min(1.0, abs(float(up)))) > TILT_NOTE:
-            self.tilted += 1
-        pose = np.array([T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])])
-        return replace(scan, pose=pose, angles=-scan.angles if up < 0 else scan.angles)
+    def _place(self, scans, T):
+        up = T[:, 2, 2]
+        self.tilted += int(np.count_nonzero(np.arccos(np.minimum(1.0, np.abs(up))) > TILT_NOTE))
+        poses = np.stack([T[:, 0, 3], T[:, 1, 3], np.arctan2(T[:, 1, 0], T[:, 0, 0])], axis=1)
+        # LaserScan(...), not dataclasses.replace, which costs as much as the rest of the placing
+        return [LaserScan(pose, s.ranges, -s.angles if flip else s.angles, s.max_range, s.stamp, s.odom)
+                for s, pose, flip in zip(scans, poses, (up < 0).tolist())]
 
 
 class BagClouds(_BagSource):
@@ -181,16 +207,17 @@ class BagClouds(_BagSource):
 
     MSGTYPE = "sensor_msgs/msg/PointCloud2"
     FALLBACK_FRAME = "map"
+    BATCH = 1  # a cloud is megabytes; its lookup is nothing beside its insertion
 
-    def _decode(self, msg, where):
-        cloud = decode_point_cloud2(msg, where=where)
+    def _decode(self, m, where):
+        cloud = decode_point_cloud2(m.msg, where=where)
         if not len(cloud.points):
             self.dropped["cloud with no points" if not cloud.dropped else "cloud with no finite points"] += 1
             return None
         return cloud, cloud.frame_id, cloud.stamp
 
-    def _place(self, cloud, T):
-        return PointCloud(cloud.points, T, cloud.stamp, cloud.dropped)
+    def _place(self, clouds, T):
+        return [PointCloud(c.points, pose, c.stamp, c.dropped) for c, pose in zip(clouds, T)]
 
 
 def _pick_topic(bag, topic: str | None, msgtype: str) -> str:
@@ -221,7 +248,7 @@ def _first_frame(bag, topic: str) -> str:
         first = next(stream, None)
     finally:
         stream.close()
-    return "" if first is None else frame_name(first.msg.header.frame_id)
+    return "" if first is None else Wire(first.raw, first.encoding, Where(bag.path, topic, 0, first.time)).header()[1]
 
 
 def _root(tree, frame: str) -> str | None:

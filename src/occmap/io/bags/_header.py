@@ -1,5 +1,6 @@
-"""What every decoder shares: a message's frame and stamp, and a clear error for a message whose
-definition lacks a field the decoder reads."""
+"""What the decoders of ``rosbags``' message objects share (PointCloud2's; the others read the
+bytes, :mod:`.wire`): a message's stamp, and a clear error for a message whose definition lacks a
+field the decoder reads."""
 
 from __future__ import annotations
 
@@ -11,11 +12,6 @@ from ...errors import FormatError, OccmapError
 def stamp_seconds(stamp) -> float:
     """A ``builtin_interfaces/Time`` (ROS 1 ``time``, as rosbags decodes it) in float seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
-
-
-def frame_name(frame_id: str) -> str:
-    """A frame id without ROS 1's leading slash (``/laser`` → ``laser``), as tf2 strips it."""
-    return frame_id.lstrip("/")
 
 
 @contextmanager

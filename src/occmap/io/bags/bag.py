@@ -1,4 +1,4 @@
-"""Open a ROS bag of any kind and stream its messages, decoded.
+"""Open a ROS bag of any kind and stream its messages.
 
 Kinds, told apart by their first bytes (a folder by its ``metadata.yaml``):
 
@@ -7,13 +7,15 @@ Kinds, told apart by their first bytes (a folder by its ``metadata.yaml``):
 * ROS 2 bag folders (``metadata.yaml`` beside ``.db3`` or ``.mcap`` files), and a lone ``.db3``
   (SQLite) or ``.mcap`` file.
 
-Messages are decoded with the type definitions the bag carries (ROS 1 connections, MCAP schemas,
-ROS 2 metadata); a ROS 2 bag without them is decoded with the standard ROS 2 types ``rosbags``
-knows. Type names are in ROS 2 form, ``sensor_msgs/msg/LaserScan``, for ROS 1 bags too. Times are
-float seconds since the epoch: :attr:`Message.time` is when the message was recorded (not its
+A message comes as its bytes, which occmap's decoders read for the types it maps from
+(:mod:`.wire`), and deserialised by ``rosbags`` on demand (:attr:`Message.msg`) with the type
+definitions the bag carries (ROS 1 connections, MCAP schemas, ROS 2 metadata); a ROS 2 bag
+without them is deserialised with the standard ROS 2 types ``rosbags`` knows. Type names are in
+ROS 2 form, ``sensor_msgs/msg/LaserScan``, for ROS 1 bags too. Times are float seconds since the
+epoch: :attr:`Message.time` is when the message was recorded (not its
 header stamp, which the decoders read).
 
-Memory: a message is decoded when the loop reaches it; the readers hold one chunk of the file
+Memory: a message is read when the loop reaches it; the readers hold one chunk of the file
 (ROS 1 and MCAP recorders write chunks of about a megabyte; sqlite3 stores a message a row) and
 the bag's index, never the bag (streaming a 20 MB bag of clouds peaks at 1.4-4.3 MB in the tests).
 
@@ -30,7 +32,7 @@ from typing import Iterable, Iterator, NamedTuple
 from ...errors import FormatError, InvalidArgumentError, MissingFileError
 from .ros1_chunks import Ros1Chunks
 
-__all__ = ["Bag", "Message", "Topic", "is_bag", "open_bag"]
+__all__ = ["Bag", "Message", "Topic", "Where", "is_bag", "open_bag"]
 
 _ROS1_MAGIC = b"#ROSBAG V"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -45,14 +47,46 @@ class Topic(NamedTuple):
     count: int
 
 
-class Message(NamedTuple):
-    """One decoded message: its topic and type, when it was recorded (seconds), and the message
-    (a ``rosbags`` dataclass whose fields carry the ROS names)."""
+class Message:
+    """One message: its topic and type, when it was recorded (seconds), and its bytes as the bag
+    holds them, ``raw``, in ``encoding`` ``"ros1"`` (ROS 1 bags) or ``"cdr"`` (ROS 2), which
+    occmap's decoders read (:func:`~occmap.io.bags.decode_laser_scan`, ...).
 
-    topic: str
-    msgtype: str
-    time: float
-    msg: object
+    :attr:`msg` deserialises the bytes with ``rosbags``, by the type definitions the bag carries.
+    """
+
+    __slots__ = ("topic", "msgtype", "time", "raw", "encoding", "_bag")
+
+    def __init__(self, topic: str, msgtype: str, time: float, raw, encoding: str, bag: Bag):
+        self.topic, self.msgtype, self.time, self.raw, self.encoding, self._bag = topic, msgtype, time, raw, encoding, bag
+
+    @property
+    def msg(self) -> object:
+        """The message as a ``rosbags`` dataclass whose fields carry the ROS names. Raises
+        :class:`FormatError` for bytes that do not decode as the type."""
+        try:
+            return self._bag._source.decode(self.raw, self.msgtype)
+        except FormatError:
+            raise
+        except Exception as e:  # whatever rosbags' decoder raises on bytes that do not fit the type
+            raise FormatError(self._bag.path, f"topic {self.topic!r}, message recorded at {self.time:.9f} s: "
+                              f"does not decode as {self.msgtype} ({_describe(e)})") from e
+
+    def __repr__(self) -> str:
+        return f"Message({self.topic!r}, {self.msgtype}, {self.time:.9f} s, {len(self.raw)} bytes {self.encoding})"
+
+
+class Where:
+    """Names message ``index`` of ``topic`` (recorded at ``time`` seconds) of the bag at ``path``
+    in errors; formatted only when an error needs it (decoders take one for every message)."""
+
+    __slots__ = ("path", "topic", "index", "time")
+
+    def __init__(self, path, topic: str, index: int, time: float):
+        self.path, self.topic, self.index, self.time = path, topic, index, time
+
+    def __str__(self) -> str:
+        return f"{self.path}: topic {self.topic!r}, message {self.index} (recorded at {self.time:.9f} s)"
 
 
 def open_bag(path) -> Bag:
@@ -101,12 +135,12 @@ class Bag:
             raise
 
     def messages(self, topics: str | Iterable[str] | None = None, msgtype: str | None = None) -> Iterator[Message]:
-        """Decoded messages of ``topics`` (a name, several, or None for all) in time order (in
+        """The messages of ``topics`` (a name, several, or None for all) in time order (in
         the order recorded, for a ROS 1 bag read from its chunks).
 
         ``msgtype`` (e.g. ``"sensor_msgs/msg/LaserScan"``), when given, must be the type of every
         topic asked for. Raises :class:`InvalidArgumentError` for a topic the bag lacks or holding
-        another type, :class:`FormatError` for a message that does not decode.
+        another type, :class:`FormatError` for a bag that cannot be read.
         """
         names = list(self.topics) if topics is None else [topics] if isinstance(topics, str) else list(topics)
         for name in names:
@@ -119,13 +153,9 @@ class Bag:
         return self._stream(set(names))
 
     def _stream(self, names: set[str]) -> Iterator[Message]:
+        encoding = self._source.encoding
         for topic, kind, time_ns, raw in self._source.raw(names):
-            try:
-                msg = self._source.decode(raw, kind)
-            except Exception as e:  # whatever rosbags' decoder raises on bytes that do not fit the type
-                raise FormatError(self.path, f"topic {topic!r}, message recorded at {time_ns / 1e9:.9f} s: "
-                                  f"does not decode as {kind} ({_describe(e)})") from e
-            yield Message(topic, kind, time_ns / 1e9, msg)
+            yield Message(topic, kind, time_ns / 1e9, raw, encoding, self)
 
     def close(self) -> None:
         self._source.close()
@@ -173,15 +203,21 @@ def _kind(path: Path) -> tuple[str, str | None]:
 
 
 class _Rosbags:
-    """A bag read through ``rosbags``' ``AnyReader``; its errors become :class:`FormatError`."""
+    """A bag read through ``rosbags``' reader of its kind; its errors become :class:`FormatError`.
+
+    The bag's types are parsed (a ``rosbags`` ``AnyReader`` opened for them alone) only when a
+    message is first deserialised: opening a bag with them costs 20 ms, which occmap's own
+    decoders do not need."""
 
     def __init__(self, path: Path, kind: str):
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.rosbag1 import Reader as Reader1
+        from rosbags.rosbag2 import Reader as Reader2
 
-        self.path = path
+        self.path, self.kind = path, kind
+        self.encoding = "ros1" if kind == "ROS 1" else "cdr"
+        self._typestore = None
         try:
-            self._reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+            self._reader = (Reader1 if kind == "ROS 1" else Reader2)(path)
             self._reader.open()
         except Exception as e:  # rosbags raises ReaderError, AssertionError, struct.error, ... on bad files
             raise FormatError(path, f"not a readable {kind} bag ({_describe(e)})") from e
@@ -211,7 +247,24 @@ class _Rosbags:
             yield connection.topic, connection.msgtype, time_ns, raw
 
     def decode(self, raw: bytes, msgtype: str) -> object:
-        return self._reader.deserialize(raw, msgtype)
+        if self._typestore is None:
+            self._typestore = self._types()
+        if self.encoding == "cdr":
+            return self._typestore.deserialize_cdr(raw, msgtype)
+        return self._typestore.deserialize_ros1(raw, msgtype)
+
+    def _types(self):
+        """The bag's types as ``rosbags``' ``AnyReader`` reads them (the standard ROS 2 ones for a
+        ROS 2 bag without definitions), checked against the digests the bag records."""
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        try:
+            with AnyReader([self.path], default_typestore=get_typestore(Stores.LATEST)) as reader:
+                return reader.typestore
+        except Exception as e:
+            raise FormatError(self.path, f"the type definitions of this {self.kind} bag do not parse "
+                              f"({_describe(e)})") from e
 
     def close(self) -> None:
         self._reader.close()
@@ -219,6 +272,8 @@ class _Rosbags:
 
 class _Ros1FromChunks:
     """A ROS 1 bag read by :class:`Ros1Chunks`, its types from the connections' definitions."""
+
+    encoding = "ros1"
 
     def __init__(self, path: Path):
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore

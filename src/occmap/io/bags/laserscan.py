@@ -14,13 +14,15 @@ world through tf.
 
 from __future__ import annotations
 
+import math
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
 
 from ...errors import FormatError
 from ...scan import LaserScan
-from ._header import fields_of, frame_name, stamp_seconds
+from .wire import Wire
 
 __all__ = ["ScanMessage", "decode_laser_scan"]
 
@@ -32,23 +34,34 @@ class ScanMessage(NamedTuple):
     frame_id: str
 
 
-def decode_laser_scan(msg, where: str = "LaserScan") -> ScanMessage:
-    """Decode a ``sensor_msgs/LaserScan`` (any object with its fields). Ranges and angles are
-    float64; ``stamp`` is the header stamp in seconds. ``where`` names the message in errors.
+def decode_laser_scan(raw, encoding: str, where: str = "LaserScan") -> ScanMessage:
+    """Decode a ``sensor_msgs/LaserScan`` from its serialised bytes (``raw``, e.g.
+    :attr:`Message.raw <occmap.io.bags.Message>`) in ``encoding`` ``"ros1"`` or ``"cdr"`` (see
+    :mod:`.wire`). Ranges and angles are float64; ``stamp`` is the header stamp in seconds.
+    ``where`` names the message in errors.
 
-    Raises :class:`~occmap.errors.FormatError` for a non-finite or non-positive ``range_max``,
-    or non-finite ``angle_min`` / ``angle_increment``.
+    Raises :class:`~occmap.errors.FormatError` for a message shorter than its fields, a
+    non-finite or non-positive ``range_max``, or non-finite ``angle_min`` / ``angle_increment``.
     """
-    with fields_of(where, "sensor_msgs/LaserScan"):
-        max_range, lowest = float(msg.range_max), float(msg.range_min)
-        start, step = float(msg.angle_min), float(msg.angle_increment)
-        ranges = np.array(msg.ranges, dtype=np.float64)
-        stamp, frame = stamp_seconds(msg.header.stamp), frame_name(msg.header.frame_id)
-    if not (np.isfinite(max_range) and max_range > 0):
+    w = Wire(raw, encoding, where)
+    stamp, frame = w.header()
+    start, _, step, _, _, lowest, max_range = w.values("7f", "angle_min..range_max")
+    ranges = w.array("f4", "ranges").astype(np.float64)
+    w.skip_array(4, "intensities")  # not kept; read so that a truncated message is told
+    if not (math.isfinite(max_range) and max_range > 0):
         raise FormatError(where, f"range_max is {max_range}, not a positive finite number of metres")
-    if not (np.isfinite(start) and np.isfinite(step)):
+    if not (math.isfinite(start) and math.isfinite(step)):
         raise FormatError(where, f"angle_min {start} and angle_increment {step} must be finite")
-    ranges[np.isfinite(ranges) & (ranges < lowest)] = np.nan
-    angles = start + step * np.arange(ranges.shape[0], dtype=np.float64)
-    return ScanMessage(LaserScan(np.zeros(3), ranges, angles, max_range, stamp), frame)
+    low = ranges < lowest
+    if np.count_nonzero(low):
+        ranges[low & np.isfinite(ranges)] = np.nan
+    return ScanMessage(LaserScan(np.zeros(3), ranges, beam_angles(start, step, len(ranges)), max_range, stamp), frame)
 
+
+@lru_cache(maxsize=16)
+def beam_angles(start: float, step: float, n: int) -> np.ndarray:
+    """``start + i * step`` for the ``n`` beams, read-only: one array for every scan of a sensor
+    (which :func:`~occmap.scan.stack_scans` then recognises as shared without comparing)."""
+    angles = start + step * np.arange(n, dtype=np.float64)
+    angles.setflags(write=False)
+    return angles

@@ -19,7 +19,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ...errors import FormatError
-from ._header import fields_of, frame_name, stamp_seconds
+from ._header import fields_of, stamp_seconds
+from .wire import frame_name
 
 __all__ = ["CloudMessage", "decode_point_cloud2"]
 

@@ -19,13 +19,31 @@ from ...errors import FormatError, TransformError
 from ...geometry.frames import FrameTree
 from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
-from ._header import fields_of, frame_name, stamp_seconds
+from .bag import Where
+from .wire import Wire, frame_name
 
-__all__ = ["Odometry", "TF_TYPES", "decode_odometry", "read_frame_tree", "read_odometry", "ros_poses"]
+__all__ = ["Odometry", "TF_TYPES", "TransformsMessage", "decode_odometry", "decode_tf_message", "read_frame_tree",
+           "read_odometry", "ros_poses"]
 
 # tf2's message, and ROS 1's older tf/tfMessage with the same fields
 TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 ODOMETRY = "nav_msgs/msg/Odometry"
+# The fewest bytes a TransformStamped takes (stamp, two empty strings, seven float64), so that a
+# corrupt count is caught before anything is allocated for it.
+_TRANSFORM_BYTES = 8 + 4 + 4 + 7 * 8
+# Odometry after its pose: the pose covariance, the twist and its covariance, 78 float64
+_ODOMETRY_TAIL = (36 + 6 + 36) * 8
+
+
+class TransformsMessage(NamedTuple):
+    """A decoded TFMessage: transform ``i`` is ``T_{parents[i]}_{children[i]}`` at ``stamps[i]``
+    seconds, by its translation (N, 3) in metres and its ROS quaternion ``(x, y, z, w)`` (N, 4)."""
+
+    parents: list[str]
+    children: list[str]
+    stamps: np.ndarray
+    translations: np.ndarray
+    quaternions_xyzw: np.ndarray
 
 
 class Odometry(NamedTuple):
@@ -53,27 +71,54 @@ def ros_poses(translations, quaternions_xyzw, where: str = "pose") -> SE3:
     return SE3.from_quat(q / norms[:, None], t)
 
 
-def decode_odometry(msg, where: str = "Odometry") -> tuple[float, SE3]:
-    """``(stamp in seconds, pose)`` of one ``nav_msgs/Odometry``; the pose is
-    ``T_{header.frame_id}_{child_frame_id}`` of shape ()."""
-    with fields_of(where, "nav_msgs/Odometry"):
-        p, o = msg.pose.pose.position, msg.pose.pose.orientation
-        t, q, stamp = [p.x, p.y, p.z], [o.x, o.y, o.z, o.w], stamp_seconds(msg.header.stamp)
-    return stamp, SE3(ros_poses(t, q, where).matrix[0])
+def decode_tf_message(raw, encoding: str, where: str = "TFMessage") -> TransformsMessage:
+    """Decode a ``tf2_msgs/TFMessage`` (or ROS 1's ``tf/tfMessage``) from its serialised bytes
+    in ``encoding`` ``"ros1"`` or ``"cdr"`` (see :mod:`.wire`). ``where`` names the message in
+    errors; the quaternions are as recorded (:func:`ros_poses` normalises them)."""
+    transforms = _transforms(raw, encoding, where)
+    values = np.array([t[3] for t in transforms], dtype=np.float64).reshape(-1, 7)
+    return TransformsMessage([t[0] for t in transforms], [t[1] for t in transforms],
+                             np.array([t[2] for t in transforms], dtype=np.float64), values[:, :3], values[:, 3:])
+
+
+def _transforms(raw, encoding: str, where) -> list[tuple[str, str, float, tuple]]:
+    """A TFMessage's transforms as ``(parent, child, stamp, (x, y, z, qx, qy, qz, qw))``."""
+    w = Wire(raw, encoding, where)
+    out = []
+    for i in range(w.count("transforms", _TRANSFORM_BYTES)):
+        field = f"transforms[{i}]"
+        stamp, parent = w.header(field + ".header")
+        child = frame_name(w.string(field, ".child_frame_id"))
+        out.append((parent, child, stamp, w.values("7d", field, ".transform")))
+    return out
+
+
+def _odometry(raw, encoding: str, where: str) -> tuple[float, str, str, tuple]:
+    """Stamp, frame, child frame and pose ``(x, y, z, qx, qy, qz, qw)`` of an Odometry."""
+    w = Wire(raw, encoding, where)
+    stamp, frame = w.header()
+    child = frame_name(w.string("child_frame_id"))
+    pose = w.values("7d", "pose.pose")
+    w.skip(_ODOMETRY_TAIL, 8, "pose.covariance..twist.covariance")
+    return stamp, frame, child, pose
+
+
+def decode_odometry(raw, encoding: str, where: str = "Odometry") -> tuple[float, SE3]:
+    """``(stamp in seconds, pose)`` of one ``nav_msgs/Odometry`` from its serialised bytes in
+    ``encoding`` ``"ros1"`` or ``"cdr"``; the pose is ``T_{header.frame_id}_{child_frame_id}`` of
+    shape ()."""
+    stamp, _, _, pose = _odometry(raw, encoding, where)
+    return stamp, SE3(ros_poses(pose[:3], pose[3:], where).matrix[0])
 
 
 def read_odometry(bag, topic: str) -> Odometry:
     """Every message of an odometry topic of ``bag`` (an open :class:`~occmap.io.bags.Bag`), in the
     order recorded. Raises :class:`FormatError` when the frames change between messages."""
-    stamps, trans, quats, frames = [], [], [], None
-    for m in bag.messages(topic, msgtype=ODOMETRY):
-        msg = m.msg
-        with fields_of(f"{bag.path}: topic {topic!r} at {m.time:.9f} s", "nav_msgs/Odometry"):
-            pair = (frame_name(msg.header.frame_id), frame_name(msg.child_frame_id))
-            p, o = msg.pose.pose.position, msg.pose.pose.orientation
-            stamps.append(stamp_seconds(msg.header.stamp))
-            trans.append((p.x, p.y, p.z))
-            quats.append((o.x, o.y, o.z, o.w))
+    stamps, poses, frames = [], [], None
+    for k, m in enumerate(bag.messages(topic, msgtype=ODOMETRY)):
+        stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(bag.path, topic, k, m.time))
+        stamps.append(stamp)
+        poses.append(pose)
         if frames is None:
             frames = pair
         elif pair != frames:
@@ -81,7 +126,8 @@ def read_odometry(bag, topic: str) -> Odometry:
                               f"{m.time:.9f} s, earlier messages were {frames[0]!r} -> {frames[1]!r}")
     if frames is None:
         return Odometry(np.zeros(0), SE3.identity(0), "", "")
-    return Odometry(np.array(stamps), ros_poses(trans, quats, f"{bag.path}: topic {topic!r}"), *frames)
+    poses = np.array(poses)
+    return Odometry(np.array(stamps), ros_poses(poses[:, :3], poses[:, 3:], f"{bag.path}: topic {topic!r}"), *frames)
 
 
 def read_frame_tree(bag, topics=None) -> FrameTree:
@@ -100,21 +146,20 @@ def read_frame_tree(bag, topics=None) -> FrameTree:
     for t in topics:
         if t in bag.topics and bag.topics[t].msgtype not in TF_TYPES:
             raise FormatError(bag.path, f"topic {t!r} holds {bag.topics[t].msgtype}, not {TF_TYPES[0]}")
-    links: dict[tuple[str, str, bool], tuple[list, list, list]] = {}
+    links: dict[tuple[str, str, bool], tuple[list, list]] = {}
+    counts: dict[str, int] = {}
     for m in bag.messages(topics):
         static = m.topic.endswith("tf_static")
-        with fields_of(f"{bag.path}: topic {m.topic!r} at {m.time:.9f} s", "tf2_msgs/TFMessage"):
-            for ts in m.msg.transforms:
-                key = (frame_name(ts.header.frame_id), frame_name(ts.child_frame_id), static)
-                stamps, trans, quats = links.setdefault(key, ([], [], []))
-                tr, q = ts.transform.translation, ts.transform.rotation
-                stamps.append(stamp_seconds(ts.header.stamp))
-                trans.append((tr.x, tr.y, tr.z))
-                quats.append((q.x, q.y, q.z, q.w))
+        k = counts[m.topic] = counts.get(m.topic, -1) + 1
+        for parent, child, stamp, pose in _transforms(m.raw, m.encoding, Where(bag.path, m.topic, k, m.time)):
+            stamps, poses = links.setdefault((parent, child, static), ([], []))
+            stamps.append(stamp)
+            poses.append(pose)
     span = 0.0 if bag.start is None else bag.end - bag.start
     tree = FrameTree(cache_time=max(10.0, span + 1.0))
-    for (parent, child, static), (stamps, trans, quats) in sorted(links.items(), key=lambda kv: not kv[0][2]):
-        poses = ros_poses(trans, quats, f"{bag.path}: tf link {parent!r} -> {child!r}")
+    for (parent, child, static), (stamps, values) in sorted(links.items(), key=lambda kv: not kv[0][2]):
+        values = np.array(values)
+        poses = ros_poses(values[:, :3], values[:, 3:], f"{bag.path}: tf link {parent!r} -> {child!r}")
         try:
             if static:
                 tree.set_transform(parent, child, SE3(poses.matrix[-1]), static=True)

@@ -1,0 +1,136 @@
+"""ROS messages read straight from their serialised bytes: the cursor the message decoders share.
+
+Two serialisations, named as :attr:`Message.encoding <occmap.io.bags.Message>` names them:
+
+* ``"ros1"`` (ROS 1 bags): little-endian, packed without padding; a string is a ``uint32``
+  length and that many bytes; ``time`` is ``uint32 sec, uint32 nsec``; ``std_msgs/Header`` is
+  ``uint32 seq, time stamp, string frame_id``.
+* ``"cdr"`` (ROS 2 bags; OMG XCDR1 as ROS 2's middlewares write it): a 4-byte encapsulation
+  header, ``00 00`` for big-endian or ``00 01`` for little-endian data and two option bytes,
+  then the fields, each primitive aligned to its own size (at most 8) counted from the end of
+  that header; a string is a ``uint32`` length that counts a closing NUL, the bytes and the
+  NUL; ``std_msgs/Header`` is ``int32 sec, uint32 nanosec, string frame_id``, no ``seq``.
+
+In both, a sequence is a ``uint32`` count and its items. Arrays of numbers come out as NumPy
+views of the message's bytes (no copy, nothing done per element in Python). A message shorter
+than its fields need, a length past its end, or a string that is not UTF-8 raises
+:class:`~occmap.errors.FormatError` naming the message (``where``), the field and the value.
+"""
+
+from __future__ import annotations
+
+import struct
+from functools import cache
+
+import numpy as np
+
+from ...errors import FormatError, InvalidArgumentError
+
+__all__ = ["ENCODINGS", "Wire", "frame_name"]
+
+ENCODINGS = ("ros1", "cdr")
+_U32 = {"<": struct.Struct("<I"), ">": struct.Struct(">I")}
+# a Header up to its frame's bytes: ROS 1's seq (skipped), the stamp, the frame's length
+_HEADER = {False: {"<": struct.Struct("<4xiII")}, True: {"<": struct.Struct("<iII"), ">": struct.Struct(">iII")}}
+
+
+@cache
+def _dtype(code: str) -> np.dtype:
+    return np.dtype(code)
+
+
+@cache
+def _struct(fmt: str) -> tuple[struct.Struct, int]:
+    """The :class:`struct.Struct` of ``fmt`` (a byte order and one type, ``"<7f"``) and the size
+    of one of its values, which CDR aligns to."""
+    return struct.Struct(fmt), struct.calcsize(fmt[0] + fmt[-1])
+
+
+def frame_name(frame_id: str) -> str:
+    """A frame id without ROS 1's leading slash (``/laser`` → ``laser``), as tf2 strips it."""
+    return frame_id.lstrip("/")
+
+
+class Wire:
+    """A read position in one serialised message (``raw``: bytes, memoryview or a uint8 array)
+    of ``encoding`` ``"ros1"`` or ``"cdr"``; ``where`` names the message in errors (a string, or
+    a :class:`~occmap.io.bags.bag.Where`, formatted only then).
+
+    Each read method takes the ROS name of the field it reads, for errors, and moves past it.
+    """
+
+    __slots__ = ("raw", "size", "pos", "base", "cdr", "order", "where")
+
+    def __init__(self, raw, encoding: str, where: str):
+        self.raw, self.size, self.where = raw, len(raw), where
+        if encoding == "ros1":
+            self.cdr, self.order, self.pos, self.base = False, "<", 0, 0
+        elif encoding == "cdr":
+            if self.size < 4:
+                raise FormatError(where, f"{self.size} bytes, fewer than the 4 of a CDR encapsulation header")
+            if raw[0] != 0 or raw[1] > 1:
+                raise FormatError(where, f"CDR encapsulation {bytes(raw[:2]).hex(' ')}, not 00 00 (big-endian CDR) "
+                                  "or 00 01 (little-endian CDR)")
+            self.cdr, self.order, self.pos, self.base = True, "<" if raw[1] else ">", 4, 4
+        else:
+            raise InvalidArgumentError(f"{where}: encoding {encoding!r}, not one of {', '.join(ENCODINGS)}")
+
+    def _take(self, field: str, nbytes: int, align: int, part: str = "") -> int:
+        """Align to ``align`` (CDR), check ``nbytes`` remain, move past them; their start. The
+        error names ``field + part`` (joined only then: the decoders call this for every field)."""
+        if self.cdr:
+            self.pos += -(self.pos - self.base) % align
+        start = self.pos
+        if start + nbytes > self.size:
+            raise FormatError(self.where, f"field {field}{part}: {nbytes} bytes from byte {start} run past the "
+                              f"message's {self.size} (truncated)")
+        self.pos = start + nbytes
+        return start
+
+    def values(self, fmt: str, field: str, part: str = "") -> tuple:
+        """Primitives of one size in a row, by :mod:`struct` format ``fmt`` (``"7f"``, ``"3d"``)."""
+        s, align = _struct(self.order + fmt)
+        return s.unpack_from(self.raw, self._take(field, s.size, align, part))
+
+    def count(self, field: str, least: int = 0, part: str = "") -> int:
+        """A sequence's ``uint32`` length, checked against the bytes left when each item takes
+        at least ``least`` bytes."""
+        n = _U32[self.order].unpack_from(self.raw, self._take(field, 4, 4, part))[0]
+        if n * least > self.size - self.pos:
+            raise FormatError(self.where, f"field {field}{part}: {n} items of {least} bytes or more from byte "
+                              f"{self.pos} run past the message's {self.size} bytes (truncated or corrupt)")
+        return n
+
+    def array(self, dtype: str, field: str) -> np.ndarray:
+        """A sequence of numbers of NumPy type ``dtype`` (``"f4"``), a read-only view in the
+        message's byte order."""
+        kind = _dtype(self.order + dtype)
+        n = self.count(field, kind.itemsize)
+        return np.frombuffer(self.raw, dtype=kind, count=n, offset=self._take(field, n * kind.itemsize, kind.itemsize))
+
+    def skip(self, nbytes: int, align: int, field: str) -> None:
+        """Fields read for their length alone (``nbytes`` bytes aligned to ``align``)."""
+        self._take(field, nbytes, align)
+
+    def skip_array(self, itemsize: int, field: str) -> None:
+        """A sequence of ``itemsize``-byte numbers read for its length alone."""
+        self._take(field, self.count(field, itemsize) * itemsize, itemsize)
+
+    def string(self, field: str, part: str = "") -> str:
+        return self._text(self.count(field, 1, part), field, part)
+
+    def _text(self, n: int, field: str, part: str) -> str:
+        """The string of ``n`` bytes (CDR: with its NUL) that starts here."""
+        start = self._take(field, n, 1, part)
+        text = bytes(self.raw[start: start + n - 1 if self.cdr and n else start + n])
+        try:
+            return text.decode()
+        except UnicodeDecodeError as e:
+            raise FormatError(self.where, f"field {field}{part}: {text[:40]!r} is not UTF-8 ({e.reason})") from None
+
+    def header(self, field: str = "header") -> tuple[float, str]:
+        """A ``std_msgs/Header``: its stamp in seconds and its frame (without ROS 1's leading
+        slash)."""
+        layout = _HEADER[self.cdr][self.order]
+        sec, nanosec, n = layout.unpack_from(self.raw, self._take(field, layout.size, 4, ".stamp"))
+        return sec + nanosec * 1e-9, frame_name(self._text(n, field, ".frame_id"))
