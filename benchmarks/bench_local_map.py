@@ -80,15 +80,64 @@ class Cycle:
 N_OBJECTS = 20
 
 
-def _outline(x, y, heading, length, width, z, step=0.1):
-    """Points every ``step`` m around a box footprint at height ``z``."""
-    per = np.arange(0.0, 2 * (length + width), step)
-    u = np.where(per < length, per - length / 2, np.where(per < length + width, length / 2,
-                 np.where(per < 2 * length + width, length / 2 - (per - length - width), -length / 2)))
-    v = np.where(per < length, -width / 2, np.where(per < length + width, per - length - width / 2,
-                 np.where(per < 2 * length + width, width / 2, width / 2 - (per - 2 * length - width))))
+def _visible_outline(x, y, heading, length, width, z, sensor, step=0.1):
+    """Points every ``step`` m along the faces of a box footprint that face ``sensor`` (x, y), at
+    height ``z``: what a scanner sees of it."""
     c, s = np.cos(heading), np.sin(heading)
-    return np.column_stack([x + c * u - s * v, y + s * u + c * v, np.full(per.shape, z)])
+    faces = []
+    for (u0, v0), (u1, v1), (nu, nv) in ((((-1, -1), (1, -1), (0, -1))), (((1, -1), (1, 1), (1, 0))),
+                                         (((1, 1), (-1, 1), (0, 1))), (((-1, 1), (-1, -1), (-1, 0)))):
+        a = np.array([u0 * length / 2, v0 * width / 2])
+        b = np.array([u1 * length / 2, v1 * width / 2])
+        n = np.array([c * nu - s * nv, s * nu + c * nv])
+        mid = np.array([x, y]) + [c * (a[0] + b[0]) / 2 - s * (a[1] + b[1]) / 2,
+                                  s * (a[0] + b[0]) / 2 + c * (a[1] + b[1]) / 2]
+        if n @ (sensor - mid) <= 0.0:
+            continue
+        f = np.linspace(0.0, 1.0, max(2, int(np.hypot(*(b - a)) / step) + 1))[:, None]
+        uv = a + f * (b - a)
+        faces.append(np.column_stack([x + c * uv[:, 0] - s * uv[:, 1], y + s * uv[:, 0] + c * uv[:, 1],
+                                      np.full(len(uv), z)]))
+    return np.concatenate(faces)
+
+
+def _paths_in_free_space(lm, origin, rng, duration):
+    """``N_OBJECTS`` straight paths (start (N, 2), heading, speed, is-car) of cars and people
+    (0.6 m × 0.6 m) whose footprints keep to
+    cells the map holds free (nine in ten of the probed points, none occupied) for ``duration``
+    seconds and never come within 1 m of each other."""
+    free = lm.log_odds() < lm.l_free
+    cells = np.argwhere(free)
+    centres = lm.cell_to_world(cells)
+    d = np.hypot(*(centres - origin[:2]).T)
+    pool = centres[(d > 3.0) & (d < 18.0)]
+    times = np.linspace(0.0, duration, 12)
+    chosen = []
+    for attempt in range(40_000):
+        if len(chosen) == N_OBJECTS:
+            break
+        # cars (4.4 m × 1.8 m) first, as many as fit in half the tries, up to half the objects
+        car = len(chosen) < N_OBJECTS // 2 and attempt < 20_000
+        length, width = (4.4, 1.8) if car else (0.6, 0.6)
+        start = pool[rng.integers(len(pool))]
+        heading = rng.uniform(-np.pi, np.pi)
+        speed = rng.uniform(1.5, 3.0) if car else rng.uniform(0.8, 1.8)
+        u = np.array([np.cos(heading), np.sin(heading)])
+        w = np.array([-u[1], u[0]])
+        track = start + (speed * times)[:, None] * u
+        body = [track + a * length / 2 * u + b * width / 2 * w for a in (-1, 0, 1) for b in (-1, 0, 1)]
+        probe = np.concatenate(body)
+        lo = lm.log_odds_at(probe)
+        if (lo >= lm.l_occupied).any() or (lo < lm.l_free).mean() < 0.9:
+            continue
+        if any(np.hypot(*(track - other).T).min() < 1.0 + (length + o_len) / 2
+               for other, o_len in ((c[4], c[5]) for c in chosen)):
+            continue
+        chosen.append((start, heading, speed, car, track, length))
+    if len(chosen) < N_OBJECTS:
+        raise RuntimeError(f"only {len(chosen)} of {N_OBJECTS} object paths fit the free space")
+    start, heading, speed, car = (np.array([c[k] for c in chosen]) for k in range(4))
+    return start, heading, speed, car
 
 
 def tracking_cycle(points, origin, repeat):
@@ -101,20 +150,15 @@ def tracking_cycle(points, origin, repeat):
         for k in range(5):  # the scene seen still first: its free space known
             lm.insert_point_cloud(points, origin, 0.1 * k, Z_MIN, Z_MAX)
     lm = maps[True]
-    free = np.argwhere(lm.log_odds() < lm.l_free)
-    centres = lm.cell_to_world(free)
-    d = np.hypot(*(centres - origin[:2]).T)
-    pick = rng.choice(np.flatnonzero((d > 4.0) & (d < 15.0)), N_OBJECTS, replace=False)
-    start = centres[pick]
-    heading = rng.uniform(-np.pi, np.pi, N_OBJECTS)
-    speed = rng.uniform(1.0, 4.0, N_OBJECTS)
-    car = np.arange(N_OBJECTS) < N_OBJECTS // 2
+    n_cycles = 10 + 1 + 2 * repeat  # warm-up cycles, median_times' own warm-up, the timed rounds
+    start, heading, speed, car = _paths_in_free_space(lm, origin, rng, 0.1 * (n_cycles + 1))
     z = origin[2] - 0.5
     clouds = []
-    for k in range(5, 5 + 2 * repeat * 3 + 10):
-        t = 0.1 * k
-        xy = start + (t - 0.5) * speed[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
-        objects = [_outline(x, y, h, 4.4 if c else 0.6, 1.8 if c else 0.6, z) for (x, y), h, c in zip(xy, heading, car)]
+    for k in range(n_cycles):
+        t = 0.5 + 0.1 * k
+        xy = start + (0.1 * k) * speed[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
+        objects = [_visible_outline(x, y, h, 4.4 if c else 0.6, 1.8 if c else 0.6, z, origin[:2])
+                   for (x, y), h, c in zip(xy, heading, car)]
         clouds.append((t, np.ascontiguousarray(np.concatenate([points, *objects]))))
     it = {flag: iter(clouds) for flag in maps}
 

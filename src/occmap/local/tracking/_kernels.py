@@ -381,3 +381,26 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
     for i in range(pts.shape[0]):
         out[i] = cy[i] >= 0 and good[label[cy[i], cx[i]]] and not blocked[i]
     return out
+
+
+@kernel
+def box_owners(pts, cx, cy, heading, half_length, half_width, out):
+    """Per point (N, 2): the index of the box (centre ``cx, cy``, ``heading``, half extents)
+    holding it whose centre is nearest, or −1 (into ``out``, int64 (N,))."""
+    n_boxes = cx.shape[0]
+    c = np.cos(heading)
+    s = np.sin(heading)
+    r2 = half_length ** 2 + half_width ** 2  # squared radius of each box's circumscribed circle
+    for i in range(pts.shape[0]):
+        best = -1
+        best_d2 = np.inf
+        for k in range(n_boxes):
+            dx = pts[i, 0] - cx[k]
+            dy = pts[i, 1] - cy[k]
+            d2 = dx * dx + dy * dy
+            if d2 > r2[k] or d2 >= best_d2:
+                continue
+            if abs(c[k] * dx + s[k] * dy) <= half_length[k] and abs(-s[k] * dx + c[k] * dy) <= half_width[k]:
+                best = k
+                best_d2 = d2
+        out[i] = best

@@ -39,6 +39,7 @@ import numpy as np
 from ... import checks
 from ...errors import InvalidArgumentError
 from ...geometry.so2 import wrap_angle
+from . import _kernels as K
 from . import ekf
 from .assignment import assign
 from .detection import Detections, box_corners
@@ -242,18 +243,19 @@ class Tracker:
     def covers(self, points, t: float, margin: float, confirmed_only: bool = False) -> np.ndarray:
         """Whether each world point ``(N, 2)`` lies within a track's footprint (predicted to
         ``t``) grown by ``margin`` metres."""
-        return self._on_footprints(points, t, margin, confirmed_only).any(axis=1)
+        return self._owners(points, t, margin, confirmed_only) >= 0
 
-    def _on_footprints(self, points, t: float, margin: float, confirmed_only: bool) -> np.ndarray:
-        """``(N, T)``: whether world point n lies on track t's footprint predicted to ``t``, grown
-        by ``margin`` (T: the confirmed tracks or all)."""
+    def _owners(self, points, t: float, margin: float, confirmed_only: bool) -> np.ndarray:
+        """Per world point ``(N, 2)``: the index (among the confirmed tracks, or all) of the track
+        whose footprint predicted to ``t``, grown by ``margin``, holds it — the nearest centre of
+        those that do — or −1."""
         _, s, _, size = self.predicted(t, confirmed_only=confirmed_only)
-        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-        dx = p[:, None, 0] - s[None, :, 0]
-        dy = p[:, None, 1] - s[None, :, 1]
-        c, sn = np.cos(s[:, 2]), np.sin(s[:, 2])
+        p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        out = np.empty(len(p), dtype=np.int64)
         half = 0.5 * size + margin
-        return (np.abs(c * dx + sn * dy) <= half[:, 0]) & (np.abs(-sn * dx + c * dy) <= half[:, 1])
+        K.box_owners(p, np.ascontiguousarray(s[:, 0]), np.ascontiguousarray(s[:, 1]), np.ascontiguousarray(s[:, 2]),
+                     np.ascontiguousarray(half[:, 0]), np.ascontiguousarray(half[:, 1]), out)
+        return out
 
     def update_radar(self, stamp: float, points, bearings, radial_speeds) -> int:
         """Doppler updates from one radar sweep at ``stamp`` (s, not before the last update):
@@ -274,12 +276,9 @@ class Tracker:
                                        "must describe the same detections")
         if not len(self) or not pts.shape[0]:
             return 0
-        on = self._on_footprints(pts, self.time, p.footprint_margin, confirmed_only=False)
-        on &= (self.updates > 0)[None]
-        d2 = np.where(on, (pts[:, None, 0] - self.state[None, :, 0]) ** 2 + (pts[:, None, 1] - self.state[None, :, 1]) ** 2,
-                      np.inf)
-        owner = np.where(on.any(axis=1), d2.argmin(axis=1), -1)
+        owner = self._owners(pts, self.time, p.footprint_margin, confirmed_only=False)
         mine = owner >= 0
+        mine[mine] = self.updates[owner[mine]] > 0
         if not mine.any():
             return 0
         tracks, n = np.unique(owner[mine], return_counts=True)
