@@ -1,5 +1,6 @@
-"""LocalMap.insert_radar: rays with the radar's evidence, moving reflectors and ghosts, bad input,
-and detections on tracked objects."""
+"""The local map's sensors and objects at their edges: insert_radar (rays with the radar's
+evidence, moving reflectors and ghosts, bad input, detections on tracked objects), NaN readings
+with tracking, and an object that leaves the window."""
 
 import math
 
@@ -57,20 +58,25 @@ def test_bad_detections_are_dropped_and_bad_calls_raise():
         lm.insert_radar((0.0, 0.0, 0.0), [1.0], [0.0], 2.0, max_range=60.0, radial_velocity=[0.0])
 
 
+ANGLES = np.radians(np.arange(-180.0, 180.0, 0.5))
+
+
+def person_scan(c, walls=15.0):
+    """Ranges from the origin of a lidar seeing a 0.5 m disc at ``c`` inside a ring of walls."""
+    r = np.full(ANGLES.size, walls)
+    rel = np.angle(np.exp(1j * (ANGLES - math.atan2(c[1], c[0]))))
+    dist = float(np.hypot(*c))
+    on = np.abs(rel) < math.asin(0.25 / dist)
+    r[on] = dist - 0.25 * np.cos(rel[on] * dist / 0.25)
+    return r
+
+
 def test_detections_on_a_tracked_object_do_not_mark_the_static_layer_and_update_its_speed():
     lm = LocalMap((40.0, 40.0), 0.1, tracking=True)
-    angles = np.radians(np.arange(-180.0, 180.0, 0.5))
     person = lambda t: np.array([-6.0 + 1.5 * t, 4.0])  # noqa: E731  walking +x past a sensor at the origin
     for k in range(30):
         t = 0.1 * k
-        c = person(t)
-        # the lidar: a 0.5 m disc in open space (and a ring of walls at 15 m)
-        r = np.full(angles.size, 15.0)
-        rel = np.angle(np.exp(1j * (angles - math.atan2(c[1], c[0]))))
-        dist = float(np.hypot(*c))
-        on = np.abs(rel) < math.asin(0.25 / dist)
-        r[on] = dist - 0.25 * np.cos(rel[on] * dist / 0.25)
-        lm.insert_scan((0.0, 0.0, 0.0), r, angles, t, max_range=30.0)
+        lm.insert_scan((0.0, 0.0, 0.0), person_scan(person(t)), ANGLES, t, max_range=30.0)
     tracks = lm.tracks()
     assert len(tracks) == 1 and tracks.confirmed[0]
     lm.objects.tracker.state[0, 3] = 3.0  # a wrong speed, uncertain
@@ -89,3 +95,35 @@ def test_detections_on_a_tracked_object_do_not_mark_the_static_layer_and_update_
                         ego_velocity=(0.0, 0.0))
     assert n["moving"] == 0 and n["points"] == 1
     assert math.isnan(before) and math.isnan(lo(lm, *c)) or lo(lm, *c) <= before
+
+
+def test_nan_readings_with_tracking_are_dropped_and_tracks_go_on():
+    lm = LocalMap((40.0, 40.0), 0.1, tracking=True)
+    rng = np.random.default_rng(3)
+    for k in range(30):
+        t = 0.1 * k
+        r = person_scan(np.array([-6.0 + 1.5 * t, 4.0]))
+        r[rng.random(r.size) < 0.1] = np.nan
+        c = lm.insert_scan((0.0, 0.0, 0.0), r, ANGLES, t, max_range=30.0)
+        assert c["dropped"] == int(np.isnan(r).sum())
+    tracks = lm.tracks()
+    assert len(tracks) == 1 and tracks.confirmed[0] and np.isfinite(tracks.covariance).all()
+    assert abs(tracks.vx[0] - 1.5) < 0.3
+
+
+def test_an_object_leaving_the_window_coasts_and_is_dropped_cleanly():
+    lm = LocalMap((12.0, 12.0), 0.1, tracking=True)  # the window: ±6 m around the origin
+    person = lambda t: np.array([1.0 + 2.0 * t, 2.0])  # noqa: E731  out of the window after 2.5 s
+    for k in range(60):
+        t = 0.1 * k
+        c = person(t)
+        r = person_scan(c, walls=5.5)
+        # nothing seen beyond the walls' ring: the person vanishes behind it
+        lm.insert_scan((0.0, 0.0, 0.0), r if np.hypot(*c) < 5.0 else np.full(ANGLES.size, 5.5), ANGLES, t,
+                       max_range=30.0)
+        cost, _ = lm.costmap(at=t + 1.0)
+        assert cost.shape == lm.shape
+        if k == 20:
+            assert lm.tracks().confirmed.any()
+    assert len(lm.tracks()) == 0 and lm.stats["tracks_dropped"] >= 1
+    assert lm.predicted_occupancy(lm.time + 1.0).max() == 0.0  # nothing left of it in the costmap
