@@ -22,3 +22,12 @@ def scan_matched(scans) -> list:
     track = match_scans(scans, progress=sys.stderr.isatty())
     print(track.summary())
     return with_poses(scans, track.poses)
+
+
+def with_prior(source, scan):
+    """``scan`` with the pose its source gave it as the matcher's prior: a bag's tf, odometry or
+    pose file (its odometry then); a CARMEN scan keeps its own odometry."""
+    from dataclasses import replace
+
+    placed = getattr(source, "fixed_frame", None) or getattr(source, "pose_track", None)
+    return replace(scan, odom=scan.pose) if placed else scan

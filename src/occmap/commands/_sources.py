@@ -68,7 +68,8 @@ def laser_source(args, path, every: int = 1):
     from ..sources import BagScans, CarmenScans
 
     if is_bag(path):
-        return BagScans(path, every=every, max_range=getattr(args, "max_range", None), **bag_options(args))
+        return BagScans(path, every=every, max_range=getattr(args, "max_range", None),
+                        unposed=getattr(args, "scan_match", False), **bag_options(args))
     refuse_bag_options(args, "a CARMEN log (it carries its poses)")
     return CarmenScans(path, every=every, max_range=getattr(args, "max_range", None))
 

@@ -8,7 +8,7 @@ every ``--frame-every`` scans a frame is drawn (:func:`occmap.local.replay.frame
 
 from __future__ import annotations
 
-from . import _options, _sources
+from . import _options, _scan_match, _sources
 from ._outputs import check_outputs
 
 
@@ -36,6 +36,7 @@ def add_parser(subparsers):
     p.add_argument("--tracking", action="store_true",
                    help="track moving objects: they stay out of the static layer, and the frames show the confirmed "
                    "tracks and where they will be in one second")
+    _scan_match.add_option(p)
     _sources.add_bag_options(p, "sensor_msgs/LaserScan", "odom")
     return p
 
@@ -69,6 +70,14 @@ def run(args) -> int:
 
     check_outputs({"-o": args.output}, {"LOG": args.log})
     source = _sources.laser_source(args, args.log, every=args.every)
+    matcher = None
+    if args.scan_match:  # poses matched scan by scan, as a robot would
+        from dataclasses import replace
+
+        from ..slam import ScanMatcher
+        from ..slam.scan_matching import describe
+
+        matcher = ScanMatcher()
     lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None, tracking=args.tracking)
     frames = []
     used = 0
@@ -77,6 +86,8 @@ def run(args) -> int:
     t0 = time.perf_counter()
     last = None
     for scan in source:
+        if matcher is not None:
+            scan = replace(scan, pose=matcher.add(_scan_match.with_prior(source, scan)))
         stamp = float(scan.stamp)
         if last is not None and stamp < last:
             clamped += 1  # logs with wrapped or shuffled stamps: hold the clock
@@ -98,6 +109,8 @@ def run(args) -> int:
         if len(frames) >= args.max_frames:
             break
     _sources.report("local", source)
+    if matcher is not None:
+        print(describe(matcher.stats))
     if not frames:
         raise InvalidArgumentError(f"{args.log}: no laser scans to replay")
     buf = io.BytesIO()

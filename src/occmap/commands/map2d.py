@@ -5,7 +5,6 @@ pair (the ``.pgm`` beside the YAML) and optionally a picture."""
 from __future__ import annotations
 
 import sys
-from dataclasses import replace
 import time
 from pathlib import Path
 
@@ -118,7 +117,7 @@ def _run_bag(args, model) -> int:
                       **_sources.bag_options(args))
     if args.scan_match:
         # poses from tf, odometry or a pose file, where the bag has them, are the matcher's prior
-        scans = [replace(s, odom=s.pose) if source.fixed_frame or source.pose_track else s for s in source]
+        scans = [_scan_match.with_prior(source, s) for s in source]
         summary = map_scan_stream(_scan_match.scan_matched(scans), args.resolution, args.max_range, model=model,
                                   max_extent=args.max_extent, progress=Progress(len(scans), "scans"))
     else:

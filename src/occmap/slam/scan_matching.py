@@ -236,10 +236,15 @@ class ScanMatchTrack:
         return len(self.poses)
 
     def summary(self) -> str:
-        s = self.stats
-        return (f"scan matching: {s['scans']:,} scans, {s['matched']:,} matched, {s['failed']:,} failed and "
-                f"{s['rejected']:,} rejected (left at the prior), {s['degenerate']:,} degenerate, "
-                f"{s['inserted']:,} inserted into the map")
+        return describe(self.stats)
+
+
+def describe(stats: dict) -> str:
+    """One line on how a matching went, from a :class:`ScanMatcher`'s ``stats``."""
+    s = stats
+    return (f"scan matching: {s['scans']:,} scans, {s['matched']:,} matched, {s['failed']:,} failed and "
+            f"{s['rejected']:,} rejected (left at the prior), {s['degenerate']:,} degenerate, "
+            f"{s['inserted']:,} inserted into the map")
 
 
 def _keep_prior_where_unconstrained(pose: np.ndarray, prior: np.ndarray, bx: np.ndarray, by: np.ndarray):
