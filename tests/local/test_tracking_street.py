@@ -135,8 +135,7 @@ def test_tracking_needs_to_be_asked_for():
 
 
 def test_frames_draw_confirmed_tracks(replay):
-    from occmap.commands.local import _objects
-    from occmap.local.replay import frame_image
+    from occmap.local.replay import frame_image, tracked_objects
 
     lm = LocalMap((60.0, 60.0), 0.1, tracking=True)
     rng = np.random.default_rng(2)
@@ -144,9 +143,14 @@ def test_frames_draw_confirmed_tracks(replay):
         scan = STREET.lidar(round(float(t), 1), rng=rng)
         lm.move_to(*scan.pose[:2])
         lm.insert_scan(scan.pose, scan.ranges, scan.angles, round(float(t), 1), max_range=30.0)
-    corners, ahead = _objects(lm, 1.0)
-    assert len(corners) == lm.tracks().confirmed.sum() >= 1
+    corners, ahead = tracked_objects(lm, 1.0)
+    assert len(corners) == len(ahead) == lm.tracks().confirmed.sum() >= 1
+    # the predicted footprint lies where the track's velocity carries it
+    t = lm.tracks()
+    keep = t.confirmed
+    moved = (ahead.mean(axis=1) - corners.mean(axis=1)) * lm.resolution
+    np.testing.assert_allclose(np.hypot(*moved.T), np.hypot(t.vx[keep], t.vy[keep]), rtol=0.3, atol=0.1)
     plain = np.asarray(frame_image(lm.costmap()[0], None, 2))
     drawn = np.asarray(frame_image(lm.costmap()[0], None, 2, (corners, ahead)))
-    assert not (plain == 131).any() and (drawn == 131).sum() > 20
+    assert not (plain == 131).any() and (drawn == 131).sum() > 20 and (drawn == 132).sum() > 20
     assert lm.stats["tracks_confirmed"] >= 1 and lm.stats["moving_returns"] > 0

@@ -41,32 +41,16 @@ def add_parser(subparsers):
     return p
 
 
-def _objects(lm, ahead: float):
-    """Confirmed tracks in window cells: their footprints' corners and where their centres will be
-    ``ahead`` seconds later at their velocity (:func:`occmap.local.replay.frame_image`)."""
-    import numpy as np
-
-    from ..local.tracking.detection import box_corners
-
-    t = lm.tracks()
-    keep = t.confirmed
-    corners = box_corners(t.x[keep], t.y[keep], t.heading[keep], t.length[keep], t.width[keep])
-    later = np.stack([t.x[keep] + ahead * t.vx[keep], t.y[keep] + ahead * t.vy[keep]], -1)
-    return (corners - lm.origin) / lm.resolution, (later - lm.origin) / lm.resolution
-
-
 def run(args) -> int:
-    import io
     import math
     import time
 
     import numpy as np
 
     from .._clock import WorkClock
-    from .._files import write_atomic
     from ..errors import InvalidArgumentError
     from ..local import LocalMap
-    from ..local.replay import frame_image
+    from ..local.replay import frame_image, save_gif, tracked_objects
 
     check_outputs({"-o": args.output}, {"LOG": args.log})
     source = _sources.laser_source(args, args.log, every=args.every)
@@ -104,7 +88,7 @@ def run(args) -> int:
         if cost is not None:
             robot = lm.world_to_cell(np.array([x, y]))
             frames.append(frame_image(cost, (int(robot[0]), int(robot[1])), args.scale,
-                                      _objects(lm, 1.0) if args.tracking else None))
+                                      tracked_objects(lm, 1.0) if args.tracking else None))
         used += 1
         if len(frames) >= args.max_frames:
             break
@@ -113,10 +97,7 @@ def run(args) -> int:
         print(describe(matcher.stats))
     if not frames:
         raise InvalidArgumentError(f"{args.log}: no laser scans to replay")
-    buf = io.BytesIO()
-    frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], loop=0,
-                   duration=max(20, int(round(1000.0 / args.fps))), optimize=False)
-    path = write_atomic(args.output, buf.getvalue())
+    path = save_gif(args.output, frames, args.fps)
     H, W = lm.shape
     print(f"{used} scans through a {W}×{H} local map at {args.resolution:g} m "
           f"(half-life {args.half_life:g} s): {1e3 * clock.seconds / max(used, 1):.2f} ms per scan for move + "
