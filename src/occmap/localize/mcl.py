@@ -3,9 +3,12 @@
 The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4, 5, 6 and 8):
 
 * **motion** — the odometry model of :mod:`occmap.geometry.motion` (rot1–trans–rot2 with the four
-  ``alpha`` noise terms), applied to every particle with its own noise draw. As in AMCL the filter
-  runs only once the odometry has moved ``update_min_d`` metres or turned ``update_min_a``
-  radians since its last run; between runs the estimate follows the odometry.
+  ``alpha`` noise terms), applied to every particle with its own noise draw. A large step between
+  two scans (scans dropped, a slow sensor, a fast turn) is integrated like any other, its noise
+  growing with its size, as AMCL's ``sample_motion_model_odometry`` does: nothing is refused or
+  replaced by an ad-hoc spread. As in AMCL the filter runs only once the odometry has moved
+  ``update_min_d`` metres or turned ``update_min_a`` radians since its last run; between runs the
+  estimate follows the odometry.
 * **measurement** — the likelihood field (:mod:`~occmap.localize.likelihood_field`): each beam
   scores by the distance from its end point to the nearest obstacle of the map. Readings that are
   not finite, at or below ``laser_min_range`` or at/beyond the scan's ``max_range`` (no return)
@@ -105,8 +108,8 @@ __all__ = ["LocalizationWarning", "MonteCarloLocalizer", "PoseEstimate"]
 
 
 class LocalizationWarning(UserWarning):
-    """Something in the input the filter could not use as given (an odometry jump, a scan with no
-    valid reading); the message says what and how it was handled."""
+    """Something in the input the filter could not use as given (a scan with no valid reading); the
+    message says what and how it was handled."""
 
 
 @dataclass(frozen=True)
@@ -150,7 +153,6 @@ class _Stats:
     updates: int = 0
     resamples: int = 0
     injected: int = 0
-    odometry_jumps: int = 0
     empty_scans: int = 0
     refined: int = 0
     refine_rejected: int = 0
@@ -211,7 +213,6 @@ class MonteCarloLocalizer(OneCallAtATime):
         self.w_fast = 0.0
         self.stats = _Stats()
         self._filter_odom = None  # odometry pose at the last filter run
-        self._last_odom = None  # odometry pose at the last call
         self._estimate: PoseEstimate | None = None
         self._force = True
         self._global = False  # a global localization that has not converged yet
@@ -255,7 +256,6 @@ class MonteCarloLocalizer(OneCallAtATime):
         self._count = len(particles)
         self.w_slow = self.w_fast = 0.0
         self._filter_odom = None
-        self._last_odom = None
         self._estimate = None
         self._force = True
 
@@ -291,10 +291,6 @@ class MonteCarloLocalizer(OneCallAtATime):
 
         if self._filter_odom is None:
             self._filter_odom = odom.copy()
-            self._last_odom = odom.copy()
-        else:
-            self._check_jump(odom)
-        self._last_odom = odom.copy()
 
         prm = self.params
         rot1, trans, rot2 = odometry_delta(self._filter_odom, odom, min_trans=prm.motion.min_trans)
@@ -344,29 +340,6 @@ class MonteCarloLocalizer(OneCallAtATime):
     def estimate(self) -> PoseEstimate | None:
         """The estimate of the last filter run (None before the first)."""
         return self._estimate
-
-    def _check_jump(self, odom: np.ndarray) -> None:
-        prev = self._last_odom
-        step = math.hypot(odom[0] - prev[0], odom[1] - prev[1])
-        turn = abs(wrap_angle_one(float(odom[2] - prev[2])))
-        jd, ja = self.params.max_odom_jump
-        if step <= jd and turn <= ja:
-            return
-        self.stats.odometry_jumps += 1
-        warnings.warn(
-            f"odometry jumped {step:.3f} m and {math.degrees(turn):.1f}° between two scans (limits {jd:g} m, "
-            f"{math.degrees(ja):.1f}°): the jump is not applied, the particles are spread instead",
-            LocalizationWarning, stacklevel=3)
-        # apply the motion pending before the jump, then re-anchor the odometry after it
-        motion = self.params.motion
-        d = odometry_delta(self._filter_odom, prev, min_trans=motion.min_trans)
-        self.particles = apply_odometry(self.particles, d, motion.alphas, self.rng)
-        n = len(self.particles)
-        spread = self.rng.standard_normal((n, 3)) * np.array([0.5 * jd, 0.5 * jd, 0.5 * ja])
-        self.particles[:, :2] += spread[:, :2]
-        self.particles[:, 2] = wrap_angle(self.particles[:, 2] + spread[:, 2])
-        self._filter_odom = odom.copy()
-        self._force = True
 
     def _weigh(self, bx, by, mr) -> None:
         prm = self.params

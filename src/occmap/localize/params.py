@@ -43,8 +43,6 @@ class LocalizationParams:
     update_min_d, update_min_a : float, default 0.0, 0.0
         Odometry translation (m) / rotation (rad) since the last filter run that triggers the next
         (0 and 0: every scan).
-    max_odom_jump : (float, float), default (1.0, 1.0)
-        Odometry motion (m, rad) between two calls above which it is treated as a jump.
     sensor_offset : (float, float, float), default (0, 0, 0)
         Pose ``(x, y, theta)`` of the sensor in the robot frame.
     laser_min_range : float, default 0.0
@@ -106,7 +104,6 @@ class LocalizationParams:
     motion: OdometryMotionModel = field(default_factory=OdometryMotionModel)
     update_min_d: float = 0.0
     update_min_a: float = 0.0
-    max_odom_jump: tuple[float, float] = (1.0, 1.0)
     # the sensor
     sensor_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     laser_min_range: float = 0.0
@@ -177,8 +174,6 @@ class LocalizationParams:
         put("max_particles", hi)
         for name in ("kld", "refine", "refine_feedback", "reset_averages"):
             put(name, bool(getattr(self, name)))
-        jd, ja = self.max_odom_jump
-        put("max_odom_jump", (checks.positive("max_odom_jump[0]", jd), checks.positive("max_odom_jump[1]", ja)))
         off = tuple(self.sensor_offset)
         if len(off) != 3:
             raise InvalidArgumentError(f"sensor_offset must be three finite numbers (x, y, theta), got {off!r}")
