@@ -23,6 +23,7 @@ import numpy as np
 
 from .._files import write_atomic
 from ..errors import InvalidArgumentError
+from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import wrap_angle
 from ..png import write_png
 from .mcl import LocalizationWarning, MonteCarloLocalizer
@@ -60,7 +61,7 @@ class ReplayResult:
     """The track of a replay, one row per scan."""
 
     stamps: np.ndarray  # (N,)
-    poses: np.ndarray  # (N, 3) estimates
+    poses: np.ndarray  # (N, 3) estimates of the sensor pose
     odometry: np.ndarray  # (N, 3) raw odometry
     covariances: np.ndarray  # (N, 3, 3)
     ess: np.ndarray  # (N,)
@@ -77,14 +78,19 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
            progress: bool = False) -> ReplayResult:
     """Run ``localizer`` over ``scans`` (LaserScan records with ``odom``), starting from ``init``
     ``(x, y, theta)`` (with ``cov``) or, with ``global_localization``, from particles spread over
-    the free space. Warnings of the filter are collected (``ReplayResult.warnings``), not shown."""
+    the free space. Warnings of the filter are collected (``ReplayResult.warnings``), not shown.
+
+    ``init`` and the track's poses are the *sensor's*, as a log's poses are (a CARMEN FLASER line's
+    ``x y theta`` is the laser's). With a ``sensor_offset`` the filter tracks the robot (its odometry
+    is the robot's, :meth:`~occmap.io.carmen.CarmenLog.laser_offset`) and the poses are converted."""
     scans = list(scans)
     if not scans:
         raise InvalidArgumentError("the log holds no scans")
+    offset = np.array(localizer.params.sensor_offset)
     if global_localization:
         localizer.initialize_global()
     elif init is not None:
-        localizer.initialize(init, cov)
+        localizer.initialize(compose_poses(init, relative_poses(offset, np.zeros(3))), cov)
     else:
         raise InvalidArgumentError("give an initial pose or ask for global localization")
     n = len(scans)
@@ -113,6 +119,7 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
             if progress and (i % 200 == 0 or i == n - 1):
                 print(f"\rscan {i + 1:,}/{n:,}", end="", file=sys.stderr, flush=True)
         caught = [str(w.message) for w in seen if issubclass(w.category, LocalizationWarning)]
+    poses = compose_poses(poses, offset)
     if progress:
         print(file=sys.stderr)
     return ReplayResult(stamps, poses, odo, covs, ess, count, updated, secs, caught)
