@@ -301,3 +301,22 @@ def test_estimate_uses_circular_mean(sim_map):
     mean, cov, _ = loc._mean()
     assert abs(wrap_angle(mean[2] - math.pi)) < 1e-12
     assert cov[2, 2] == pytest.approx((0.1 ** 2 + 0.05 ** 2) / 2)
+
+
+def test_random_term_is_spread_over_the_field_or_the_sensor_range(sim_map):
+    """The per-beam score of an end point far from every obstacle: ``z_rand / max_dist`` with the
+    default ``z_rand_span="field"`` whatever the sensor, AMCL's ``z_rand / max_range`` with
+    ``"range"``; next to an obstacle both are ``z_hit + the random term``."""
+    from occmap.localize.likelihood_field import LikelihoodField
+    from occmap.localize.params import LocalizationParams
+
+    for span, max_range, floor in (("field", 80.0, 0.05 / 2.0), ("field", 5.0, 0.05 / 2.0),
+                                   ("range", 80.0, 0.05 / 80.0), ("range", 5.0, 0.05 / 5.0)):
+        field = LikelihoodField(sim_map, LocalizationParams(z_rand_span=span))
+        table, outside = field.table(max_range, 0.2)
+        assert outside == pytest.approx(math.log(floor), rel=1e-6)
+        far = field.distance >= field.max_dist
+        assert np.allclose(table[far], math.log(floor), rtol=1e-5)
+        assert table[field.occupied].max() == pytest.approx(math.log(0.95 + floor), rel=1e-5)
+    with pytest.raises(InvalidArgumentError, match="z_rand_span must be 'field' or 'range', got 'beam'"):
+        LocalizationParams(z_rand_span="beam")

@@ -171,3 +171,25 @@ def test_replay_with_a_sensor_offset_reports_sensor_poses():
     # the filter itself holds the robot's pose, 0.3 m ahead of the laser
     assert track_errors([loc.estimate.pose], robot[-1:])[0][0] < 0.08
     assert track_errors([loc.estimate.pose], laser[-1:])[0][0] > 0.2
+
+
+def test_reference_fit_tells_a_scan_at_its_pose_from_one_moved(intel):
+    """A corrected scan at its own pose ends on the map's walls (median distance within a cell or
+    two); the same scan moved 0.5 m or turned 10° does not."""
+    from occmap.localize.likelihood_field import LikelihoodField
+    from occmap.localize.params import LocalizationParams
+    from occmap.localize.replay import reference_fit
+
+    grid, ref, _ = intel
+    field = LikelihoodField(grid, LocalizationParams())
+    scans = ref[::60]
+    fit = reference_fit(field, scans)
+    assert np.median(fit) <= 0.05 and fit.max() < 0.15
+    moved = [LaserScan(pose=s.pose + [0.5, 0, 0], ranges=s.ranges, angles=s.angles, max_range=s.max_range)
+             for s in scans]
+    turned = [LaserScan(pose=s.pose + [0, 0, math.radians(10)], ranges=s.ranges, angles=s.angles,
+                        max_range=s.max_range) for s in scans]
+    assert np.median(reference_fit(field, moved)) > 0.15
+    assert np.median(reference_fit(field, turned)) > 0.1
+    none = LaserScan(pose=np.zeros(3), ranges=np.full(3, 90.0), angles=np.zeros(3), max_range=81.0)
+    assert np.isnan(reference_fit(field, [none])[0])

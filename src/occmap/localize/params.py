@@ -50,8 +50,14 @@ class LocalizationParams:
     max_beams : int, default 60
         Beams per measurement update, evenly spread over a scan's valid readings.
     z_hit, z_rand : float, default 0.95, 0.05
-        Likelihood-field mixture: weight of the Gaussian hit term and of the uniform random term
-        (``z_rand / max_range`` per metre); not both zero.
+        Likelihood-field mixture: weight of the Gaussian hit term and of the uniform random term;
+        not both zero.
+    z_rand_span : {"field", "range"}, default "field"
+        What the random term is spread over: the distance field's range (``z_rand /
+        laser_likelihood_max_dist`` per metre: the share of beams that end away from every mapped
+        obstacle, whatever the sensor) or, as AMCL, the sensor's range (``z_rand / max_range``: with
+        an 80 m laser the term all but vanishes, and one unmapped object or smeared wall outweighs
+        the rest of the scan).
     sigma_hit : float, default 0.2
         Standard deviation (m) of the hit term while tracking.
     laser_likelihood_max_dist : float, default 2.0
@@ -111,6 +117,7 @@ class LocalizationParams:
     # the likelihood field
     z_hit: float = 0.95
     z_rand: float = 0.05
+    z_rand_span: str = "field"
     sigma_hit: float = 0.2
     laser_likelihood_max_dist: float = 2.0
     # how beams combine
@@ -155,6 +162,8 @@ class LocalizationParams:
         for name in ("sigma_hit", "laser_likelihood_max_dist", "beam_exponent", "kld_err", "kld_z",
                      "refine_cutoff", "global_sigma_hit"):
             put(name, checks.positive(name, getattr(self, name)))
+        if self.z_rand_span not in ("field", "range"):
+            raise InvalidArgumentError(f"z_rand_span must be 'field' or 'range', got {self.z_rand_span!r}")
         if self.model not in ("product", "amcl"):
             raise InvalidArgumentError(f"model must be 'product' or 'amcl', got {self.model!r}")
         free_t = checks.fraction("free_thresh", self.free_thresh)

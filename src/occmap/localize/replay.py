@@ -26,10 +26,12 @@ from ..errors import InvalidArgumentError
 from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import wrap_angle
 from ..png import write_png
+from .likelihood_field import beam_end_points
 from .mcl import LocalizationWarning, MonteCarloLocalizer
 
 __all__ = [
-    "DEFAULTS", "PLAIN", "ReplayResult", "convergence_distance", "make_localizer", "pair_scans", "replay", "save_error_png",
+    "DEFAULTS", "PLAIN", "ReplayResult", "convergence_distance", "make_localizer", "pair_scans", "reference_fit", "replay",
+    "save_error_png",
     "save_track_png", "track_errors", "write_track_csv",
 ]
 
@@ -142,6 +144,31 @@ def convergence_distance(position_error, distance, tolerance: float = 0.2) -> fl
         return float(distance[0]) if len(distance) else 0.0
     k = int(bad[-1]) + 1
     return float(distance[k]) if k < len(distance) else math.inf
+
+
+def reference_fit(field, scans) -> np.ndarray:
+    """How well each scan fits the map at its own pose (a corrected log's): the median distance (m)
+    from its valid end points to the nearest obstacle of ``field`` (a
+    :class:`~occmap.localize.likelihood_field.LikelihoodField`; ``max_dist`` off the map, NaN for
+    a scan with no valid reading). Where a reference pose fits its own map poorly the reference, or
+    the map there, is off, and an error measured against it says as much about the reference as
+    about the localizer (Freiburg 079 has such stretches)."""
+    out = np.full(len(scans), np.nan)
+    inv = 1.0 / field.resolution
+    H, W = field.distance.shape
+    for k, s in enumerate(scans):
+        _, _, bx, by = beam_end_points(s.ranges, s.angles, s.max_range, field.params)
+        if not bx.size:
+            continue
+        x, y, t = s.pose
+        c, sn = math.cos(t), math.sin(t)
+        ix = np.floor((x + c * bx - sn * by - field.origin[0]) * inv).astype(np.int64)
+        iy = np.floor((y + sn * bx + c * by - field.origin[1]) * inv).astype(np.int64)
+        inside = (ix >= 0) & (iy >= 0) & (ix < W) & (iy < H)
+        d = np.full(bx.size, field.max_dist)
+        d[inside] = field.distance[iy[inside], ix[inside]]
+        out[k] = float(np.median(d))
+    return out
 
 
 def travelled(poses) -> np.ndarray:
@@ -286,8 +313,9 @@ def make_localizer(grid, *, particles: int = 2000, beams: int = 60, seed=0, plai
 
 
 #: Settings of a plain AMCL filter (AMCL's defaults: 0.2 m / 30° between filter runs, no tempering).
-PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05, update_min_d=0.2,
-             update_min_a=math.pi / 6, min_ess=0.0)
+PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05, z_rand_span="range",
+             update_min_d=0.2, update_min_a=math.pi / 6, min_ess=0.0)
 #: Settings that meet the accuracy targets on the Intel log (measured in benchmarks/bench_localize.py):
 #: a filter run every 5 cm / 0.1 rad, the estimate refined by a scan match that also moves the cloud.
-DEFAULTS = dict(PLAIN, update_min_d=0.05, update_min_a=0.1, min_ess=0.1, refine=True, refine_feedback=True)
+DEFAULTS = dict(PLAIN, z_rand_span="field", update_min_d=0.05, update_min_a=0.1, min_ess=0.1, refine=True,
+                refine_feedback=True)
