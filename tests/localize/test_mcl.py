@@ -193,15 +193,27 @@ def test_kidnapped_robot_recovers(sim_map, world):
     path = world.default_trajectory(n=600)
     truth = np.concatenate([path[:80], path[380:560]])  # teleported from the first rooms to the far ones
     odo = _drifting_odometry(np.concatenate([path[:80], path[80:80 + 180]]), rng)  # odometry never knew
-    loc = MonteCarloLocalizer(sim_map, 3000, recovery_alpha_slow=0.001, recovery_alpha_fast=0.1, refine=True, seed=32)
+    loc = MonteCarloLocalizer(sim_map, 3000, recovery_alpha_slow=0.001, recovery_alpha_fast=0.1, refine=True, seed=32,
+                              z_rand_span="range")
     loc.initialize(truth[0], np.diag([0.05 ** 2, 0.05 ** 2, 0.02 ** 2]))
-    est = _track(loc, world, truth, odo, rng)
+    scans = simulate_scans(world, truth, n_beams=180, fov=2 * math.pi, max_range=10.0, sigma=0.01, p_outlier=0.02,
+                           rng=rng)
+    out = [loc.update(odo[i], s.ranges, s.angles, s.max_range) for i, s in enumerate(scans)]
+    est = np.array([e.pose for e in out])
+    lost = np.array([e.lost for e in out])
+    fit = np.array([e.fit for e in out])
     err = np.hypot(*(est[:, :2] - truth[:, :2]).T)
     assert err[10:80].max() < 0.1  # tracked before
     assert err[85] > 1.0  # lost right after the kidnapping
     assert loc.stats.injected > 0
     assert err[-40:].max() < 0.1  # and found again
     assert np.isfinite(est).all()
+    # the lost flag: down while tracked, up from the kidnapping until the filter is found again
+    assert not lost[:80].any() and fit[:80].min() > 0.9
+    found = 80 + int(np.argmax(err[80:] < 0.1))
+    assert found > 85 and lost[80:found].all()
+    # after it, a handful of scans of places the simulated map shows poorly (fit near 0.2) raise it too
+    assert lost[found:].mean() < 0.05 and (fit[found:][lost[found:]] < 0.7).all()
 
 
 # ------------------------------------------------------------------------------------ bad input

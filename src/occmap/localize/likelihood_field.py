@@ -124,6 +124,20 @@ class LikelihoodField:
             out = np.log1p(out)
         return out
 
+    def distances(self, pose, bx: np.ndarray, by: np.ndarray) -> np.ndarray:
+        """Distance (m) from each end point ``(bx, by)`` (pose frame) seen from ``pose``
+        ``(x, y, theta)`` to the nearest obstacle, ``max_dist`` off the map."""
+        x, y, t = (float(v) for v in pose)
+        c, s = math.cos(t), math.sin(t)
+        inv = 1.0 / self.resolution
+        ix = np.floor((x + c * bx - s * by - self.origin[0]) * inv).astype(np.int64)
+        iy = np.floor((y + s * bx + c * by - self.origin[1]) * inv).astype(np.int64)
+        H, W = self.distance.shape
+        inside = (ix >= 0) & (iy >= 0) & (ix < W) & (iy < H)
+        d = np.full(np.shape(bx), self.max_dist)
+        d[inside] = self.distance[iy[inside], ix[inside]]
+        return d
+
     def uniform_free(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` poses (n, 3) uniform over the free cells, headings uniform in (−π, π]."""
         cells = self.free_cells[rng.integers(0, self.free_cells.size, n)]

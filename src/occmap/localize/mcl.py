@@ -81,6 +81,10 @@ from .params import LocalizationParams
 from .resample import kld_count, roughen, systematic
 from .scan_match import match
 
+#: Rate of the long-term average of the estimates' ``fit`` (about the last 100 filter runs) that
+#: ``lost`` compares each fit with: what "usual" is depends on the sensor, the map and the place.
+FIT_AVERAGE_RATE = 0.01
+
 #: Largest |x| or |y| (metres) of a pose, odometry pose or map corner the filter accepts: beyond
 #: it the particle arithmetic (binning, differences, weights) overflows or loses all precision.
 MAX_COORDINATE = 1e9
@@ -136,6 +140,16 @@ class PoseEstimate:
         Whether the filter ran on this call (else the pose followed the odometry only).
     beams : int
         Beams used by the measurement update (0 when it did not run or had none).
+    fit : float
+        Share of the scan's valid beams whose end points, seen from ``pose``, lie within
+        ``refine_cutoff`` of an obstacle of the map (NaN when the filter did not run or the scan
+        had no valid reading): how much of what the sensor sees the map explains at the estimate.
+    lost : bool
+        ``fit`` below ``lost_fit`` times its usual value (its average over about the last 100 filter
+        runs that were not lost): much of the scan is unexplained where the filter believes the robot
+        is (kidnapped, a wrong initial pose, or a place the map does not show as it is now).
+        A caller can act on it (stop, re-initialize, call :meth:`MonteCarloLocalizer.initialize_global`);
+        with ``covariance`` and ``ess`` it is the filter's confidence.
     """
 
     pose: np.ndarray
@@ -146,6 +160,8 @@ class PoseEstimate:
     updated: bool = False
     beams: int = 0
     converged: bool = True
+    fit: float = math.nan
+    lost: bool = False
 
 
 @dataclass
@@ -213,6 +229,7 @@ class MonteCarloLocalizer(OneCallAtATime):
         self.w_fast = 0.0
         self.stats = _Stats()
         self._filter_odom = None  # odometry pose at the last filter run
+        self._usual_fit = None  # long-term average of the estimates' fit while not lost
         self._estimate: PoseEstimate | None = None
         self._force = True
         self._global = False  # a global localization that has not converged yet
@@ -303,7 +320,7 @@ class MonteCarloLocalizer(OneCallAtATime):
             est = self._estimate
             pose = apply_odometry(est.pose, (rot1, trans, rot2))
             return PoseEstimate(pose, est.covariance, est.ess, len(self.particles), est.mode_weight, False, 0,
-                                est.converged)
+                                est.converged, est.fit, est.lost)
 
         # motion
         if float(trans) > 0 or float(rot1) != 0 or float(rot2) != 0:
@@ -332,8 +349,16 @@ class MonteCarloLocalizer(OneCallAtATime):
             self.stats.converged_after = self.stats.updates
         if prm.refine and not self._global and bx_all.size:
             pose = self._refine(pose, bx_all, by_all)
+        fit, lost = math.nan, False
+        if bx_all.size:
+            fit = float(np.mean(self.field.distances(pose, bx_all, by_all) <= prm.refine_cutoff))
+            if self._usual_fit is None and not self._global:
+                self._usual_fit = fit  # the first tracked scan sets what is usual
+            lost = self._usual_fit is not None and fit < prm.lost_fit * self._usual_fit
+            if not lost and not self._global:
+                self._usual_fit += FIT_AVERAGE_RATE * (fit - self._usual_fit)
         self._estimate = PoseEstimate(pose, cov, ess, len(self.particles), mode_w, True, int(bx.size),
-                                      not self._global)
+                                      not self._global, fit, lost)
         return self._estimate
 
     @property

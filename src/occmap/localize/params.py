@@ -87,7 +87,11 @@ class LocalizationParams:
         Refine the estimate by a scan match against the distance field; also shift the particles
         by its correction.
     refine_cutoff : float, default 0.3
-        End points farther (m) than this from any obstacle are left out of the scan match.
+        End points farther (m) than this from any obstacle are left out of the scan match, and
+        count as unexplained in an estimate's ``fit``.
+    lost_fit : float, default 0.85
+        An estimate whose ``fit`` (share of the scan's beams the map explains there) is below this
+        share of its usual value is reported ``lost``.
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
@@ -139,6 +143,7 @@ class LocalizationParams:
     refine: bool = False
     refine_feedback: bool = False
     refine_cutoff: float = 0.3
+    lost_fit: float = 0.85
     # global localization
     global_particles: int = 20_000
     global_sigma_hit: float = 1.0
@@ -172,7 +177,7 @@ class LocalizationParams:
             raise InvalidArgumentError(f"need 0 <= free_thresh <= occupied_thresh <= 1, got {free_t!r}, {occ_t!r}")
         put("free_thresh", free_t)
         put("occupied_thresh", occ_t)
-        for name in ("resample_ess", "min_ess", "recovery_threshold"):
+        for name in ("resample_ess", "min_ess", "recovery_threshold", "lost_fit"):
             put(name, checks.fraction(name, getattr(self, name)))
         put("converged_weight", checks.fraction("converged_weight", self.converged_weight, zero=False))
         lo = checks.count("min_particles", self.min_particles)

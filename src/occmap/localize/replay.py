@@ -154,20 +154,10 @@ def reference_fit(field, scans) -> np.ndarray:
     the map there, is off, and an error measured against it says as much about the reference as
     about the localizer (Freiburg 079 has such stretches)."""
     out = np.full(len(scans), np.nan)
-    inv = 1.0 / field.resolution
-    H, W = field.distance.shape
     for k, s in enumerate(scans):
         _, _, bx, by = beam_end_points(s.ranges, s.angles, s.max_range, field.params)
-        if not bx.size:
-            continue
-        x, y, t = s.pose
-        c, sn = math.cos(t), math.sin(t)
-        ix = np.floor((x + c * bx - sn * by - field.origin[0]) * inv).astype(np.int64)
-        iy = np.floor((y + sn * bx + c * by - field.origin[1]) * inv).astype(np.int64)
-        inside = (ix >= 0) & (iy >= 0) & (ix < W) & (iy < H)
-        d = np.full(bx.size, field.max_dist)
-        d[inside] = field.distance[iy[inside], ix[inside]]
-        out[k] = float(np.median(d))
+        if bx.size:
+            out[k] = float(np.median(field.distances(s.pose, bx, by)))
     return out
 
 
