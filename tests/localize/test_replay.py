@@ -7,6 +7,7 @@ import argparse
 import bz2
 import itertools
 import math
+import re
 
 import numpy as np
 import pytest
@@ -134,6 +135,14 @@ def test_localize_command(intel, tmp_path, capsys):
     ok = pairs >= 0
     pe, _ = track_errors(rows[pairs[ok], 1:4], np.array([s.pose for s in ref])[ok])
     assert ok.sum() >= 10 and pe.mean() < 0.1
+    # global localization: the error against the reference counts from where it converged
+    corrected = intel_raw_path().with_name("intel-corrected.log.gz")
+    assert main(["localize", str(yaml), str(log), "-o", str(tmp_path / "g.csv"), "--reference", str(corrected)]) == 0
+    out = capsys.readouterr().out
+    after = re.search(r"against (\d+) reference poses after it converged: position error mean ([0-9.]+) m", out)
+    before = re.search(r"(\d+) reference poses fall before the global localization converged", out)
+    assert after and before and float(after[2]) < 0.1
+    assert int(after[1]) + int(before[1]) == ok.sum()
     with pytest.raises(SystemExit):
         parser.parse_args(["localize", str(yaml), str(log), "--init", "1,2", "-o", "x.csv"])
     with pytest.raises(SystemExit):

@@ -77,10 +77,16 @@ def run(args) -> int:
         ref = read_carmen(args.reference)
         pairs = pair_scans(scans, ref.scans)
         ok = pairs >= 0
+        # a global localization's guesses before it converged are not its track: reported apart
+        ok &= result.converged[np.maximum(pairs, 0)]
+        before = int((pairs >= 0).sum() - ok.sum())
         pe, he = track_errors(result.poses[pairs[ok]], np.array([s.pose for s in ref.scans])[ok])
-        print(f"against {int(ok.sum()):,} reference poses: position error mean {pe.mean():.3f} m, "
-              f"max {pe.max():.3f} m; heading error mean {math.degrees(he.mean()):.2f}°, "
-              f"max {math.degrees(he.max()):.2f}°")
+        if pe.size:
+            print(f"against {int(ok.sum()):,} reference poses{' after it converged' if glob else ''}: position error "
+                  f"mean {pe.mean():.3f} m, max {pe.max():.3f} m; heading error mean {math.degrees(he.mean()):.2f}°, "
+                  f"max {math.degrees(he.max()):.2f}°")
+        if before:
+            print(f"{before:,} reference poses fall before the global localization converged")
     print(f"wrote {args.output}")
     if args.png:
         print(f"wrote {save_track_png(args.png, loc, result)}")

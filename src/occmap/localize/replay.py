@@ -69,6 +69,8 @@ class ReplayResult:
     ess: np.ndarray  # (N,)
     n_particles: np.ndarray  # (N,)
     updated: np.ndarray  # (N,) bool
+    converged: np.ndarray  # (N,) bool: False while a global localization has not converged
+    lost: np.ndarray  # (N,) bool: PoseEstimate.lost
     seconds: np.ndarray  # (N,) wall time of each update() call
     warnings: list
 
@@ -102,6 +104,8 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
     ess = np.empty(n)
     count = np.empty(n, dtype=np.int64)
     updated = np.zeros(n, dtype=bool)
+    converged = np.zeros(n, dtype=bool)
+    lost = np.zeros(n, dtype=bool)
     secs = np.empty(n)
     stamps = np.array([s.stamp for s in scans], dtype=np.float64)
     caught = []
@@ -117,6 +121,8 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
             ess[i] = est.ess
             count[i] = est.n_particles
             updated[i] = est.updated
+            converged[i] = est.converged
+            lost[i] = est.lost
             odo[i] = o
             if progress and (i % 200 == 0 or i == n - 1):
                 print(f"\rscan {i + 1:,}/{n:,}", end="", file=sys.stderr, flush=True)
@@ -124,7 +130,7 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
     poses = compose_poses(poses, offset)
     if progress:
         print(file=sys.stderr)
-    return ReplayResult(stamps, poses, odo, covs, ess, count, updated, secs, caught)
+    return ReplayResult(stamps, poses, odo, covs, ess, count, updated, converged, lost, secs, caught)
 
 
 def track_errors(poses, reference) -> tuple[np.ndarray, np.ndarray]:
