@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import bz2
 import gzip
+import itertools
 import lzma
 import math
 import shutil
@@ -19,6 +20,7 @@ from occmap.io.carmen import (
     CarmenStats,
     flaser_angles,
     iter_carmen,
+    laser_offset,
     read_carmen,
 )
 from occmap.scan import LaserScan, stack_scans
@@ -200,10 +202,11 @@ def test_laser_offset_from_params(tmp_path, data_dir):
     bad = read_carmen(_write(tmp_path, ["PARAM robot_frontlaser_side_offset nan 0 h 0", _flaser()], "bad.log"))
     with pytest.raises(FormatError, match=r"bad\.log: PARAM robot_frontlaser_side_offset is 'nan'"):
         bad.laser_offset()
-    raw = read_carmen(data_dir / "carmen" / "fr079-raw.clf.bz2", every=50)
-    off = raw.laser_offset()
+    stats = CarmenStats()
+    scans = list(itertools.islice(iter_carmen(data_dir / "carmen" / "fr079-raw.clf.bz2", stats=stats), 200))
+    off = laser_offset(stats.params)  # the PARAMs come first
     assert off == (-0.04, 0.0, 0.0)
-    for s in raw.scans:
+    for s in scans:
         c, sn = math.cos(s.odom[2]), math.sin(s.odom[2])
         np.testing.assert_allclose(s.pose[:2], s.odom[:2] + off[0] * np.array([c, sn]), atol=2e-3)
 
