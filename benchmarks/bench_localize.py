@@ -212,6 +212,13 @@ def tracking_section(d: Loaded, quick: bool) -> list[str]:
                      f"{gx:.3f} m | {ms:.2f} ms |")
     m = rows[-1]
     meets = m[1] <= 0.04 and m[4] <= 0.8 and m[3] <= 0.3
+    where = ""
+    if (pe > 0.5).any():
+        k = int(np.argmax(pe > 0.5))
+        near = d.fits[ok][max(0, k - 20):k + 21]
+        where = (f" The error first exceeds 0.5 m at reference pose {k:,} ({dist[k]:.0f} m of travel; mean "
+                 f"{pe[:k].mean():.4f} m, max {pe[:k].max():.3f} m before it), where {int((~near).sum())} of the "
+                 f"{near.size} reference poses around it do not fit their own map.")
     return [
         f"### {d.run.title}",
         "",
@@ -224,7 +231,7 @@ def tracking_section(d: Loaded, quick: bool) -> list[str]:
         *table,
         "",
         f"Default filter: mean {m[1]:.4f} m / {m[4]:.3f}°, max {m[3]:.3f} m: "
-        f"{'meets' if meets else 'misses'} the targets (mean ≤ 0.04 m, ≤ 0.8°, max ≤ 0.3 m).",
+        f"{'meets' if meets else 'misses'} the targets (mean ≤ 0.04 m, ≤ 0.8°, max ≤ 0.3 m).{where}",
         "",
         f"![error curves](docs/images/localize_{d.run.key}.png)",
         "",

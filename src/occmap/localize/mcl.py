@@ -31,6 +31,10 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
 * **estimate** — the weighted mean of the dominant mode of the cloud (circular mean for the
   heading), its covariance and the effective sample size. A multi-modal cloud (global
   localization before it converges) reports its heaviest mode and the share of weight in it.
+  ``fit`` is the share of the scan the map explains at the estimate and ``lost`` says it fell well
+  below its usual value (``lost_fit``): the signal a caller acts on. Measured on the real runs
+  (``lost_fit = 0.85``): raised for 4.4 % of Intel's scans while the track is right, and for the
+  first scans after a simulated kidnapping until the filter is found again.
 * **global localization** — :meth:`MonteCarloLocalizer.initialize_global` spreads
   ``global_particles`` over the free space and runs the filter coarse to fine: until the dominant
   mode holds ``converged_weight`` of the weight, beams score with the wider ``global_sigma_hit``
@@ -142,8 +146,9 @@ class PoseEstimate:
         Beams used by the measurement update (0 when it did not run or had none).
     fit : float
         Share of the scan's valid beams whose end points, seen from ``pose``, lie within
-        ``refine_cutoff`` of an obstacle of the map (NaN when the filter did not run or the scan
-        had no valid reading): how much of what the sensor sees the map explains at the estimate.
+        ``refine_cutoff`` of an obstacle of the map (the last filter run's when the filter did not
+        run; NaN when the scan had no valid reading): how much of what the sensor sees the map
+        explains at the estimate.
     lost : bool
         ``fit`` below ``lost_fit`` times its usual value (its average over about the last 100 filter
         runs that were not lost): much of the scan is unexplained where the filter believes the robot
