@@ -202,3 +202,29 @@ def test_reference_fit_tells_a_scan_at_its_pose_from_one_moved(intel):
     assert np.median(reference_fit(field, turned)) > 0.1
     none = LaserScan(pose=np.zeros(3), ranges=np.full(3, 90.0), angles=np.zeros(3), max_range=81.0)
     assert np.isnan(reference_fit(field, [none])[0])
+
+
+def test_lost_flag_on_a_real_run_kidnapped(data_dir):
+    """Freiburg 079's raw run tracked in its corrected map, then the cloud teleported 2.2 m and 46°
+    mid-run: the lost flag stays down (a few per cent of the scans) while the track is right and
+    goes up from the teleport on. (Finding the robot again is not asserted: random-particle
+    injection does not yet bring it back within 20 m on the real runs; see BENCHMARKS.md.)"""
+    from occmap.io.carmen import CarmenStats, laser_offset
+
+    carmen = data_dir / "carmen"
+    ref = read_carmen(carmen / "freiburg-079-corrected.log.gz")
+    grid = map_scans(ref.stack(), 0.05).grid
+    stats = CarmenStats()
+    raw = list(itertools.islice(iter_carmen(carmen / "fr079-raw.clf.bz2", stats=stats), 700))
+    loc = make_localizer(grid, seed=3, sensor_offset=laser_offset(stats.params))
+    ref_poses = np.array([s.pose for s in ref.scans])
+    res = replay(loc, raw[:400], init=ref_poses[0], cov=np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2]))
+    loc.particles[:, :2] += (2.0, 1.0)
+    loc.particles[:, 2] += 0.8
+    after = [loc.update(s.odom, s.ranges, s.angles, s.max_range) for s in raw[400:450]]
+    pairs = pair_scans(raw[:400], ref.scans)
+    ok = pairs >= 0
+    pe, _ = track_errors(res.poses[pairs[ok]], ref_poses[ok])
+    assert pe.max() < 0.3  # tracked before
+    assert res.lost.mean() < 0.1
+    assert np.mean([e.lost for e in after]) > 0.9
