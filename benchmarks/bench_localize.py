@@ -1,17 +1,24 @@
-"""Monte Carlo localization: the speed of one filter update, and accuracy on the real Intel log.
+"""Monte Carlo localization: the speed of one filter update, and accuracy on two real runs.
 
 1. One update (motion, measurement, resampling, estimate) with 2,000 particles and 60 beams,
    against the target of 10 ms on this machine; the measurement kernel alone, serial and parallel.
-2. Intel Research Lab: the map is built from ``intel-corrected.log.gz`` (5 cm), then the raw run
-   ``intel-raw.clf.bz2`` (13,631 scans, drifting wheel odometry) is localized in it. Its scans pair
-   with the corrected log's by logger timestamp and identical ranges, so the 910 corrected poses
-   are the reference. Tracking from the first corrected pose with plain AMCL and with each
-   addition (roughening, scan-match refinement, with and without feeding it back to the cloud);
-   global localization from particles spread over the free space, for several seeds and with each
-   part of its coarse-to-fine schedule taken away in turn.
+2. Two development runs, one set of defaults: Intel Research Lab and Freiburg building 079. For
+   each, the map is built at 5 cm from the SLAM-corrected log, then the raw run (drifting wheel
+   odometry) is localized in it. Raw scans pair with the corrected log's by logger timestamp and
+   identical ranges (:func:`~occmap.localize.replay.pair_scans`), so the corrected poses are the
+   reference. Tracking from the first corrected pose with plain AMCL and with each addition;
+   global localization from particles spread over the free space, for 10 seeds (on Intel also
+   with each part of its coarse-to-fine schedule taken away in turn).
 
-Run: ``.venv/bin/python benchmarks/bench_localize.py [--quick]`` (``--quick``: the first 3,000 scans).
-Writes the ``localize`` section of BENCHMARKS.md and docs/images/localize_intel.png.
+The Freiburg 079 laser sits 0.04 m behind the robot's centre (``PARAM robot_frontlaser_offset``):
+the filter tracks the robot with its odometry and the track is compared as the laser's. Where a
+corrected pose does not fit its own map (median end-point distance above 0.1 m,
+:func:`~occmap.localize.replay.reference_fit`) the reference itself is in doubt; the tables give
+the error over all reference poses and over those that fit.
+
+Run: ``.venv/bin/python benchmarks/bench_localize.py [--quick]`` (``--quick``: the first 3,000
+scans of each run, three global seeds). Writes the ``localize`` section of BENCHMARKS.md and
+docs/images/localize_intel.png, localize_fr079.png.
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,20 +37,66 @@ from _report import ROOT, median_times, write_section  # noqa: E402
 from occmap._data import find_shared_data  # noqa: E402
 from occmap.io.carmen import read_carmen  # noqa: E402
 from occmap.localize import _kernels as K  # noqa: E402
-from occmap.localize.likelihood_field import beam_end_points  # noqa: E402
+from occmap.localize.likelihood_field import LikelihoodField, beam_end_points  # noqa: E402
+from occmap.localize.params import LocalizationParams  # noqa: E402
 from occmap.localize.replay import (  # noqa: E402
-    convergence_distance, make_localizer, pair_scans, replay, save_error_png, save_track_png, track_errors, travelled,
+    convergence_distance, make_localizer, pair_scans, reference_fit, replay, save_error_png, save_track_png,
+    track_errors, travelled,
 )
 from occmap.mapping2d import map_scans  # noqa: E402
 
-IMAGE = ROOT / "docs" / "images" / "localize_intel.png"
-TRACK_IMAGE = ROOT / "docs" / "images" / "localize_intel_track.png"
+#: Reference poses whose scan's median end-point distance to the map exceeds this (m) are in doubt.
+FIT = 0.1
+INIT_COV = np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2])
 
 
-def bench_update(grid, raw, ref_pose) -> list[str]:
-    loc = make_localizer(grid, particles=2000, beams=60, seed=1)
-    loc.initialize(ref_pose, np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2]))
-    scans = raw[:400]
+@dataclass
+class Run:
+    key: str
+    title: str
+    corrected: str
+    raw: str
+    credit: str
+
+
+RUNS = (
+    Run("intel", "Intel Research Lab", "intel-corrected.log.gz", "intel-raw.clf.bz2",
+        "D. Hähnel; raw log from the Freiburg SLAM evaluation set"),
+    Run("fr079", "Freiburg building 079", "freiburg-079-corrected.log.gz", "fr079-raw.clf.bz2",
+        "University of Freiburg; raw log from the Freiburg SLAM evaluation set"),
+)
+
+
+@dataclass
+class Loaded:
+    run: Run
+    raw: list
+    grid: object
+    pairs: np.ndarray
+    ref_poses: np.ndarray
+    offset: tuple
+    fits: np.ndarray  # per reference pose: True where it fits its own map
+
+
+def load(carmen: Path, run: Run, quick: bool) -> Loaded:
+    t0 = time.perf_counter()
+    ref_log = read_carmen(carmen / run.corrected)
+    raw_log = read_carmen(carmen / run.raw)
+    grid = map_scans(ref_log.stack(), 0.05).grid
+    pairs = pair_scans(raw_log.scans, ref_log.scans)
+    fit = reference_fit(LikelihoodField(grid, LocalizationParams()), ref_log.scans)
+    raw = raw_log.scans[:3000] if quick else raw_log.scans
+    print(f"{run.title}: read and mapped in {time.perf_counter() - t0:.1f} s; {int((pairs >= 0).sum())} of "
+          f"{len(ref_log)} reference scans paired; {int((fit > FIT).sum())} do not fit their own map; laser offset "
+          f"{raw_log.laser_offset()}", flush=True)
+    return Loaded(run, raw, grid, pairs, np.array([s.pose for s in ref_log.scans]), raw_log.laser_offset(),
+                  fit <= FIT)
+
+
+def bench_update(d: Loaded) -> list[str]:
+    loc = make_localizer(d.grid, particles=2000, beams=60, seed=1)
+    loc.initialize(d.ref_poses[0], INIT_COV)
+    scans = d.raw[:400]
     state = {"i": 0}
 
     def one_update():
@@ -74,25 +128,36 @@ def bench_update(grid, raw, ref_pose) -> list[str]:
     ]
 
 
-def run_tracking(grid, raw, ref_poses, pairs, label, **opts):
+VARIANTS = [
+    ("plain AMCL (filter every 0.2 m / 30°)", dict(plain=True)),
+    ("plain AMCL, filter every 5 cm / 0.1 rad", dict(plain=True, update_min_d=0.05, update_min_a=0.1)),
+    ("+ random term over the field's range", dict(plain=True, update_min_d=0.05, update_min_a=0.1,
+                                                  z_rand_span="field")),
+    ("+ tempering, scan-match refinement fed back to the cloud (default)", dict()),
+]
+
+
+def run_tracking(d: Loaded, label, **opts):
     plain = opts.pop("plain", False)
-    loc = make_localizer(grid, seed=7, plain=plain, **opts)
+    loc = make_localizer(d.grid, seed=7, plain=plain, sensor_offset=d.offset, **opts)
     t0 = time.perf_counter()
-    res = replay(loc, raw, init=ref_poses[0], cov=np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2]))
+    res = replay(loc, d.raw, init=d.ref_poses[0], cov=INIT_COV)
     secs = time.perf_counter() - t0
-    ok = (pairs >= 0) & (pairs < len(raw))
-    pe, he = track_errors(res.poses[pairs[ok]], ref_poses[ok])
+    ok = (d.pairs >= 0) & (d.pairs < len(d.raw))
+    pe, he = track_errors(res.poses[d.pairs[ok]], d.ref_poses[ok])
+    good = d.fits[ok]
     row = (label, pe.mean(), np.percentile(pe, 95), pe.max(), math.degrees(he.mean()), math.degrees(he.max()),
-           1e3 * np.median(res.seconds[res.updated]), secs)
-    print(f"{label:55s} pos mean {pe.mean():.4f} p95 {row[2]:.3f} max {pe.max():.3f} m; heading mean "
-          f"{row[4]:.3f}° max {row[5]:.2f}°; {row[6]:.2f} ms/update; {secs:.0f} s", flush=True)
+           pe[good].mean(), pe[good].max(), 1e3 * np.median(res.seconds[res.updated]))
+    print(f"{d.run.key} {label:55s} pos mean {row[1]:.4f} p95 {row[2]:.3f} max {row[3]:.3f} m; heading mean "
+          f"{row[4]:.3f}° max {row[5]:.2f}°; where the reference fits: mean {row[6]:.4f} max {row[7]:.3f} m; "
+          f"{row[8]:.2f} ms/update; {secs:.0f} s", flush=True)
     return row, pe, he, res, loc
 
 
-#: Reference poses a global localization is scored over (about 150 m of travel).
-GLOBAL_REFS = 200
+#: Reference travel (m) a global localization is scored over.
+GLOBAL_TRAVEL = 40.0
 GLOBAL_SEEDS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
-#: The coarse-to-fine schedule with one part taken away (5 seeds each).
+#: The coarse-to-fine schedule with one part taken away (Intel, 5 seeds each).
 GLOBAL_ABLATIONS = [
     ("hit term 0.2 m throughout (no coarse phase)", dict(global_sigma_hit=0.2)),
     ("filter every 5 cm / 0.1 rad while global", dict(global_update_min_d=0.05, global_update_min_a=0.1)),
@@ -100,22 +165,107 @@ GLOBAL_ABLATIONS = [
 ]
 
 
-def run_global(grid, raw, ref_poses, pairs, seed, **opts):
-    """Global localization over the first GLOBAL_REFS reference poses: (convergence distance, worst
-    error after it, particles at the start, at the end, filter runs until converged)."""
-    loc = make_localizer(grid, seed=seed, **opts)
-    stop = min(len(raw), int(pairs[pairs >= 0][min(GLOBAL_REFS, (pairs >= 0).sum() - 1)]))
-    res = replay(loc, raw[:stop], global_localization=True)
-    ok = (pairs >= 0) & (pairs < stop)
-    pe, _ = track_errors(res.poses[pairs[ok]], ref_poses[ok])
-    dist = travelled(ref_poses[ok])
+def run_global(d: Loaded, seed, **opts):
+    """Global localization over the first GLOBAL_TRAVEL metres of reference travel: (convergence
+    distance, worst error after it, particles at the start, at the end, filter runs until converged)."""
+    loc = make_localizer(d.grid, seed=seed, sensor_offset=d.offset, **opts)
+    paired = np.flatnonzero(d.pairs >= 0)
+    dist_all = travelled(d.ref_poses[paired])
+    last = paired[min(int(np.searchsorted(dist_all, GLOBAL_TRAVEL)), len(paired) - 1)]
+    stop = min(len(d.raw), int(d.pairs[last]) + 1)
+    res = replay(loc, d.raw[:stop], global_localization=True)
+    ok = (d.pairs >= 0) & (d.pairs < stop)
+    pe, _ = track_errors(res.poses[d.pairs[ok]], d.ref_poses[ok])
+    dist = travelled(d.ref_poses[ok])
     conv = convergence_distance(pe, dist, 0.2)
     worst = float(pe[dist >= conv].max()) if math.isfinite(conv) else math.inf
-    return conv, worst, loc.global_particles, int(res.n_particles[-1]), loc.stats.converged_after
+    return conv, worst, loc.params.global_particles, int(res.n_particles[-1]), loc.stats.converged_after
 
 
 def _dist(c: float) -> str:
     return f"{c:.1f} m" if math.isfinite(c) else "never"
+
+
+def tracking_section(d: Loaded, quick: bool) -> list[str]:
+    rows, curves, best = [], {}, None
+    for label, opts in VARIANTS:
+        row, pe, he, res, loc = run_tracking(d, label, **dict(opts))
+        rows.append(row)
+        curves[label] = (pe, he)
+        if label.endswith("(default)"):
+            best = (pe, he, res, loc)
+    ok = (d.pairs >= 0) & (d.pairs < len(d.raw))
+    dist = travelled(d.ref_poses[ok])
+    plain_pe, plain_he = curves[VARIANTS[0][0]]
+    pe, he, res, loc = best
+    image = ROOT / "docs" / "images" / f"localize_{d.run.key}.png"
+    image.parent.mkdir(parents=True, exist_ok=True)
+    save_error_png(image, dist, pe, he, title=f"{d.run.title}, raw odometry localized in the corrected map: "
+                   "error against the corrected poses", curves=[
+                       ("plain AMCL", (230, 120, 30), plain_pe, plain_he), ("this filter", (30, 60, 230), pe, he)])
+    save_track_png(image.with_name(f"localize_{d.run.key}_track.png"), loc, res, reference=d.ref_poses[ok])
+    n_fit = int(d.fits[ok].sum())
+    table = ["| filter | mean position error | p95 | max | mean heading error | max | where the reference fits: "
+             "mean | max | update (median) |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for label, m, p95, mx, hm, hx, gm, gx, ms in rows:
+        table.append(f"| {label} | {m:.4f} m | {p95:.3f} m | {mx:.3f} m | {hm:.3f}° | {hx:.2f}° | {gm:.4f} m | "
+                     f"{gx:.3f} m | {ms:.2f} ms |")
+    m = rows[-1]
+    meets = m[1] <= 0.04 and m[4] <= 0.8 and m[3] <= 0.3
+    where = ""
+    if (pe > 0.5).any():
+        k = int(np.argmax(pe > 0.5))
+        near = d.fits[ok][max(0, k - 20):k + 21]
+        where = (f" The error first exceeds 0.5 m at reference pose {k:,} ({dist[k]:.0f} m of travel; mean "
+                 f"{pe[:k].mean():.4f} m, max {pe[:k].max():.3f} m before it), where {int((~near).sum())} of the "
+                 f"{near.size} reference poses around it do not fit their own map.")
+    return [
+        f"### {d.run.title}",
+        "",
+        f"{d.run.title} ({d.run.credit}): map built at 5 cm from `{d.run.corrected}`, the raw run `{d.run.raw}` "
+        f"({len(d.raw):,} scans{' (quick run)' if quick else ''}, raw wheel odometry; laser offset "
+        f"{d.offset[0]:+.2f} m) localized in it with 2,000 particles and 60 beams; errors against the "
+        f"{int(ok.sum()):,} corrected poses, {n_fit:,} of which fit their own map (median end-point distance ≤ "
+        f"{FIT} m); tracking from the first corrected pose.",
+        "",
+        *table,
+        "",
+        f"Default filter: mean {m[1]:.4f} m / {m[4]:.3f}°, max {m[3]:.3f} m: "
+        f"{'meets' if meets else 'misses'} the targets (mean ≤ 0.04 m, ≤ 0.8°, max ≤ 0.3 m).{where}",
+        "",
+        f"![error curves](docs/images/localize_{d.run.key}.png)",
+        "",
+    ]
+
+
+def global_section(d: Loaded, seeds, ablate: bool) -> list[str]:
+    glob = []
+    for seed in seeds:
+        g = run_global(d, seed)
+        glob.append(g)
+        print(f"{d.run.key} global localization seed {seed}: converged after {_dist(g[0])} of travel, worst error "
+              f"after that {g[1]:.3f} m ({g[2]:,} → {g[3]:,} particles, converged after {g[4]} filter runs)",
+              flush=True)
+    out = [
+        f"Global localization on {d.run.title}, scored over the first {GLOBAL_TRAVEL:.0f} m of reference travel:",
+        "",
+        "| seed | convergence distance | worst error after it | filter runs until converged | particles |",
+        "|---:|---:|---:|---:|---:|",
+        *[f"| {seed} | {_dist(c)} | {w:.3f} m | {runs} | {n0:,} → {n1:,} |"
+          for seed, (c, w, n0, n1, runs) in zip(seeds, glob)],
+        "",
+        f"{sum(g[0] <= 30.0 for g in glob)} of {len(glob)} seeds converge within 30 m.",
+        "",
+    ]
+    if ablate:
+        rows = []
+        for label, opts in GLOBAL_ABLATIONS:
+            convs = [run_global(d, seed, **opts)[0] for seed in seeds[:5]]
+            rows.append(f"| {label} | {', '.join(_dist(c) for c in convs)} |")
+            print(f"{d.run.key} global localization, {label}: " + ", ".join(_dist(c) for c in convs), flush=True)
+        out += [f"Each part of the schedule taken away (seeds {', '.join(map(str, seeds[:5]))}):", "",
+                "| global phase | convergence distance per seed |", "|---|---|", *rows, ""]
+    return out
 
 
 def main() -> None:
@@ -125,110 +275,27 @@ def main() -> None:
         print("shared data not found: set OCCMAP_DATA")
         return
     carmen = data / "carmen"
-    t0 = time.perf_counter()
-    ref = read_carmen(carmen / "intel-corrected.log.gz").scans
-    raw = read_carmen(carmen / "intel-raw.clf.bz2").scans
-    grid = map_scans(read_carmen(carmen / "intel-corrected.log.gz").stack(), 0.05).grid
-    pairs = pair_scans(raw, ref)
-    ref_poses = np.array([s.pose for s in ref])
-    print(f"read and mapped in {time.perf_counter() - t0:.1f} s; {int((pairs >= 0).sum())} of {len(ref)} "
-          f"reference scans paired")
+    loaded = [load(carmen, run, quick) for run in RUNS]
+    speed = bench_update(loaded[0])
+    body = ["## Monte Carlo localization (`benchmarks/bench_localize.py`)", "", *speed, ""]
     if quick:
-        raw = raw[:3000]
-
-    speed = bench_update(grid, raw, ref_poses[0])
-
-    variants = [
-        ("plain AMCL (filter every 0.2 m / 30°)", dict(plain=True)),
-        ("plain AMCL + roughening K = 0.2", dict(plain=True, roughening=0.2)),
-        ("plain AMCL, filter every 5 cm / 0.1 rad", dict(plain=True, update_min_d=0.05, update_min_a=0.1)),
-        ("+ roughening K = 0.2", dict(plain=True, update_min_d=0.05, update_min_a=0.1, roughening=0.2)),
-        ("+ scan-match refinement of the estimate", dict(plain=True, update_min_d=0.05, update_min_a=0.1,
-                                                        refine=True)),
-        ("+ refinement fed back to the cloud (default)", dict()),
-        ("default + roughening K = 0.2", dict(roughening=0.2)),
+        body.insert(2, "_Quick run: the first 3,000 scans of each run, three global seeds, no ablations._\n")
+    body += [
+        "Both runs with one set of defaults (`occmap.localize.replay.DEFAULTS`). Targets: mean position error "
+        "≤ 0.04 m, mean heading error ≤ 0.8°, max ≤ 0.3 m, no divergence; global localization converged within "
+        "30 m of travel. Until its dominant mode holds 98 % of the weight a global localization runs coarse to "
+        "fine: 20,000 particles over the free space, hit term σ = 1 m, a filter run every 0.2 m / 30° (AMCL's "
+        "spacing), no scan-match refinement; then it tracks with the defaults and 2,000 particles. Convergence "
+        "distance: the distance travelled to the first reference pose from which the estimate stays within "
+        "0.2 m of the reference to the end of the stretch.",
+        "",
     ]
-    rows = []
-    curves = {}
-    best = None
-    for label, opts in variants:
-        row, pe, he, res, loc = run_tracking(grid, raw, ref_poses, pairs, label, **opts)
-        rows.append(row)
-        curves[label] = (pe, he)
-        if label.endswith("(default)"):
-            best = (pe, he, res, loc)
-
-    glob = []
-    for seed in GLOBAL_SEEDS:
-        g = run_global(grid, raw, ref_poses, pairs, seed)
-        glob.append(g)
-        print(f"global localization seed {seed}: converged after {_dist(g[0])} of travel, worst error after "
-              f"that {g[1]:.3f} m ({g[2]:,} → {g[3]:,} particles, converged after {g[4]} filter runs)", flush=True)
-    ablations = []
-    for label, opts in GLOBAL_ABLATIONS:
-        convs = [run_global(grid, raw, ref_poses, pairs, seed, **opts)[0] for seed in GLOBAL_SEEDS[:5]]
-        ablations.append((label, convs))
-        print(f"global localization, {label}: " + ", ".join(_dist(c) for c in convs), flush=True)
-
-    ok = (pairs >= 0) & (pairs < len(raw))
-    dist = travelled(ref_poses[ok])
-    plain_pe, plain_he = curves[variants[0][0]]
-    pe, he, res, loc = best
-    IMAGE.parent.mkdir(parents=True, exist_ok=True)
-    save_error_png(IMAGE, dist, pe, he, title="Intel Research Lab, raw odometry localized in the corrected map: "
-                   "error against the corrected poses", curves=[
-                       ("plain AMCL", (230, 120, 30), plain_pe, plain_he),
-                       ("this filter", (30, 60, 230), pe, he)])
-    save_track_png(TRACK_IMAGE, loc, res, reference=ref_poses[ok])
-    print(f"wrote {IMAGE} and {TRACK_IMAGE}")
-
-    table = ["| filter | mean position error | p95 | max | mean heading error | max | update (median) |",
-             "|---|---:|---:|---:|---:|---:|---:|"]
-    for label, m, p95, mx, hm, hx, ms, _ in rows:
-        table.append(f"| {label} | {m:.4f} m | {p95:.3f} m | {mx:.3f} m | {hm:.3f}° | {hx:.2f}° | {ms:.2f} ms |")
-    d = rows[5]
-    body = [
-        "## Monte Carlo localization (`benchmarks/bench_localize.py`)",
-        "",
-        *speed,
-        "",
-        f"Intel Research Lab (D. Hähnel; raw log from the Freiburg SLAM evaluation set): map built at 5 cm from "
-        f"`intel-corrected.log.gz`, the raw run `intel-raw.clf.bz2` ({len(raw):,} scans, raw wheel odometry) "
-        f"localized in it with 2,000 particles and 60 beams; errors against the {int(ok.sum())} corrected "
-        f"poses (scans paired by logger timestamp within 5 ms and identical ranges), tracking from the first "
-        f"corrected pose. Targets: mean position error ≤ 0.05 m, mean heading error ≤ 1°, no divergence.",
-        "",
-        *table,
-        "",
-        f"Default filter: mean {d[1]:.4f} m / {d[4]:.3f}° "
-        f"({'meets' if d[1] <= 0.05 and d[4] <= 1.0 else 'misses'} the targets), max {d[3]:.3f} m (no divergence).",
-        "",
-        f"Global localization (no initial pose), scored over the first {GLOBAL_REFS} reference poses "
-        f"(about {travelled(ref_poses[ok][:GLOBAL_REFS + 1])[-1]:.0f} m of travel). Until its dominant mode "
-        "holds 98 % of the weight the filter runs coarse to fine: 20,000 particles over the free space, "
-        "hit term σ = 1 m, a filter run every 0.2 m / 30° (AMCL's spacing), no scan-match refinement; then "
-        "it tracks with the default settings and 2,000 particles. Convergence distance: the distance "
-        "travelled to the first reference pose from which the estimate stays within 0.2 m of the "
-        "reference to the end of the stretch, counted from the first reference pose (the raw log "
-        "has moved 0.7 m by then); target ≤ 30 m.",
-        "",
-        "| seed | convergence distance | worst error after it | filter runs until converged | particles |",
-        "|---:|---:|---:|---:|---:|",
-        *[f"| {seed} | {_dist(c)} | {w:.3f} m | {runs} | {n0:,} → {n1:,} |"
-          for seed, (c, w, n0, n1, runs) in zip(GLOBAL_SEEDS, glob)],
-        "",
-        f"{sum(g[0] <= 30.0 for g in glob)} of {len(glob)} seeds converge within 30 m. Each part of the "
-        f"schedule taken away (seeds {', '.join(map(str, GLOBAL_SEEDS[:5]))}):",
-        "",
-        "| global phase | convergence distance per seed |",
-        "|---|---|",
-        *[f"| {label} | {', '.join(_dist(c) for c in convs)} |" for label, convs in ablations],
-        "",
-        "![error curves](docs/images/localize_intel.png)",
-    ]
-    if quick:
-        body.insert(2, "_Quick run: the first 3,000 scans only._\n")
-    write_section("localize", "\n".join(body))
+    seeds = GLOBAL_SEEDS[:3] if quick else GLOBAL_SEEDS
+    for d in loaded:
+        body += tracking_section(d, quick)
+    for d in loaded:
+        body += global_section(d, seeds, ablate=d.run.key == "intel" and not quick)
+    write_section("localize", "\n".join(body).rstrip())
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import bz2
 import gzip
+import itertools
 import lzma
 import math
 import shutil
@@ -19,6 +20,7 @@ from occmap.io.carmen import (
     CarmenStats,
     flaser_angles,
     iter_carmen,
+    laser_offset,
     read_carmen,
 )
 from occmap.scan import LaserScan, stack_scans
@@ -186,6 +188,27 @@ def test_synthetic_flaser_fields(tmp_path):
     assert s.stamp == 7.25 and s.max_range == DEFAULT_MAX_RANGE
     assert log.skipped_other == 3 and log.skipped_unknown == 1
     assert log.stats.unknown_types == {"WEIRD": 1} and log.params == {"x": "1"}
+
+
+def test_laser_offset_from_params(tmp_path, data_dir):
+    """The laser's pose on the robot: CARMEN's PARAMs; the raw Freiburg 079 log's FLASER poses sit
+    0.04 m behind its odometry poses, as its PARAM says."""
+    log = read_carmen(_write(tmp_path, ["PARAM robot_frontlaser_offset 0.1 0 h 0",
+                                        "PARAM robot_rearlaser_angular_offset 3.14 0 h 0", _flaser()]))
+    assert log.laser_offset() == (0.1, 0.0, 0.0)
+    assert log.laser_offset("rear") == (0.0, 0.0, 3.14)
+    with pytest.raises(InvalidArgumentError, match="'front' or 'rear'"):
+        log.laser_offset("side")
+    bad = read_carmen(_write(tmp_path, ["PARAM robot_frontlaser_side_offset nan 0 h 0", _flaser()], "bad.log"))
+    with pytest.raises(FormatError, match=r"bad\.log: PARAM robot_frontlaser_side_offset is 'nan'"):
+        bad.laser_offset()
+    stats = CarmenStats()
+    scans = list(itertools.islice(iter_carmen(data_dir / "carmen" / "fr079-raw.clf.bz2", stats=stats), 200))
+    off = laser_offset(stats.params)  # the PARAMs come first
+    assert off == (-0.04, 0.0, 0.0)
+    for s in scans:
+        c, sn = math.cos(s.odom[2]), math.sin(s.odom[2])
+        np.testing.assert_allclose(s.pose[:2], s.odom[:2] + off[0] * np.array([c, sn]), atol=2e-3)
 
 
 def test_missing_logger_timestamp_falls_back_to_ipc(tmp_path):

@@ -7,6 +7,7 @@ import argparse
 import bz2
 import itertools
 import math
+import re
 
 import numpy as np
 import pytest
@@ -134,6 +135,14 @@ def test_localize_command(intel, tmp_path, capsys):
     ok = pairs >= 0
     pe, _ = track_errors(rows[pairs[ok], 1:4], np.array([s.pose for s in ref])[ok])
     assert ok.sum() >= 10 and pe.mean() < 0.1
+    # global localization: the error against the reference counts from where it converged
+    corrected = intel_raw_path().with_name("intel-corrected.log.gz")
+    assert main(["localize", str(yaml), str(log), "-o", str(tmp_path / "g.csv"), "--reference", str(corrected)]) == 0
+    out = capsys.readouterr().out
+    after = re.search(r"against (\d+) reference poses after it converged: position error mean ([0-9.]+) m", out)
+    before = re.search(r"(\d+) reference poses fall before the global localization converged", out)
+    assert after and before and float(after[2]) < 0.1
+    assert int(after[1]) + int(before[1]) == ok.sum()
     with pytest.raises(SystemExit):
         parser.parse_args(["localize", str(yaml), str(log), "--init", "1,2", "-o", "x.csv"])
     with pytest.raises(SystemExit):
@@ -145,3 +154,77 @@ def intel_raw_path():
 
     return find_shared_data() / "carmen" / "intel-raw.clf.bz2"
 
+
+
+def test_replay_with_a_sensor_offset_reports_sensor_poses():
+    """A laser 0.3 m behind the robot's centre, the odometry the robot's: the filter tracks the
+    robot, and replay takes the initial pose and reports the track as the laser's (a log's poses)."""
+    from occmap.geometry.se2 import compose_poses
+    from occmap.grid2d import OccupancyGrid2D
+    from occmap.sim import World2D, simulate_scans
+
+    world = World2D.default()
+    robot = world.default_trajectory(n=300)[:80]
+    offset = (-0.3, 0.0, 0.0)
+    laser = compose_poses(robot, offset)
+    scans = simulate_scans(world, laser, n_beams=180, max_range=10.0, sigma=0.01, rng=5)
+    grid = OccupancyGrid2D(0.05, size=(20.4, 15.4), origin=(-0.2, -0.2))
+    grid.insert_scans(laser, np.array([s.ranges for s in scans]), scans[0].angles, max_range=10.0)
+    log = [LaserScan(pose=laser[i], ranges=s.ranges, angles=s.angles, max_range=10.0, stamp=float(i), odom=robot[i])
+           for i, s in enumerate(scans)]
+    cov = np.diag([0.02 ** 2, 0.02 ** 2, 0.01 ** 2])
+    loc = make_localizer(grid, particles=500, seed=1, sensor_offset=offset)
+    res = replay(loc, log, init=laser[0], cov=cov)
+    pe, he = track_errors(res.poses, laser)
+    assert pe.max() < 0.08 and he.max() < 0.05
+    # the filter itself holds the robot's pose, 0.3 m ahead of the laser
+    assert track_errors([loc.estimate.pose], robot[-1:])[0][0] < 0.08
+    assert track_errors([loc.estimate.pose], laser[-1:])[0][0] > 0.2
+
+
+def test_reference_fit_tells_a_scan_at_its_pose_from_one_moved(intel):
+    """A corrected scan at its own pose ends on the map's walls (median distance within a cell or
+    two); the same scan moved 0.5 m or turned 10° does not."""
+    from occmap.localize.likelihood_field import LikelihoodField
+    from occmap.localize.params import LocalizationParams
+    from occmap.localize.replay import reference_fit
+
+    grid, ref, _ = intel
+    field = LikelihoodField(grid, LocalizationParams())
+    scans = ref[::60]
+    fit = reference_fit(field, scans)
+    assert np.median(fit) <= 0.05 and fit.max() < 0.15
+    moved = [LaserScan(pose=s.pose + [0.5, 0, 0], ranges=s.ranges, angles=s.angles, max_range=s.max_range)
+             for s in scans]
+    turned = [LaserScan(pose=s.pose + [0, 0, math.radians(10)], ranges=s.ranges, angles=s.angles,
+                        max_range=s.max_range) for s in scans]
+    assert np.median(reference_fit(field, moved)) > 0.15
+    assert np.median(reference_fit(field, turned)) > 0.1
+    none = LaserScan(pose=np.zeros(3), ranges=np.full(3, 90.0), angles=np.zeros(3), max_range=81.0)
+    assert np.isnan(reference_fit(field, [none])[0])
+
+
+def test_lost_flag_on_a_real_run_kidnapped(data_dir):
+    """Freiburg 079's raw run tracked in its corrected map, then the cloud teleported 2.2 m and 46°
+    mid-run: the lost flag stays down (a few per cent of the scans) while the track is right and
+    goes up from the teleport on. (Finding the robot again is not asserted: random-particle
+    injection does not yet bring it back within 20 m on the real runs; see BENCHMARKS.md.)"""
+    from occmap.io.carmen import CarmenStats, laser_offset
+
+    carmen = data_dir / "carmen"
+    ref = read_carmen(carmen / "freiburg-079-corrected.log.gz")
+    grid = map_scans(ref.stack(), 0.05).grid
+    stats = CarmenStats()
+    raw = list(itertools.islice(iter_carmen(carmen / "fr079-raw.clf.bz2", stats=stats), 700))
+    loc = make_localizer(grid, seed=3, sensor_offset=laser_offset(stats.params))
+    ref_poses = np.array([s.pose for s in ref.scans])
+    res = replay(loc, raw[:400], init=ref_poses[0], cov=np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2]))
+    loc.particles[:, :2] += (2.0, 1.0)
+    loc.particles[:, 2] += 0.8
+    after = [loc.update(s.odom, s.ranges, s.angles, s.max_range) for s in raw[400:450]]
+    pairs = pair_scans(raw[:400], ref.scans)
+    ok = pairs >= 0
+    pe, _ = track_errors(res.poses[pairs[ok]], ref_poses[ok])
+    assert pe.max() < 0.3  # tracked before
+    assert res.lost.mean() < 0.1
+    assert np.mean([e.lost for e in after]) > 0.9

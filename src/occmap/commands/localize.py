@@ -18,7 +18,7 @@ def add_parser(subparsers):
                    "ROS bag with sensor_msgs/LaserScan whose poses in --fixed-frame (odom) serve as odometry")
     start = p.add_mutually_exclusive_group()
     start.add_argument("--init", type=_options.pose2d, metavar="X,Y,THETA",
-                       help="initial pose in the map (metres, radians); tracking from there")
+                       help="initial pose of the laser in the map (metres, radians); tracking from there")
     start.add_argument("--global", dest="global_localization", action="store_true",
                        help="global localization: start from particles over all free space (the default "
                             "when --init is not given)")
@@ -44,7 +44,8 @@ def run(args) -> int:
 
     from ..errors import InvalidArgumentError
     from ..grid2d import OccupancyGrid2D
-    from ..io.carmen import read_carmen
+    from ..sources import CarmenScans
+    from ..io.carmen import laser_offset, read_carmen
     from ..localize.replay import make_localizer, pair_scans, replay, save_track_png, track_errors, write_track_csv
 
     check_outputs({"-o": args.output, "--png": args.png},
@@ -59,7 +60,10 @@ def run(args) -> int:
     print(f"read {len(scans):,} scans from {args.log} and a {grid.shape[1]} × {grid.shape[0]} map in "
           f"{time.perf_counter() - t0:.2f} s")
     glob = args.init is None
-    loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain)
+    # a CARMEN log's odometry is the robot's, its scan poses and --init the laser's (replay converts)
+    offset = laser_offset(source.stats.params, path=args.log) if isinstance(source, CarmenScans) else (0.0, 0.0, 0.0)
+    loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain,
+                         sensor_offset=offset)
     result = replay(loc, scans, init=args.init, cov=np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]),
                     global_localization=glob, progress=sys.stderr.isatty())
     write_track_csv(args.output, result)
@@ -73,10 +77,16 @@ def run(args) -> int:
         ref = read_carmen(args.reference)
         pairs = pair_scans(scans, ref.scans)
         ok = pairs >= 0
+        # a global localization's guesses before it converged are not its track: reported apart
+        ok &= result.converged[np.maximum(pairs, 0)]
+        before = int((pairs >= 0).sum() - ok.sum())
         pe, he = track_errors(result.poses[pairs[ok]], np.array([s.pose for s in ref.scans])[ok])
-        print(f"against {int(ok.sum()):,} reference poses: position error mean {pe.mean():.3f} m, "
-              f"max {pe.max():.3f} m; heading error mean {math.degrees(he.mean()):.2f}°, "
-              f"max {math.degrees(he.max()):.2f}°")
+        if pe.size:
+            print(f"against {int(ok.sum()):,} reference poses{' after it converged' if glob else ''}: position error "
+                  f"mean {pe.mean():.3f} m, max {pe.max():.3f} m; heading error mean {math.degrees(he.mean()):.2f}°, "
+                  f"max {math.degrees(he.max()):.2f}°")
+        if before:
+            print(f"{before:,} reference poses fall before the global localization converged")
     print(f"wrote {args.output}")
     if args.png:
         print(f"wrote {save_track_png(args.png, loc, result)}")

@@ -91,6 +91,7 @@ __all__ = [
     "iter_carmen",
     "read_carmen",
     "flaser_angles",
+    "laser_offset",
 ]
 
 #: Max range (m) for FLASER/RLASER when neither the caller nor a PARAM gives one (SICK LMS).
@@ -208,6 +209,33 @@ class CarmenLog:
     def stack(self) -> ScanStack:
         """All scans as arrays; see :func:`occmap.scan.stack_scans`."""
         return stack_scans(self.scans)
+
+    def laser_offset(self, laser: str = "front") -> tuple[float, float, float]:
+        """:func:`laser_offset` of this log's PARAMs."""
+        return laser_offset(self.params, laser, self.path)
+
+
+def laser_offset(params: dict[str, str], laser: str = "front", path="CARMEN log") -> tuple[float, float, float]:
+    """Pose ``(x, y, theta)`` (m, rad) of the ``"front"`` or ``"rear"`` laser in the robot frame,
+    from CARMEN's ``PARAM robot_<laser>laser_offset`` (forward), ``..._side_offset`` (left) and
+    ``..._angular_offset`` in ``params`` (:attr:`CarmenStats.params`); a missing one is 0. A FLASER
+    line's ``x y theta`` is this laser's pose, its ``odom_*`` the robot's (Freiburg 079's raw log:
+    ``robot_frontlaser_offset -0.04``). A value that is not a finite number raises
+    :class:`~occmap.errors.FormatError` naming ``path`` and the PARAM."""
+    if laser not in ("front", "rear"):
+        raise InvalidArgumentError(f"laser must be 'front' or 'rear', got {laser!r}")
+    out = []
+    for part in ("offset", "side_offset", "angular_offset"):
+        name = f"robot_{laser}laser_{part}"
+        text = params.get(name, "0")
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise FormatError(path, f"PARAM {name} is {text!r}, not a finite number")
+        out.append(value)
+    return tuple(out)
 
 
 def flaser_angles(n: int) -> np.ndarray:

@@ -2,7 +2,9 @@
 
 The distance ``d`` from a beam's end point to the nearest occupied cell is precomputed once for
 the whole map with the exact Euclidean distance transform (:mod:`occmap.raster.edt`) and clamped
-at ``laser_likelihood_max_dist``; each beam scores ``pz = z_hit · exp(−d² / 2σ²) + z_rand / max_range``.
+at ``laser_likelihood_max_dist``; each beam scores ``pz = z_hit · exp(−d² / 2σ²) + z_rand / D`` with
+``D`` the clamp (``z_rand_span="field"``: the random term is a share of beams spread over the distances
+the field tells apart) or, as AMCL, the sensor's ``max_range`` (``z_rand_span="range"``).
 Only occupied cells (occupancy above ``occupied_thresh``) are obstacles; an end point in an
 unknown cell scores by its distance like any other, one off the map as if ``max_dist`` away.
 Beams combine as a product (the sum of ``beam_exponent · log pz``) or by AMCL's ``1 + Σ pz³``
@@ -97,7 +99,7 @@ class LikelihoodField:
         if len(self._tables) > _TABLES:
             self._tables.clear()
         p = self.params
-        rand = p.z_rand / max_range
+        rand = p.z_rand / (self.max_dist if p.z_rand_span == "field" else max_range)
         d = np.concatenate([self.distance.ravel(), [self.max_dist]])
         pz = p.z_hit * np.exp(-(d * d) / (2.0 * sigma ** 2)) + rand
         if p.model == "product":
@@ -121,6 +123,20 @@ class LikelihoodField:
         if self.params.model == "amcl":
             out = np.log1p(out)
         return out
+
+    def distances(self, pose, bx: np.ndarray, by: np.ndarray) -> np.ndarray:
+        """Distance (m) from each end point ``(bx, by)`` (pose frame) seen from ``pose``
+        ``(x, y, theta)`` to the nearest obstacle, ``max_dist`` off the map."""
+        x, y, t = (float(v) for v in pose)
+        c, s = math.cos(t), math.sin(t)
+        inv = 1.0 / self.resolution
+        ix = np.floor((x + c * bx - s * by - self.origin[0]) * inv).astype(np.int64)
+        iy = np.floor((y + s * bx + c * by - self.origin[1]) * inv).astype(np.int64)
+        H, W = self.distance.shape
+        inside = (ix >= 0) & (iy >= 0) & (ix < W) & (iy < H)
+        d = np.full(np.shape(bx), self.max_dist)
+        d[inside] = self.distance[iy[inside], ix[inside]]
+        return d
 
     def uniform_free(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` poses (n, 3) uniform over the free cells, headings uniform in (−π, π]."""

@@ -43,8 +43,6 @@ class LocalizationParams:
     update_min_d, update_min_a : float, default 0.0, 0.0
         Odometry translation (m) / rotation (rad) since the last filter run that triggers the next
         (0 and 0: every scan).
-    max_odom_jump : (float, float), default (1.0, 1.0)
-        Odometry motion (m, rad) between two calls above which it is treated as a jump.
     sensor_offset : (float, float, float), default (0, 0, 0)
         Pose ``(x, y, theta)`` of the sensor in the robot frame.
     laser_min_range : float, default 0.0
@@ -52,8 +50,14 @@ class LocalizationParams:
     max_beams : int, default 60
         Beams per measurement update, evenly spread over a scan's valid readings.
     z_hit, z_rand : float, default 0.95, 0.05
-        Likelihood-field mixture: weight of the Gaussian hit term and of the uniform random term
-        (``z_rand / max_range`` per metre); not both zero.
+        Likelihood-field mixture: weight of the Gaussian hit term and of the uniform random term;
+        not both zero.
+    z_rand_span : {"field", "range"}, default "field"
+        What the random term is spread over: the distance field's range (``z_rand /
+        laser_likelihood_max_dist`` per metre: the share of beams that end away from every mapped
+        obstacle, whatever the sensor) or, as AMCL, the sensor's range (``z_rand / max_range``: with
+        an 80 m laser the term all but vanishes, and one unmapped object or smeared wall outweighs
+        the rest of the scan).
     sigma_hit : float, default 0.2
         Standard deviation (m) of the hit term while tracking.
     laser_likelihood_max_dist : float, default 2.0
@@ -83,7 +87,11 @@ class LocalizationParams:
         Refine the estimate by a scan match against the distance field; also shift the particles
         by its correction.
     refine_cutoff : float, default 0.3
-        End points farther (m) than this from any obstacle are left out of the scan match.
+        End points farther (m) than this from any obstacle are left out of the scan match, and
+        count as unexplained in an estimate's ``fit``.
+    lost_fit : float, default 0.85
+        An estimate whose ``fit`` (share of the scan's beams the map explains there) is below this
+        share of its usual value is reported ``lost``.
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
@@ -106,7 +114,6 @@ class LocalizationParams:
     motion: OdometryMotionModel = field(default_factory=OdometryMotionModel)
     update_min_d: float = 0.0
     update_min_a: float = 0.0
-    max_odom_jump: tuple[float, float] = (1.0, 1.0)
     # the sensor
     sensor_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     laser_min_range: float = 0.0
@@ -114,6 +121,7 @@ class LocalizationParams:
     # the likelihood field
     z_hit: float = 0.95
     z_rand: float = 0.05
+    z_rand_span: str = "field"
     sigma_hit: float = 0.2
     laser_likelihood_max_dist: float = 2.0
     # how beams combine
@@ -135,6 +143,7 @@ class LocalizationParams:
     refine: bool = False
     refine_feedback: bool = False
     refine_cutoff: float = 0.3
+    lost_fit: float = 0.85
     # global localization
     global_particles: int = 20_000
     global_sigma_hit: float = 1.0
@@ -158,6 +167,8 @@ class LocalizationParams:
         for name in ("sigma_hit", "laser_likelihood_max_dist", "beam_exponent", "kld_err", "kld_z",
                      "refine_cutoff", "global_sigma_hit"):
             put(name, checks.positive(name, getattr(self, name)))
+        if self.z_rand_span not in ("field", "range"):
+            raise InvalidArgumentError(f"z_rand_span must be 'field' or 'range', got {self.z_rand_span!r}")
         if self.model not in ("product", "amcl"):
             raise InvalidArgumentError(f"model must be 'product' or 'amcl', got {self.model!r}")
         free_t = checks.fraction("free_thresh", self.free_thresh)
@@ -166,7 +177,7 @@ class LocalizationParams:
             raise InvalidArgumentError(f"need 0 <= free_thresh <= occupied_thresh <= 1, got {free_t!r}, {occ_t!r}")
         put("free_thresh", free_t)
         put("occupied_thresh", occ_t)
-        for name in ("resample_ess", "min_ess", "recovery_threshold"):
+        for name in ("resample_ess", "min_ess", "recovery_threshold", "lost_fit"):
             put(name, checks.fraction(name, getattr(self, name)))
         put("converged_weight", checks.fraction("converged_weight", self.converged_weight, zero=False))
         lo = checks.count("min_particles", self.min_particles)
@@ -177,8 +188,6 @@ class LocalizationParams:
         put("max_particles", hi)
         for name in ("kld", "refine", "refine_feedback", "reset_averages"):
             put(name, bool(getattr(self, name)))
-        jd, ja = self.max_odom_jump
-        put("max_odom_jump", (checks.positive("max_odom_jump[0]", jd), checks.positive("max_odom_jump[1]", ja)))
         off = tuple(self.sensor_offset)
         if len(off) != 3:
             raise InvalidArgumentError(f"sensor_offset must be three finite numbers (x, y, theta), got {off!r}")

@@ -23,12 +23,15 @@ import numpy as np
 
 from .._files import write_atomic
 from ..errors import InvalidArgumentError
+from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import wrap_angle
 from ..png import write_png
+from .likelihood_field import beam_end_points
 from .mcl import LocalizationWarning, MonteCarloLocalizer
 
 __all__ = [
-    "DEFAULTS", "PLAIN", "ReplayResult", "convergence_distance", "make_localizer", "pair_scans", "replay", "save_error_png",
+    "DEFAULTS", "PLAIN", "ReplayResult", "convergence_distance", "make_localizer", "pair_scans", "reference_fit", "replay",
+    "save_error_png",
     "save_track_png", "track_errors", "write_track_csv",
 ]
 
@@ -60,12 +63,14 @@ class ReplayResult:
     """The track of a replay, one row per scan."""
 
     stamps: np.ndarray  # (N,)
-    poses: np.ndarray  # (N, 3) estimates
+    poses: np.ndarray  # (N, 3) estimates of the sensor pose
     odometry: np.ndarray  # (N, 3) raw odometry
     covariances: np.ndarray  # (N, 3, 3)
     ess: np.ndarray  # (N,)
     n_particles: np.ndarray  # (N,)
     updated: np.ndarray  # (N,) bool
+    converged: np.ndarray  # (N,) bool: False while a global localization has not converged
+    lost: np.ndarray  # (N,) bool: PoseEstimate.lost
     seconds: np.ndarray  # (N,) wall time of each update() call
     warnings: list
 
@@ -77,14 +82,19 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
            progress: bool = False) -> ReplayResult:
     """Run ``localizer`` over ``scans`` (LaserScan records with ``odom``), starting from ``init``
     ``(x, y, theta)`` (with ``cov``) or, with ``global_localization``, from particles spread over
-    the free space. Warnings of the filter are collected (``ReplayResult.warnings``), not shown."""
+    the free space. Warnings of the filter are collected (``ReplayResult.warnings``), not shown.
+
+    ``init`` and the track's poses are the *sensor's*, as a log's poses are (a CARMEN FLASER line's
+    ``x y theta`` is the laser's). With a ``sensor_offset`` the filter tracks the robot (its odometry
+    is the robot's, :meth:`~occmap.io.carmen.CarmenLog.laser_offset`) and the poses are converted."""
     scans = list(scans)
     if not scans:
         raise InvalidArgumentError("the log holds no scans")
+    offset = np.array(localizer.params.sensor_offset)
     if global_localization:
         localizer.initialize_global()
     elif init is not None:
-        localizer.initialize(init, cov)
+        localizer.initialize(compose_poses(init, relative_poses(offset, np.zeros(3))), cov)
     else:
         raise InvalidArgumentError("give an initial pose or ask for global localization")
     n = len(scans)
@@ -94,6 +104,8 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
     ess = np.empty(n)
     count = np.empty(n, dtype=np.int64)
     updated = np.zeros(n, dtype=bool)
+    converged = np.zeros(n, dtype=bool)
+    lost = np.zeros(n, dtype=bool)
     secs = np.empty(n)
     stamps = np.array([s.stamp for s in scans], dtype=np.float64)
     caught = []
@@ -109,13 +121,16 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
             ess[i] = est.ess
             count[i] = est.n_particles
             updated[i] = est.updated
+            converged[i] = est.converged
+            lost[i] = est.lost
             odo[i] = o
             if progress and (i % 200 == 0 or i == n - 1):
                 print(f"\rscan {i + 1:,}/{n:,}", end="", file=sys.stderr, flush=True)
         caught = [str(w.message) for w in seen if issubclass(w.category, LocalizationWarning)]
+    poses = compose_poses(poses, offset)
     if progress:
         print(file=sys.stderr)
-    return ReplayResult(stamps, poses, odo, covs, ess, count, updated, secs, caught)
+    return ReplayResult(stamps, poses, odo, covs, ess, count, updated, converged, lost, secs, caught)
 
 
 def track_errors(poses, reference) -> tuple[np.ndarray, np.ndarray]:
@@ -135,6 +150,21 @@ def convergence_distance(position_error, distance, tolerance: float = 0.2) -> fl
         return float(distance[0]) if len(distance) else 0.0
     k = int(bad[-1]) + 1
     return float(distance[k]) if k < len(distance) else math.inf
+
+
+def reference_fit(field, scans) -> np.ndarray:
+    """How well each scan fits the map at its own pose (a corrected log's): the median distance (m)
+    from its valid end points to the nearest obstacle of ``field`` (a
+    :class:`~occmap.localize.likelihood_field.LikelihoodField`; ``max_dist`` off the map, NaN for
+    a scan with no valid reading). Where a reference pose fits its own map poorly the reference, or
+    the map there, is off, and an error measured against it says as much about the reference as
+    about the localizer (Freiburg 079 has such stretches)."""
+    out = np.full(len(scans), np.nan)
+    for k, s in enumerate(scans):
+        _, _, bx, by = beam_end_points(s.ranges, s.angles, s.max_range, field.params)
+        if bx.size:
+            out[k] = float(np.median(field.distances(s.pose, bx, by)))
+    return out
 
 
 def travelled(poses) -> np.ndarray:
@@ -279,8 +309,9 @@ def make_localizer(grid, *, particles: int = 2000, beams: int = 60, seed=0, plai
 
 
 #: Settings of a plain AMCL filter (AMCL's defaults: 0.2 m / 30° between filter runs, no tempering).
-PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05, update_min_d=0.2,
-             update_min_a=math.pi / 6, min_ess=0.0)
+PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05, z_rand_span="range",
+             update_min_d=0.2, update_min_a=math.pi / 6, min_ess=0.0)
 #: Settings that meet the accuracy targets on the Intel log (measured in benchmarks/bench_localize.py):
 #: a filter run every 5 cm / 0.1 rad, the estimate refined by a scan match that also moves the cloud.
-DEFAULTS = dict(PLAIN, update_min_d=0.05, update_min_a=0.1, min_ess=0.1, refine=True, refine_feedback=True)
+DEFAULTS = dict(PLAIN, z_rand_span="field", update_min_d=0.05, update_min_a=0.1, min_ess=0.1, refine=True,
+                refine_feedback=True)
