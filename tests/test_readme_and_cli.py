@@ -61,6 +61,12 @@ def test_demo_writes_a_picture(tmp_path, capsys):
         assert im.size[0] > 300 and im.size[1] > 200
         colours = im.convert("RGB").getcolors(maxcolors=1 << 20)
     assert len(colours) > 10  # paths, particles and text were drawn, not a blank canvas
+    with Image.open(tmp_path / "street.gif") as im:
+        assert im.n_frames > 50
+        im.seek(im.n_frames // 2)
+        frame = np.asarray(im.convert("RGB"))
+        assert (frame == (0, 170, 60)).all(axis=-1).any()  # a confirmed track drawn mid-way through the street
+    assert "0 track-scans on nothing moving" in printed
 
 
 def test_map2d_on_the_intel_log_writes_a_map_that_loads_back(tmp_path, capsys, data_dir):

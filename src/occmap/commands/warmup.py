@@ -179,6 +179,27 @@ def local_map(folder: Path) -> None:
     lethal = np.zeros((20, 20), bool)
     lethal[10, 10] = True
     inflate(lethal, ~lethal, resolution=0.1)
+    moving_objects()
+
+
+def moving_objects() -> None:
+    """A tracking local map on the first seconds of the simulated street (lidar and radar): tracks
+    confirmed, predicted into the costmap, the path check and the frames (``occmap demo``)."""
+    from ..local import LocalMap
+    from ..local.replay import frame_image, tracked_objects
+    from ..sim.street import Street
+
+    street = Street.default()
+    rng = np.random.default_rng(0)
+    lm = LocalMap((40.0, 40.0), 0.1, tracking=True)
+    for t in np.round(np.arange(0.0, 4.0, 0.1), 1):
+        scan, sweep = street.lidar(t, rng=rng), street.radar(t, rng=rng)
+        lm.move_to(*scan.pose[:2])
+        lm.insert_scan(scan.pose, scan.ranges, scan.angles, t, max_range=30.0)
+        lm.insert_radar(sweep.pose, sweep.range, sweep.azimuth, t, 60.0, sweep.radial_velocity, sweep.ego_velocity)
+    cost, _ = lm.costmap(at=lm.time + 1.0)
+    frame_image(cost, (5, 5), 2, tracked_objects(lm, 1.0))
+    lm.check_path(np.array([[50.0, -6.8, 0.0], [52.0, -6.8, 0.0]]), footprint=0.3, stamps=[lm.time, lm.time + 1.0])
 
 
 def localization(folder: Path) -> None:
