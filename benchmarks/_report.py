@@ -113,3 +113,25 @@ def write_section(name: str, body: str) -> None:
     tmp = BENCHMARKS_MD.with_suffix(".md.tmp")
     tmp.write_text(text)
     tmp.replace(BENCHMARKS_MD)
+
+
+def grids_side_by_side(path: Path, grids, scale: int = 1, gap: int = 20) -> None:
+    """The pictures of 2D grids (their ``save_png``), each enlarged ``scale`` times, side by side
+    on white into ``path``."""
+    import tempfile
+
+    from PIL import Image
+
+    pictures = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, grid in enumerate(grids):
+            im = Image.open(grid.save_png(Path(tmp) / f"{k}.png")).convert("RGB")
+            pictures.append(im.resize((scale * im.width, scale * im.height), Image.NEAREST))
+    canvas = Image.new("RGB", (sum(p.width for p in pictures) + gap * (len(pictures) - 1),
+                               max(p.height for p in pictures)), (255, 255, 255))
+    x = 0
+    for p in pictures:
+        canvas.paste(p, (x, 0))
+        x += p.width + gap
+    path.parent.mkdir(parents=True, exist_ok=True)
+    canvas.save(path)

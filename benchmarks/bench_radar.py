@@ -20,14 +20,13 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, write_section  # noqa: E402
+from _report import ROOT, grids_side_by_side, write_section  # noqa: E402
 
 from occmap import OccupancyGrid2D  # noqa: E402
 from occmap.sim.street import Street  # noqa: E402
@@ -63,21 +62,6 @@ def run(street: Street, seed: int, sigma_azimuth_deg: float):
     return radar, lidar, scores, t_radar, t_lidar, detections / len(stamps)
 
 
-def picture(radar: OccupancyGrid2D, lidar: OccupancyGrid2D) -> None:
-    from PIL import Image
-
-    pictures = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for k, g in enumerate((radar, lidar)):
-            pictures.append(Image.open(g.save_png(Path(tmp) / f"{k}.png")).convert("RGB"))
-    gap = 20
-    canvas = Image.new("RGB", (sum(p.width for p in pictures) + gap, max(p.height for p in pictures)), (255, 255, 255))
-    canvas.paste(pictures[0], (0, 0))
-    canvas.paste(pictures[1], (pictures[0].width + gap, 0))
-    IMAGE.parent.mkdir(parents=True, exist_ok=True)
-    canvas.save(IMAGE)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
@@ -97,7 +81,7 @@ def main() -> None:
                 times_r += tr
                 times_l += tl
                 if seed == 0:
-                    picture(radar, lidar)
+                    grids_side_by_side(IMAGE, (radar, lidar))
             print(f"azimuth σ {sigma}°, seed {seed}: radar precision {rs[0]:.3f} recall {rs[1]:.3f}; "
                   f"lidar {ls[0]:.3f} / {ls[1]:.3f}")
         p, r = np.array(radar_scores).T

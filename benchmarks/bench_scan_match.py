@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 import sys
-import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -32,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, write_section  # noqa: E402
+from _report import ROOT, grids_side_by_side, write_section  # noqa: E402
 
 from occmap._data import find_shared_data  # noqa: E402
 from occmap.io.bags import decode_laser_scan, open_bag  # noqa: E402
@@ -112,26 +111,13 @@ def intel(data: Path, quick: bool) -> list[str]:
 
 
 def bag(data: Path) -> list[str]:
-    from PIL import Image
-
     path = data / "rosbag" / "laser_scan_matcher_demo.bag"
     with open_bag(path) as b:
         scans = [decode_laser_scan(m.raw, m.encoding).scan for m in b.messages("/scan")]
     poses, secs, stats = timed_run(scans)
     matched = map_scans(stack_scans(with_poses(scans, poses)), 0.025)
     as_recorded = map_scans(stack_scans(scans), 0.025)
-    pictures = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for k, summary in enumerate((as_recorded, matched)):
-            png = summary.grid.save_png(Path(tmp) / f"{k}.png")
-            im = Image.open(png).convert("RGB")
-            pictures.append(im.resize((3 * im.width, 3 * im.height), Image.NEAREST))
-    gap = 20
-    canvas = Image.new("RGB", (sum(p.width for p in pictures) + gap, max(p.height for p in pictures)), (255, 255, 255))
-    canvas.paste(pictures[0], (0, 0))
-    canvas.paste(pictures[1], (pictures[0].width + gap, 0))
-    IMAGE.parent.mkdir(parents=True, exist_ok=True)
-    canvas.save(IMAGE)
+    grids_side_by_side(IMAGE, (as_recorded.grid, matched.grid), scale=3)
     steps = np.diff(poses, axis=0)
     path_length = float(np.hypot(steps[:, 0], steps[:, 1]).sum())
     turned = math.degrees(float(np.abs(np.diff(np.unwrap(poses[:, 2]))).sum()))
