@@ -66,7 +66,7 @@ class TrackerParams:
     confirm_hits: int = 3
     confirm_window: int = 5
     min_travel: float = 0.5
-    confirm_speed_sigma: float = 1.0
+    confirm_speed_sigma: float = 0.4
     confirm_speed: float = 0.3
     lost_after: float = 0.3
     max_coast: float = 1.0
