@@ -14,7 +14,7 @@ from occmap.geometry.motion import unicycle_step
 from occmap.local.tracking import ekf
 from occmap.local.tracking.assignment import assign
 from occmap.local.tracking.detection import Detections, detect_objects
-from occmap.local.tracking.tracker import Tracker
+from occmap.local.tracking.tracker import Tracker, TrackerParams
 
 RNG = np.random.default_rng(7)
 
@@ -33,7 +33,17 @@ def test_predict_moves_states_exactly_as_the_unicycle():
     np.testing.assert_array_equal(out[:, 3:], s[:, 3:])
 
 
-def test_predict_covariance_uses_the_jacobian_of_the_motion():
+def test_a_yaw_rate_with_a_time_constant_dies_out():
+    s = _states()
+    out, _ = ekf.predict(s, np.broadcast_to(np.eye(5), (len(s), 5, 5)), 0.3, 1.0, 1.0, yaw_rate_time=1.5)
+    np.testing.assert_allclose(out[:, :3], unicycle_step(s[:, :3], s[:, 3], s[:, 4], 0.3), atol=1e-12)
+    np.testing.assert_allclose(out[:, 4], s[:, 4] * math.exp(-0.3 / 1.5), rtol=1e-12)
+    with pytest.raises(InvalidArgumentError, match="yaw_rate_time"):
+        TrackerParams(yaw_rate_time=0.0)
+
+
+@pytest.mark.parametrize("tau", [np.inf, 1.5])
+def test_predict_covariance_uses_the_jacobian_of_the_motion(tau):
     s = _states()
     dt, h = 0.25, 1e-6
     zero = np.zeros((1, 5, 5))
@@ -43,12 +53,12 @@ def test_predict_covariance_uses_the_jacobian_of_the_motion():
             up, down = s[k:k + 1].copy(), s[k:k + 1].copy()
             up[0, j] += h
             down[0, j] -= h
-            d = ekf.predict(up, zero, dt, 1, 1)[0][0] - ekf.predict(down, zero, dt, 1, 1)[0][0]
+            d = ekf.predict(up, zero, dt, 1, 1, tau)[0][0] - ekf.predict(down, zero, dt, 1, 1, tau)[0][0]
             d[2] = math.remainder(d[2], 2 * math.pi)
             F[:, j] = d / (2 * h)
         A = RNG.normal(size=(5, 5))
         P = A @ A.T
-        _, Pk = ekf.predict(s[k:k + 1], P[None], dt, 1e-12, 1e-12)  # no process noise: F·P·Fᵀ
+        _, Pk = ekf.predict(s[k:k + 1], P[None], dt, 1e-12, 1e-12, tau)  # no process noise: F·P·Fᵀ
         np.testing.assert_allclose(Pk[0], F @ P @ F.T, rtol=1e-5, atol=1e-7)
 
 

@@ -7,7 +7,10 @@ written as its chord (length ``v·dt·sinc(ω·dt/2)`` along ``θ + ω·dt/2``) 
 :func:`occmap.geometry.motion.unicycle_step` moves poses, so ``ω → 0`` needs no special case.
 Process noise is white longitudinal acceleration (std ``accel`` m/s²) and yaw acceleration (std
 ``yaw_accel`` rad/s²) held over the step (Schubert, Richter and Wanielik, "Comparison and evaluation
-of advanced motion models for vehicle tracking", FUSION 2008).
+of advanced motion models for vehicle tracking", FUSION 2008). With a finite ``yaw_rate_time`` τ the
+yaw rate reverts to zero between measurements, ``ω ← ω·e^(−dt/τ)`` after the step (a first-order
+Gauss–Markov turn rate): vehicles turn for a while, not for ever, so a yaw rate picked up from the
+noise of one heading measurement dies out instead of turning a track seen only from behind.
 
 Measurements (each returns the innovation ``y``, its Jacobian ``H`` and the caller gives ``R``):
 
@@ -44,9 +47,11 @@ def _sinc_and_derivative(h: np.ndarray):
     return sinc, d
 
 
-def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: float):
+def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: float,
+            yaw_rate_time: float = np.inf):
     """States and covariances ``dt`` seconds later (``dt``, ``accel`` and ``yaw_accel`` scalars or
-    ``(N,)``; ``dt ≥ 0``); returns new arrays."""
+    ``(N,)``; ``dt ≥ 0``; the yaw rate's time constant ``yaw_rate_time`` in seconds, inf: constant
+    turn rate); returns new arrays."""
     x, y, th, v, w = states.T
     dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), x.shape)
     h = 0.5 * w * dt
@@ -58,6 +63,8 @@ def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: f
     out[:, 0] = x + chord * ca
     out[:, 1] = y + chord * sa
     out[:, 2] = wrap_angle(th + 2.0 * h)
+    decay = np.exp(-dt / yaw_rate_time)
+    out[:, 4] = w * decay
     n = states.shape[0]
     F = np.broadcast_to(np.eye(5), (n, 5, 5)).copy()
     F[:, 0, 2] = -chord * sa
@@ -68,6 +75,7 @@ def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: f
     F[:, 0, 4] = v * dt * (dsinc * half * ca - sinc * sa * half)
     F[:, 1, 4] = v * dt * (dsinc * half * sa + sinc * ca * half)
     F[:, 2, 4] = dt
+    F[:, 4, 4] = decay
     G = np.zeros((n, 5, 2))
     G[:, 0, 0] = half * dt * np.cos(th)
     G[:, 1, 0] = half * dt * np.sin(th)

@@ -83,15 +83,19 @@ class TrackerParams:
     init_span: float = 0.2
     init_distance: float = 1.0
     initial_yaw_rate_sigma: float = 0.5
+    yaw_rate_time: float = 1.5
     doppler_sigma: float = 0.2
     doppler_gate: float = 10.8  # χ² with 1 degree of freedom at 99.9 %
 
     def __post_init__(self):
-        for name in ("doppler_sigma", "doppler_gate", "accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after",
+        for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after",
                      "max_coast", "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed",
                      "footprint_margin", "settled_heading_sigma", "confirm_speed_sigma", "confirm_speed", "init_span",
-                     "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma"):
+                     "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma", "doppler_sigma", "doppler_gate"):
             checks.positive(name, getattr(self, name))
+        if not (isinstance(self.yaw_rate_time, (int, float)) and self.yaw_rate_time > 0):  # inf: constant turn rate
+            raise InvalidArgumentError(f"yaw_rate_time must be a positive number of seconds (or inf), "
+                                       f"got {self.yaw_rate_time!r}")
         checks.non_negative("min_travel", self.min_travel, "metres")
         if not 1 <= self.confirm_hits <= self.confirm_window <= 8:
             raise InvalidArgumentError(f"need 1 ≤ confirm_hits ({self.confirm_hits}) ≤ confirm_window "
@@ -213,7 +217,7 @@ class Tracker:
                 raise InvalidArgumentError(f"stamp {stamp!r} goes backwards: the tracker is at {self.time!r} s")
             if dt > 0.0 and len(self):
                 p = self.params
-                self.state, self.cov = ekf.predict(self.state, self.cov, dt, *self._noise(self.size))
+                self.state, self.cov = ekf.predict(self.state, self.cov, dt, *self._noise(self.size), p.yaw_rate_time)
         self.time = stamp
 
     def predicted(self, t, confirmed_only: bool = True):
@@ -236,7 +240,7 @@ class Tracker:
         dt = np.repeat(times.reshape(-1) - now, n)
         if n:
             accel, yaw = self._noise(np.broadcast_to(size, (k, n, 2)).reshape(-1, 2))
-            flat_s, flat_c = ekf.predict(flat_s, flat_c, dt, accel, yaw)
+            flat_s, flat_c = ekf.predict(flat_s, flat_c, dt, accel, yaw, self.params.yaw_rate_time)
         shape = times.shape + (n,)
         return self.id[keep], flat_s.reshape(shape + (5,)), flat_c.reshape(shape + (5, 5)), size
 
