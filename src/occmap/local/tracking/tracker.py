@@ -265,11 +265,13 @@ class Tracker:
         """Doppler updates from one radar sweep at ``stamp`` (s, not before the last update):
         detections at world ``points`` (M, 2) whose reflectors move at ``radial_speeds`` (M,)
         (m/s, ego motion removed, positive away from the sensor) along world ``bearings`` (M,)
-        (rad). A track that has a velocity takes the detections on its footprint (predicted,
-        grown by ``footprint_margin``; a detection on several goes to the nearest centre) as one
+        (rad). A confirmed track takes the detections on its footprint (predicted, grown by
+        ``footprint_margin``; a detection on several goes to the nearest centre) as one
         measurement ``h(s) = v·cos(θ − φ)`` at their mean bearing and speed, noise
         ``doppler_sigma² / n``, when its squared innovation is within ``doppler_gate`` (a ghost
-        or clutter on the footprint is not). Returns the number of tracks updated."""
+        or clutter on the footprint is not). Tentative tracks are left to the lidar: a Doppler
+        that narrows their speed before their motion is known would confirm them with a wrong
+        one. Returns the number of tracks updated."""
         p = self.params
         self._advance(stamp)
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
@@ -282,7 +284,7 @@ class Tracker:
             return 0
         owner = self._owners(pts, self.time, p.footprint_margin, confirmed_only=False)
         mine = owner >= 0
-        mine[mine] = self.updates[owner[mine]] > 0
+        mine[mine] = self.status[owner[mine]] == CONFIRMED
         if not mine.any():
             return 0
         tracks, n = np.unique(owner[mine], return_counts=True)
