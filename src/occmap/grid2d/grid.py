@@ -355,8 +355,8 @@ class OccupancyGrid2D(OneCallAtATime):
         counted; those at or beyond ``max_range`` are counted and say nothing. Sweeps are applied
         in order, each detection of a sweep on its own. Returns the counts of this call:
         ``scans`` (sweeps), ``points`` (detections used), ``dropped``, ``beyond_max_range``,
-        ``moving`` (of the used, those that only cleared) and ``ghosts`` (behind a known
-        obstacle: not used).
+        ``moving`` (detections the Doppler says move: they only clear) and ``ghosts`` (behind a
+        known obstacle: not used).
         """
         model = RadarModel() if model is None else model
         d = radar_sweeps(poses, ranges, azimuths, max_range, model, sweeps, radial_velocity, ego_velocity)
