@@ -186,14 +186,18 @@ def fit_boxes(points, starts, steps, min_distance, out):
 
 
 @kernel
-def nearest_by_bearing(scene, sx, sy, bins, out):
+def nearest_by_bearing(scene, sx, sy, bins, limit, out):
     """Range of the nearest point of ``scene`` (K, 2) seen from ``(sx, sy)`` in each of ``bins``
-    equal bearing sectors over the full circle (``out`` (bins,), +inf where none)."""
+    equal bearing sectors over the full circle (``out`` (bins,), +inf where none), counting only
+    the points nearer than ``limit`` (m; the others are not looked at, non-finite ones neither)."""
     out[:] = np.inf
     scale = bins / (2.0 * np.pi)
+    limit2 = limit * limit
     for j in range(scene.shape[0]):
         dx = scene[j, 0] - sx
         dy = scene[j, 1] - sy
+        if not dx * dx + dy * dy < limit2:
+            continue
         b = int((np.arctan2(dy, dx) + np.pi) * scale) % bins
         out[b] = min(out[b], np.hypot(dx, dy))
     return out
@@ -325,7 +329,9 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
     cells within ``reach`` cells of each other (a square) join; a component whose points are at
     least half ``moving`` and whose cells span at most ``max_span`` metres (the bounding box's
     diagonal) has all its points set in ``out``, but those ``blocked``. Only components that hold
-    a moving point are searched: the cost follows them, not the scan."""
+    a moving point are searched, and a search stops once its cells span more than ``max_span``
+    (a wall a mover passes is not walked whole): the cost follows the movers, not the scan. A
+    later search that meets the cells of a stopped one is part of it, so it is not promoted."""
     count = np.zeros((H, W), np.int32)
     movers = np.zeros((H, W), np.int32)
     cy = np.full(pts.shape[0], -1, np.int64)
@@ -359,7 +365,8 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
         x1 = -1
         y0 = H
         y1 = -1
-        while top >= 0:
+        ok = True
+        while top >= 0 and ok:
             k = stack[top]
             top -= 1
             y = k // W
@@ -370,14 +377,17 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
             x1 = max(x1, x)
             y0 = min(y0, y)
             y1 = max(y1, y)
+            ok = res * np.hypot(x1 - x0 + 1, y1 - y0 + 1) <= max_span
             for yy in range(max(y - reach, 0), min(y + reach + 1, H)):
                 for xx in range(max(x - reach, 0), min(x + reach + 1, W)):
-                    if count[yy, xx] > 0 and label[yy, xx] == 0:
-                        label[yy, xx] = comp
-                        top += 1
-                        stack[top] = yy * W + xx
-        span = res * np.hypot(x1 - x0 + 1, y1 - y0 + 1)
-        good[comp] = 2 * n_mov >= n_all and span <= max_span
+                    if count[yy, xx] > 0:
+                        if label[yy, xx] == 0:
+                            label[yy, xx] = comp
+                            top += 1
+                            stack[top] = yy * W + xx
+                        elif label[yy, xx] != comp:  # a stopped search's cells: too wide
+                            ok = False
+        good[comp] = ok and 2 * n_mov >= n_all
     for i in range(pts.shape[0]):
         out[i] = cy[i] >= 0 and good[label[cy[i], cx[i]]] and not blocked[i]
     return out

@@ -238,7 +238,7 @@ class Tracker:
         flat_s = np.broadcast_to(s, (k, n, 5)).reshape(-1, 5)
         flat_c = np.broadcast_to(c, (k, n, 5, 5)).reshape(-1, 5, 5)
         dt = np.repeat(times.reshape(-1) - now, n)
-        if n:
+        if n and (dt > 0.0).any():  # to the tracker's own time they are as they are
             accel, yaw = self._noise(np.broadcast_to(size, (k, n, 2)).reshape(-1, 2))
             flat_s, flat_c = ekf.predict(flat_s, flat_c, dt, accel, yaw, self.params.yaw_rate_time)
         shape = times.shape + (n,)
