@@ -323,7 +323,7 @@ def point_probability(points, states, covs, sizes, grow, out):
 
 
 @kernel
-def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span, out):
+def promote_components(pts, moving, blocked, ox, oy, res, reach, max_span, grid, out):
     """Points that belong to a component mostly moving: the points ``(N, 2)`` are put in the grid
     of ``H × W`` cells of side ``res`` whose cell (0, 0) has its outer corner at ``(ox, oy)``;
     cells within ``reach`` cells of each other (a square) join; a component whose points are at
@@ -331,25 +331,29 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
     diagonal) has all its points set in ``out``, but those ``blocked``. Only components that hold
     a moving point are searched, and a search stops once its cells span more than ``max_span``
     (a wall a mover passes is not walked whole): the cost follows the movers, not the scan. A
-    later search that meets the cells of a stopped one is part of it, so it is not promoted."""
-    count = np.zeros((H, W), np.int32)
-    movers = np.zeros((H, W), np.int32)
-    cy = np.full(pts.shape[0], -1, np.int64)
-    cx = np.full(pts.shape[0], -1, np.int64)
-    for i in range(pts.shape[0]):
-        x = int(np.floor((pts[i, 0] - ox) / res))
-        y = int(np.floor((pts[i, 1] - oy) / res))
-        if 0 <= x < W and 0 <= y < H:
-            cy[i] = y
-            cx[i] = x
-            count[y, x] += 1
-            movers[y, x] += moving[i]
-    label = np.zeros((H, W), np.int32)  # 0 unvisited, k > 0 component k, promoted when good[k]
+    later search that meets the cells of a stopped one is part of it, so it is not promoted.
+    ``grid`` is int32 (3, H, W) scratch, all zero on entry and left so (kept by the caller: a
+    fresh window-sized array per scan costs more than the search)."""
+    _, H, W = grid.shape
+    count = grid[0].reshape(-1)
+    movers = grid[1].reshape(-1)
+    label = grid[2].reshape(-1)  # 0 unvisited, k > 0 component k, promoted when good[k]
+    n = pts.shape[0]
+    cell = np.full(n, -1, np.int64)  # row · W + column, −1 outside
+    for i in range(n):
+        c = int(np.floor((pts[i, 0] - ox) / res))
+        r = int(np.floor((pts[i, 1] - oy) / res))
+        if 0 <= c < W and 0 <= r < H:
+            k = r * W + c
+            cell[i] = k
+            count[k] += 1
+            movers[k] += moving[i]
     good = np.zeros(1, np.bool_)
-    stack = np.empty(H * W, np.int64)
+    stack = np.empty(n, np.int64)  # cells with points, each pushed once
     comp = 0
-    for i in range(pts.shape[0]):
-        if not moving[i] or cy[i] < 0 or label[cy[i], cx[i]] != 0:
+    for i in range(n):
+        k = cell[i]
+        if not moving[i] or k < 0 or label[k] != 0:
             continue
         comp += 1
         if comp >= good.shape[0]:
@@ -357,8 +361,8 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
             grown[:good.shape[0]] = good
             good = grown
         top = 0
-        stack[0] = cy[i] * W + cx[i]
-        label[cy[i], cx[i]] = comp
+        stack[0] = k
+        label[k] = comp
         n_all = 0
         n_mov = 0
         x0 = W
@@ -371,8 +375,8 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
             top -= 1
             y = k // W
             x = k % W
-            n_all += count[y, x]
-            n_mov += movers[y, x]
+            n_all += count[k]
+            n_mov += movers[k]
             x0 = min(x0, x)
             x1 = max(x1, x)
             y0 = min(y0, y)
@@ -380,16 +384,24 @@ def promote_components(pts, moving, blocked, ox, oy, res, H, W, reach, max_span,
             ok = res * np.hypot(x1 - x0 + 1, y1 - y0 + 1) <= max_span
             for yy in range(max(y - reach, 0), min(y + reach + 1, H)):
                 for xx in range(max(x - reach, 0), min(x + reach + 1, W)):
-                    if count[yy, xx] > 0:
-                        if label[yy, xx] == 0:
-                            label[yy, xx] = comp
+                    kk = yy * W + xx
+                    if count[kk] > 0:
+                        if label[kk] == 0:
+                            label[kk] = comp
                             top += 1
-                            stack[top] = yy * W + xx
-                        elif label[yy, xx] != comp:  # a stopped search's cells: too wide
+                            stack[top] = kk
+                        elif label[kk] != comp:  # a stopped search's cells: too wide
                             ok = False
         good[comp] = ok and 2 * n_mov >= n_all
-    for i in range(pts.shape[0]):
-        out[i] = cy[i] >= 0 and good[label[cy[i], cx[i]]] and not blocked[i]
+    for i in range(n):
+        k = cell[i]
+        out[i] = k >= 0 and good[label[k]] and not blocked[i]
+    for i in range(n):
+        k = cell[i]
+        if k >= 0:
+            count[k] = 0
+            movers[k] = 0
+            label[k] = 0
     return out
 
 

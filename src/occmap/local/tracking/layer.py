@@ -58,6 +58,7 @@ class ObjectLayer:
         self.threshold = checks.probability("threshold", threshold)
         self.moving = np.empty((0, 2))
         self.stats = {"moving_returns": 0}
+        self._grid = np.zeros((3, 0, 0), np.int32)  # promote_components' scratch, zero between scans
 
     def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
                      sensor, stamp: float, max_range: float | None = None, grid=None) -> None:
@@ -76,11 +77,13 @@ class ObjectLayer:
             # out of its own shadow) is one object, not a moving part and a static one; returns
             # in cells known occupied (a wall a person passes) stay static
             origin, resolution, (H, W) = grid
+            if self._grid.shape != (3, H, W):
+                self._grid = np.zeros((3, H, W), np.int32)
             promoted = np.empty(len(pts), np.bool_)
             K.promote_components(pts, moving, np.ascontiguousarray(known_occupied[hit]), float(origin[0]),
-                                 float(origin[1]), float(resolution), H, W,
+                                 float(origin[1]), float(resolution),
                                  int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
-                                 float(np.hypot(*self.tracker.params.max_size)), promoted)
+                                 float(np.hypot(*self.tracker.params.max_size)), self._grid, promoted)
             moving |= promoted
         kinds[hit[moving]] = 2
         self.moving = pts[moving]
