@@ -186,34 +186,69 @@ def fit_boxes(points, starts, steps, min_distance, out):
 
 
 @kernel
-def nearest_by_bearing(scene, sx, sy, bins, limit, out):
-    """Range of the nearest point of ``scene`` (K, 2) seen from ``(sx, sy)`` in each of ``bins``
-    equal bearing sectors over the full circle (``out`` (bins,), +inf where none), counting only
-    the points nearer than ``limit`` (m; the others are not looked at, non-finite ones neither)."""
+def _pseudo_bearing(dx, dy):
+    """A cheap stand-in for the bearing of ``(dx, dy)``: in [0, 4], rising with the angle from 0
+    (the +x axis) to 2π (4 ≡ 0); NaN at the origin."""
+    if dy >= 0.0:
+        return dy / (dx + dy) if dx >= 0.0 else 1.0 - dx / (dy - dx)
+    return 2.0 - dy / (-dx - dy) if dx < 0.0 else 3.0 + dx / (dx - dy)
+
+
+@kernel
+def nearest_by_bearing(scene, sx, sy, limit, need, out):
+    """Range of the nearest point of ``scene`` (K, 2) seen from ``(sx, sy)`` in each of the
+    ``len(need)`` equal bearing sectors over the full circle where ``need`` is set (``out``
+    (bins,), +inf where none or not needed), counting only the points nearer than ``limit`` (m;
+    the others are not looked at, non-finite ones neither). A point's exact bearing is computed
+    only when a coarse pseudo-bearing (:func:`_pseudo_bearing`, buckets grown by one on each
+    side) puts it near a needed sector."""
+    bins = need.shape[0]
     out[:] = np.inf
     scale = bins / (2.0 * np.pi)
+    n_coarse = 4 * bins
+    coarse = np.zeros(n_coarse, np.bool_)
+    for b in range(bins):
+        if need[b]:
+            a0 = -np.pi + b / scale
+            a1 = -np.pi + (b + 1) / scale
+            c0 = int(_pseudo_bearing(np.cos(a0), np.sin(a0)) * bins) - 1
+            c1 = int(_pseudo_bearing(np.cos(a1), np.sin(a1)) * bins) + 1
+            if c1 < c0:  # the sector ending at bearing 0
+                c1 += n_coarse
+            for c in range(c0, c1 + 1):
+                coarse[c % n_coarse] = True
     limit2 = limit * limit
     for j in range(scene.shape[0]):
         dx = scene[j, 0] - sx
         dy = scene[j, 1] - sy
         if not dx * dx + dy * dy < limit2:
             continue
+        q = _pseudo_bearing(dx, dy)
+        if q == q and not coarse[int(q * bins) % n_coarse]:
+            continue
         b = int((np.arctan2(dy, dx) + np.pi) * scale) % bins
-        out[b] = min(out[b], np.hypot(dx, dy))
+        if need[b]:
+            out[b] = min(out[b], np.hypot(dx, dy))
     return out
 
 
 @kernel
-def occluded_ends(points, starts, sx, sy, nearest, angle, depth, out):
+def occluded_ends(points, starts, scene, sx, sy, bins, angle, depth, out):
     """Whether something nearer hides an end of each cluster from the sensor at ``(sx, sy)``:
-    ``out[k]`` is true when, in the bearing sectors of ``nearest`` (the scene's nearest range per
-    sector, :func:`nearest_by_bearing`) within ``angle`` (rad) beyond either angular end of
-    cluster ``k`` (``points[starts[k]:starts[k + 1]]``), a return lies at least ``depth`` (m)
-    nearer than that end."""
-    bins = nearest.shape[0]
+    ``out[k]`` is true when, among the returns of ``scene`` (K, 2) in the ``bins`` equal bearing
+    sectors over the full circle within ``angle`` (rad) beyond either angular end of cluster
+    ``k`` (``points[starts[k]:starts[k + 1]]``), one lies at least ``depth`` (m) nearer than
+    that end (:func:`nearest_by_bearing` over those sectors only)."""
     scale = bins / (2.0 * np.pi)
     reach = int(np.ceil(angle * scale))
-    for k in range(starts.shape[0] - 1):
+    n = starts.shape[0] - 1
+    b_lo = np.empty(n, np.int64)
+    b_hi = np.empty(n, np.int64)
+    r_lo = np.zeros(n)
+    r_hi = np.zeros(n)
+    need = np.zeros(bins, np.bool_)
+    limit = 0.0
+    for k in range(n):
         a = starts[k]
         b = starts[k + 1]
         mx = 0.0
@@ -224,8 +259,6 @@ def occluded_ends(points, starts, sx, sy, nearest, angle, depth, out):
         mid = np.arctan2(my, mx)
         lo = np.inf
         hi = -np.inf
-        r_lo = 0.0
-        r_hi = 0.0
         for i in range(a, b):
             dx = points[i, 0] - sx
             dy = points[i, 1] - sy
@@ -233,15 +266,21 @@ def occluded_ends(points, starts, sx, sy, nearest, angle, depth, out):
             rel = rel - 2.0 * np.pi * np.floor((rel + np.pi) / (2.0 * np.pi))
             if rel < lo:
                 lo = rel
-                r_lo = np.hypot(dx, dy)
+                r_lo[k] = np.hypot(dx, dy)
             if rel > hi:
                 hi = rel
-                r_hi = np.hypot(dx, dy)
-        b_lo = int((mid + lo + np.pi) * scale)
-        b_hi = int((mid + hi + np.pi) * scale)
+                r_hi[k] = np.hypot(dx, dy)
+        b_lo[k] = int((mid + lo + np.pi) * scale)
+        b_hi[k] = int((mid + hi + np.pi) * scale)
+        for j in range(1, reach + 1):
+            need[(b_lo[k] - j) % bins] = True
+            need[(b_hi[k] + j) % bins] = True
+        limit = max(limit, r_lo[k] - depth, r_hi[k] - depth)
+    nearest = nearest_by_bearing(scene, sx, sy, limit, need, np.empty(bins))
+    for k in range(n):
         hidden = False
         for j in range(1, reach + 1):
-            if nearest[(b_lo - j) % bins] < r_lo - depth or nearest[(b_hi + j) % bins] < r_hi - depth:
+            if nearest[(b_lo[k] - j) % bins] < r_lo[k] - depth or nearest[(b_hi[k] + j) % bins] < r_hi[k] - depth:
                 hidden = True
                 break
         out[k] = hidden
@@ -298,6 +337,20 @@ def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
                 p = _interval_probability(da, ha, sa) * _interval_probability(db, hb, sb)
                 out[i, j] = 1.0 - (1.0 - out[i, j]) * (1.0 - p)
     return out
+
+
+@kernel
+def occupancy_costs(p, threshold, lethal, cost):
+    """From the occupancy ``p`` (H, W): obstacles ``lethal`` (bool (H, W)) where it reaches
+    ``threshold``, and Nav2 costs ``cost`` (uint8 (H, W)) ``252 · p / threshold`` (at most 252)
+    where it is 0.05 or more, else 0 — one pass over the window."""
+    H, W = p.shape
+    for i in range(H):
+        for j in range(W):
+            q = p[i, j]
+            lethal[i, j] = q >= threshold
+            cost[i, j] = np.uint8(min(252.0 * q / threshold, 252.0)) if q >= 0.05 else 0
+    return lethal
 
 
 @kernel

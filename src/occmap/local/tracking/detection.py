@@ -103,10 +103,7 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
         if sc.ndim != 2 or sc.shape[1] != 2:
             raise ShapeError(f"scene must have shape (K, 2), got {sc.shape}")
         depth = checks.non_negative("depth", depth, "metres")
-        # only returns nearer than the farthest cluster end less ``depth`` can hide one
-        limit = max(float(np.hypot(pts[:, 0] - sx, pts[:, 1] - sy).max(initial=0.0)) - depth, 0.0)
-        nearest = K.nearest_by_bearing(sc, sx, sy, BEARING_SECTORS, limit, np.empty(BEARING_SECTORS))
-        K.occluded_ends(pts, starts, sx, sy, nearest, checks.positive("angle", angle), depth, occluded)
+        K.occluded_ends(pts, starts, sc, sx, sy, BEARING_SECTORS, checks.positive("angle", angle), depth, occluded)
     if sensor is not None and max_range is not None:
         far = np.hypot(pts[:, 0] - sx, pts[:, 1] - sy) >= checks.positive("max_range", max_range) - depth
         occluded |= np.add.reduceat(far, starts[:-1]) > 0 if len(counts) else occluded

@@ -116,9 +116,8 @@ class ObjectLayer:
         if at is None:
             out, cost = np.zeros(shape, bool), np.zeros(shape, np.uint8)
         else:
-            p = self.occupancy(at, origin, resolution, shape)
-            out = p >= self.threshold
-            cost = np.where(p >= 0.05, np.minimum(252.0 * p / self.threshold, 252.0), 0.0).astype(np.uint8)
+            out, cost = np.empty(shape, bool), np.empty(shape, np.uint8)
+            K.occupancy_costs(self.occupancy(at, origin, resolution, shape), self.threshold, out, cost)
         pts = self.moving
         if len(pts):
             ids, states, covs, sizes = self.tracker.predicted(self.tracker.time)
