@@ -1,0 +1,107 @@
+"""The tracker's shortcut kernels against plain references: the occlusion test (exact bearings
+only near the sectors it reads) and the promotion of mostly-moving components (searches stopped
+at an object's span)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from occmap.local.tracking import _kernels as K
+
+BINS = 1440
+
+
+def _occluded_reference(points, starts, scene, sx, sy, angle, depth):
+    """Every finite scene return binned by its exact bearing; each cluster's angular ends as the
+    kernel defines them."""
+    scale = BINS / (2 * np.pi)
+    sc = scene[np.isfinite(scene).all(axis=1)] - (sx, sy)
+    nearest = np.full(BINS, np.inf)
+    np.minimum.at(nearest, ((np.arctan2(sc[:, 1], sc[:, 0]) + np.pi) * scale).astype(int) % BINS,
+                  np.hypot(sc[:, 0], sc[:, 1]))
+    reach = int(np.ceil(angle * scale))
+    out = []
+    for a, b in zip(starts[:-1], starts[1:]):
+        d = points[a:b] - (sx, sy)
+        mid = np.arctan2(*d.sum(axis=0)[::-1])
+        rel = np.arctan2(d[:, 1], d[:, 0]) - mid
+        rel -= 2 * np.pi * np.floor((rel + np.pi) / (2 * np.pi))
+        lo, hi = np.argmin(rel), np.argmax(rel)
+        r = np.hypot(d[:, 0], d[:, 1])
+        b_lo, b_hi = int((mid + rel[lo] + np.pi) * scale), int((mid + rel[hi] + np.pi) * scale)
+        j = np.arange(1, reach + 1)
+        out.append(bool((nearest[(b_lo - j) % BINS] < r[lo] - depth).any()
+                        or (nearest[(b_hi + j) % BINS] < r[hi] - depth).any()))
+    return np.array(out)
+
+
+def test_occlusion_equals_exact_bearings_of_every_return():
+    rng = np.random.default_rng(1)
+    hidden = 0
+    for trial in range(60):
+        sx, sy = rng.uniform(-2, 2, 2)
+        clusters = [np.column_stack([c[0] + rng.uniform(-1, 1, m), c[1] + rng.uniform(-1, 1, m)])
+                    for c, m in zip(rng.uniform(-20, 20, (rng.integers(1, 8), 2)), rng.integers(3, 30, 8))]
+        points = np.concatenate(clusters)
+        starts = np.concatenate([[0], np.cumsum([len(c) for c in clusters])])
+        # returns anywhere, on the clusters, at the sensor, just below bearing 0 (pseudo-bearing 4),
+        # not finite, and in every sector
+        bearings = -np.pi + (np.arange(BINS) + rng.uniform(0.01, 0.99, BINS)) * 2 * np.pi / BINS
+        r = rng.uniform(0.5, 20, BINS)
+        ring = np.column_stack([sx + r * np.cos(bearings), sy + r * np.sin(bearings)])
+        scene = np.concatenate([rng.uniform(-25, 25, (int(rng.integers(0, 400)), 2)), points,
+                                [[sx, sy], [sx + 1, sy - 1e-300], [np.nan, 1.0], [np.inf, 0.0]],
+                                ring if trial % 3 == 0 else np.empty((0, 2))])
+        angle, depth = np.radians(rng.uniform(0.5, 3)), rng.uniform(0, 1)
+        out = np.zeros(len(clusters), bool)
+        K.occluded_ends(points, starts, scene, sx, sy, BINS, angle, depth, out)
+        np.testing.assert_array_equal(out, _occluded_reference(points, starts, scene, sx, sy, angle, depth))
+        hidden += out.sum()
+    assert 0.2 * 60 < hidden < 0.8 * 60 * 4  # both outcomes occur
+
+
+def _promoted_reference(pts, moving, blocked, res, H, W, reach, max_span):
+    """Whole components (cells within ``reach`` of each other, found by a k-d tree), then the rule."""
+    cells = np.floor(pts / res).astype(int)
+    inside = (cells >= 0).all(axis=1) & (cells[:, 0] < W) & (cells[:, 1] < H)
+    occupied, index = np.unique(cells[inside], axis=0, return_inverse=True)
+    pairs = cKDTree(occupied).query_pairs(reach + 0.5, p=np.inf, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(occupied),) * 2)
+    _, comp = connected_components(graph, directed=False)
+    comp_of_point = comp[index.reshape(-1)]
+    n = comp.max() + 1
+    n_all = np.bincount(comp_of_point, minlength=n)
+    n_mov = np.bincount(comp_of_point, weights=moving[inside], minlength=n)
+    lo = np.full((n, 2), np.iinfo(int).max)
+    hi = np.full((n, 2), -1)
+    np.minimum.at(lo, comp, occupied)
+    np.maximum.at(hi, comp, occupied)
+    span = res * np.hypot(*(hi - lo + 1).T)
+    good = (n_mov > 0) & (2 * n_mov >= n_all) & (span <= max_span)
+    out = np.zeros(len(pts), bool)
+    out[inside] = good[comp_of_point]
+    return out & ~blocked
+
+
+def test_promotion_equals_whole_components_and_leaves_the_scratch_clear():
+    rng = np.random.default_rng(0)
+    H, W, res, reach = 60, 70, 0.1, 3
+    grid = np.zeros((3, H, W), np.int32)
+    promoted = 0
+    for trial in range(60):
+        n = int(rng.integers(10, 600))
+        pts = rng.uniform(-0.5, 7.5, (n, 2))
+        if trial % 2:  # a long wall that movers pass along
+            pts[: n // 2] = np.column_stack([rng.uniform(0, 6, n // 2), np.full(n // 2, rng.uniform(0, 6))])
+        moving = rng.random(n) < rng.uniform(0.1, 0.9)
+        blocked = rng.random(n) < 0.1
+        max_span = rng.uniform(0.5, 4)
+        out = np.empty(n, bool)
+        K.promote_components(pts, moving, blocked, 0.0, 0.0, res, reach, max_span, grid, out)
+        np.testing.assert_array_equal(out, _promoted_reference(pts, moving, blocked, res, H, W, reach, max_span))
+        assert not grid.any()
+        promoted += out.sum()
+    assert promoted > 1000
