@@ -11,6 +11,7 @@ import pytest
 
 from occmap.errors import InvalidArgumentError, NonFiniteError, OccmapError, ShapeError
 from occmap.geometry.motion import apply_odometry, odometry_delta
+from occmap.geometry.se2 import compose_poses
 from occmap.geometry.so2 import wrap_angle
 from occmap.grid2d import OccupancyGrid2D
 from occmap.localize import LocalizationWarning, MonteCarloLocalizer
@@ -221,8 +222,6 @@ def test_scans_the_map_does_not_explain_are_coasted_through(sim_map, world):
     map shows wrongly): with ``coast_fit`` those scans are left out and the odometry carries the
     cloud (error within the odometry's drift); without it they drag the estimate over a metre off.
     ``coast_max_d`` bounds how far the filter coasts."""
-    from occmap.geometry.se2 import compose_poses
-
     rng = np.random.default_rng(41)
     truth = world.default_trajectory(n=600)[100:300]
     odo = _drifting_odometry(truth, rng)

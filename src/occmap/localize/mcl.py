@@ -243,7 +243,8 @@ class MonteCarloLocalizer(OneCallAtATime):
         self.w_fast = 0.0
         self.stats = _Stats()
         self._filter_odom = None  # odometry pose at the last filter run
-        self._coasted = (0.0, 0.0)  # odometry travel (m) and summed turns (rad) since the last applied scan
+        # odometry travel (m) and summed turns (rad) since the last applied scan; None once past the cap
+        self._coasted: tuple[float, float] | None = (0.0, 0.0)
         self._usual_fit = None  # long-term average of the estimates' fit while not lost
         self._estimate: PoseEstimate | None = None
         self._force = True
@@ -386,9 +387,10 @@ class MonteCarloLocalizer(OneCallAtATime):
 
     def _coast(self, delta, bx_all: np.ndarray, by_all: np.ndarray) -> bool:
         """Whether this scan is left out (the cloud moves by odometry alone): the map explains less
-        than ``coast_fit`` times the usual fit of it at the pose the odometry predicts, and the
-        odometry has carried the cloud at most ``coast_max_d`` metres and ``coast_max_a`` radians
-        (summed turns) since the last scan that was applied."""
+        than ``coast_fit`` times the usual fit of it at the pose the odometry predicts (after a local
+        scan match from there, so that odometry drift alone does not count), and the odometry has
+        carried the cloud at most ``coast_max_d`` metres and ``coast_max_a`` radians (summed heading
+        changes) since the last scan that fitted."""
         prm = self.params
         if prm.coast_fit <= 0 or self._global or self._usual_fit is None or self._estimate is None:
             return False

@@ -98,7 +98,7 @@ class LocalizationParams:
         odometry predicts, after a local scan match from there (0: off).
     coast_max_d, coast_max_a : float, default 3.0, 2π
         The most odometry travel (m) and heading change (rad, summed) the filter coasts through
-        without a scan applied; beyond either, scans weigh again until one fits.
+        since the last scan that fitted; beyond either, scans weigh again until one fits.
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
