@@ -6,7 +6,8 @@
    each, the map is built at 5 cm from the SLAM-corrected log, then the raw run (drifting wheel
    odometry) is localized in it. Raw scans pair with the corrected log's by logger timestamp and
    identical ranges (:func:`~occmap.localize.replay.pair_scans`), so the corrected poses are the
-   reference. Tracking from the first corrected pose with plain AMCL and with each addition;
+   reference. Tracking from the first corrected pose with plain AMCL and with each addition
+   (the last, coasting: :mod:`occmap.localize.mcl`);
    global localization from particles spread over the free space, for 10 seeds (on Intel also
    with each part of its coarse-to-fine schedule taken away in turn).
 
@@ -133,7 +134,8 @@ VARIANTS = [
     ("plain AMCL, filter every 5 cm / 0.1 rad", dict(plain=True, update_min_d=0.05, update_min_a=0.1)),
     ("+ random term over the field's range", dict(plain=True, update_min_d=0.05, update_min_a=0.1,
                                                   z_rand_span="field")),
-    ("+ tempering, scan-match refinement fed back to the cloud (default)", dict()),
+    ("+ tempering, scan-match refinement fed back to the cloud", dict(coast_fit=0.0)),
+    ("+ coasting on odometry through scans the map does not explain (default)", dict()),
 ]
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from occmap.errors import InvalidArgumentError, NonFiniteError, OccmapError, ShapeError
 from occmap.geometry.motion import apply_odometry, odometry_delta
+from occmap.geometry.se2 import compose_poses
 from occmap.geometry.so2 import wrap_angle
 from occmap.grid2d import OccupancyGrid2D
 from occmap.localize import LocalizationWarning, MonteCarloLocalizer
@@ -216,6 +217,33 @@ def test_kidnapped_robot_recovers(sim_map, world):
     assert lost[found:].mean() < 0.05 and (fit[found:][lost[found:]] < 0.7).all()
 
 
+def test_scans_the_map_does_not_explain_are_coasted_through(sim_map, world):
+    """For 12 steps (2.2 m) the robot sees a place 1.1 m and 46° away from where it is (a room the
+    map shows wrongly): with ``coast_fit`` those scans are left out and the odometry carries the
+    cloud (error within the odometry's drift); without it they drag the estimate over a metre off.
+    ``coast_max_d`` bounds how far the filter coasts."""
+    rng = np.random.default_rng(41)
+    truth = world.default_trajectory(n=600)[100:300]
+    odo = _drifting_odometry(truth, rng)
+    seen = truth.copy()
+    seen[60:72] = compose_poses(truth[60:72], np.array([1.0, 0.5, 0.8]))
+    scans = simulate_scans(world, seen, n_beams=180, fov=2 * math.pi, max_range=10.0, sigma=0.01, p_outlier=0.02,
+                           rng=rng)
+
+    def run(**settings):
+        loc = MonteCarloLocalizer(sim_map, refine=True, refine_feedback=True, seed=42, **settings)
+        loc.initialize(truth[0], np.diag([0.05 ** 2, 0.05 ** 2, 0.02 ** 2]))
+        est = np.array([loc.update(odo[i], s.ranges, s.angles, s.max_range).pose for i, s in enumerate(scans)])
+        return np.hypot(*(est[:, :2] - truth[:, :2]).T), loc.stats.coasted
+
+    err, coasted = run(coast_fit=0.75)
+    assert coasted == 12 and err[10:60].max() < 0.1 and err[60:72].max() < 0.3 and err[80:].max() < 0.1
+    err, coasted = run()
+    assert coasted == 0 and err[60:72].max() > 1.0
+    err, _ = run(coast_fit=0.75, coast_max_d=1.0)  # about 1 m (5 steps) of coasting, then the scans weigh again
+    assert err[60:65].max() < 0.1 and err[68:72].min() > 1.0 and err[80:].max() < 0.1
+
+
 # ------------------------------------------------------------------------------------ bad input
 
 
@@ -258,6 +286,10 @@ def test_bad_arguments(sim_map):
         MonteCarloLocalizer(sim_map, 0)
     with pytest.raises(InvalidArgumentError):
         MonteCarloLocalizer(sim_map, model="beam")
+    with pytest.raises(InvalidArgumentError, match="coast_fit"):
+        MonteCarloLocalizer(sim_map, coast_fit=1.5)
+    with pytest.raises(InvalidArgumentError, match="coast_max_d"):
+        MonteCarloLocalizer(sim_map, coast_max_d=-1.0)
     with pytest.raises(InvalidArgumentError):
         MonteCarloLocalizer(sim_map, sigma_hit=0.0)
     with pytest.raises(InvalidArgumentError):

@@ -92,6 +92,13 @@ class LocalizationParams:
     lost_fit : float, default 0.85
         An estimate whose ``fit`` (share of the scan's beams the map explains there) is below this
         share of its usual value is reported ``lost``.
+    coast_fit : float, default 0.0
+        Leave a scan out (the cloud moves by odometry alone; no weighting, resampling or refinement)
+        when the map explains less than this share of its usual ``fit`` of it at the pose the
+        odometry predicts, after a local scan match from there (0: off).
+    coast_max_d, coast_max_a : float, default 3.0, 2π
+        The most odometry travel (m) and heading change (rad, summed) the filter coasts through
+        since the last scan that fitted; beyond either, scans weigh again until one fits.
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
@@ -144,6 +151,10 @@ class LocalizationParams:
     refine_feedback: bool = False
     refine_cutoff: float = 0.3
     lost_fit: float = 0.85
+    # coasting through what the map does not explain
+    coast_fit: float = 0.0
+    coast_max_d: float = 3.0
+    coast_max_a: float = 2 * math.pi
     # global localization
     global_particles: int = 20_000
     global_sigma_hit: float = 1.0
@@ -160,7 +171,8 @@ class LocalizationParams:
         if not isinstance(self.motion, OdometryMotionModel):
             put("motion", OdometryMotionModel(*self.motion))
         for name in ("z_hit", "z_rand", "laser_min_range", "recovery_alpha_slow", "recovery_alpha_fast",
-                     "update_min_d", "update_min_a", "roughening", "global_update_min_d", "global_update_min_a"):
+                     "update_min_d", "update_min_a", "roughening", "global_update_min_d", "global_update_min_a",
+                     "coast_max_d", "coast_max_a"):
             put(name, checks.non_negative(name, getattr(self, name)))
         if self.z_hit + self.z_rand <= 0:
             raise InvalidArgumentError("z_hit + z_rand must be positive")
@@ -177,7 +189,7 @@ class LocalizationParams:
             raise InvalidArgumentError(f"need 0 <= free_thresh <= occupied_thresh <= 1, got {free_t!r}, {occ_t!r}")
         put("free_thresh", free_t)
         put("occupied_thresh", occ_t)
-        for name in ("resample_ess", "min_ess", "recovery_threshold", "lost_fit"):
+        for name in ("resample_ess", "min_ess", "recovery_threshold", "lost_fit", "coast_fit"):
             put(name, checks.fraction(name, getattr(self, name)))
         put("converged_weight", checks.fraction("converged_weight", self.converged_weight, zero=False))
         lo = checks.count("min_particles", self.min_particles)
