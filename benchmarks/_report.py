@@ -135,3 +135,13 @@ def grids_side_by_side(path: Path, grids, scale: int = 1, gap: int = 20) -> None
         x += p.width + gap
     path.parent.mkdir(parents=True, exist_ok=True)
     canvas.save(path)
+
+
+def shared_data() -> Path | None:
+    """``../shared/data`` (or ``$OCCMAP_DATA``); None, after saying so, when it is not there."""
+    from occmap._data import find_shared_data
+
+    data = find_shared_data(ROOT)
+    if data is None:
+        print("shared data not found (../shared/data or $OCCMAP_DATA): nothing to measure", file=sys.stderr)
+    return data

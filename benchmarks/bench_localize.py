@@ -33,9 +33,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, median_times, write_section  # noqa: E402
+from _report import ROOT, median_times, shared_data, write_section  # noqa: E402
 
-from occmap._data import find_shared_data  # noqa: E402
 from occmap.io.carmen import read_carmen  # noqa: E402
 from occmap.localize import _kernels as K  # noqa: E402
 from occmap.localize.likelihood_field import LikelihoodField, beam_end_points  # noqa: E402
@@ -272,9 +271,8 @@ def global_section(d: Loaded, seeds, ablate: bool) -> list[str]:
 
 def main() -> None:
     quick = "--quick" in sys.argv
-    data = find_shared_data(ROOT)
+    data = shared_data()
     if data is None:
-        print("shared data not found: set OCCMAP_DATA")
         return
     carmen = data / "carmen"
     loaded = [load(carmen, run, quick) for run in RUNS]

@@ -31,9 +31,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, grids_side_by_side, write_section  # noqa: E402
+from _report import ROOT, grids_side_by_side, shared_data, write_section  # noqa: E402
 
-from occmap._data import find_shared_data  # noqa: E402
 from occmap.io.bags import decode_laser_scan, open_bag  # noqa: E402
 from occmap.io.carmen import read_carmen  # noqa: E402
 from occmap.localize.replay import pair_scans  # noqa: E402
@@ -133,9 +132,8 @@ def bag(data: Path) -> list[str]:
 
 def main() -> None:
     quick = "--quick" in sys.argv
-    data = find_shared_data(ROOT)
+    data = shared_data()
     if data is None:
-        print("shared data not found: set OCCMAP_DATA")
         return
     body = [
         "Incremental scan-to-map matching (`occmap.slam.match_scans`, default `ScanMatchParams`: 5 cm map, three "
