@@ -177,20 +177,6 @@ def test_save_load_round_trip_keeps_the_trinary_map(tmp_path, rng):
     h.insert_scan((0.0, 1.0, 0.0), [1.0], [0.0])
 
 
-def test_save_png_draws_unknown_distinctly(tmp_path):
-    from PIL import Image
-
-    g = OccupancyGrid2D(0.1, size=(2.0, 1.0))
-    single_beam(g, 1.0)
-    g.save_png(tmp_path / "map.png")
-    with Image.open(tmp_path / "map.png") as im:
-        rgb = np.asarray(im.convert("RGB"))
-    assert rgb.shape[:2] == (10, 20)
-    bottom = rgb[-1]  # row 0 of the grid is drawn at the bottom of the picture
-    assert (bottom[5] > 100).all() and (bottom[10] < 100).all()  # free light, hit dark
-    assert tuple(rgb[0, 0]) != tuple(bottom[5])  # unknown is neither free nor occupied colour
-
-
 def test_log_odds_is_a_copy_with_nan_where_unobserved_and_occupancy_at_follows_the_threshold():
     g = OccupancyGrid2D(0.1, size=(2.0, 1.0), occupied_threshold=0.65)
     single_beam(g, 1.0)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from PIL import Image
 
 from occmap.errors import FormatError, InvalidArgumentError, OccmapError, ShapeError
-from occmap.io.mapserver import MapFile, load_map, save_map, save_probability_png
+from occmap.io.mapserver import MapFile, load_map, save_map
 
 
 def trinary(occ: np.ndarray) -> np.ndarray:
@@ -411,39 +411,6 @@ def test_failed_write_leaves_old_file_and_no_temp(tmp_path, monkeypatch):
     monkeypatch.undo()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
     assert ((tmp_path / "m.yaml").read_bytes(), (tmp_path / "m.pgm").read_bytes()) == before
-
-
-# ----------------------------------------------------------------------------------------------
-# probability pictures
-
-
-def test_probability_png_orientation_and_colours(tmp_path):
-    prob = np.array([[0.0, 1.0, 0.5], [0.25, 0.2, 0.9]])
-    unknown = np.array([[False, False, False], [False, True, False]])
-    path = save_probability_png(tmp_path / "p.png", prob, unknown)
-    picture = np.asarray(Image.open(path).convert("RGB"))
-    assert picture.shape == (2, 3, 3)
-    # bottom picture row = grid row 0
-    np.testing.assert_array_equal(picture[1, 0], [255, 255, 255])  # free → white
-    np.testing.assert_array_equal(picture[1, 1], [0, 0, 0])  # occupied → black
-    np.testing.assert_array_equal(picture[1, 2], [128, 128, 128])
-    np.testing.assert_array_equal(picture[0, 0], [191, 191, 191])
-    unknown_rgb = picture[0, 1]
-    assert len(set(unknown_rgb.tolist())) > 1  # a colour, not a gray level
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.png"]
-
-
-def test_probability_png_nan_is_unknown_and_bad_input(tmp_path):
-    path = save_probability_png(tmp_path / "n.png", np.array([[np.nan, 0.0]]))
-    picture = np.asarray(Image.open(path).convert("RGB"))
-    assert len(set(picture[0, 0].tolist())) > 1
-    with pytest.raises(InvalidArgumentError):
-        save_probability_png(tmp_path / "x.png", np.array([[1.5]]))
-    with pytest.raises(ShapeError):
-        save_probability_png(tmp_path / "x.png", np.zeros(3))
-    with pytest.raises(ShapeError):
-        save_probability_png(tmp_path / "x.png", np.zeros((2, 2)), np.zeros((3, 3), bool))
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["n.png"]
 
 
 def test_trinary_averages_alpha_in_like_map_server(tmp_path):

@@ -58,8 +58,11 @@ def test_info_convert_render(tmp_path, capsys, clouds):
     assert len(read_ply(tmp_path / "map.ply")) == len(tree.occupied_centers())
     assert main(["render", str(tmp_path / "map.ot"), "-o", str(tmp_path / "top.png")]) == 0
     assert main(["render", str(tmp_path / "map.ot"), "-o", str(tmp_path / "cut.png"), "--slice", "1.0"]) == 0
-    cut = np.asarray(Image.open(tmp_path / "cut.png"))
-    assert (cut == 20).all(axis=-1).any() and (cut == 255).all(axis=-1).any()  # occupied and free pixels
+    cut = np.asarray(Image.open(tmp_path / "cut.png").convert("RGB"))
+    assert (cut == 26).all(axis=-1).any() and (cut == 255).all(axis=-1).any()  # occupied and free pixels
+    assert main(["render", str(tmp_path / "map.ot"), "-o", str(tmp_path / "low.png"), "--z-max", "1.0"]) == 0
+    low, top = (np.asarray(Image.open(tmp_path / n).convert("RGB")) for n in ("low.png", "top.png"))
+    assert low.shape == top.shape and (low != top).any()  # the cut changes what is drawn
 
 
 def test_map3d_reads_xyz_and_reports_bad_input(tmp_path, capsys, clouds):

@@ -464,11 +464,26 @@ class OccupancyGrid2D(OneCallAtATime):
             raise InvalidArgumentError("an empty growing map has no extent to save yet")
         return save_map(path_yaml, self.occupancy(), self.resolution, self.origin, **kwargs)
 
-    def save_png(self, path):
-        """A picture of the occupancy probability (free white, occupied black, unknown light blue)."""
-        from ..io.mapserver import save_probability_png
+    def figure(self, title: str = "occupancy grid", crop: bool = True):
+        """A labelled figure of the occupancy probability (free white, occupied black, never
+        observed light blue; axes in metres, scale bar, colour bar), cropped to the observed cells
+        (:func:`occmap.viz.maps.grid_figure`)."""
+        from ..viz import maps
 
-        return save_probability_png(path, self.probability(), unknown_mask=~self.observed)
+        return maps.grid_figure(self.probability(), self.observed, self.origin, self.resolution, title, crop)
+
+    def save_png(self, path, title: str = "occupancy grid", crop: bool = True):
+        """Write :meth:`figure` as a PNG file; returns the path. (The map_server image a ROS node
+        loads is :meth:`save`'s, cell for pixel.)"""
+        from ..viz import figure
+
+        return figure.save(self.figure(title, crop), path)
+
+    def _repr_png_(self) -> bytes:
+        """Jupyter shows a grid as its figure."""
+        from ..viz import figure
+
+        return figure.png_bytes(self.figure())
 
     @classmethod
     def load(cls, path_yaml, prior: float = 0.5, clamp=(0.1192, 0.971)) -> OccupancyGrid2D:

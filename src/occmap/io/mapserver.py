@@ -82,11 +82,10 @@ import numpy as np
 from .. import checks
 from .._files import write_atomic
 from ..errors import FormatError, InvalidArgumentError, ShapeError
-from ..png import write_png
 from . import _limits
 from ._compression import read_bytes
 
-__all__ = ["MapFile", "load_map", "save_map", "save_probability_png"]
+__all__ = ["MapFile", "load_map", "save_map"]
 
 #: Pixel values map_saver writes in trinary mode.
 FREE_PIXEL = 254
@@ -520,49 +519,3 @@ def _classify(channels, *, mode: str, negate: bool, occ_t: float, free_t: float)
     if mode == "scale" and alpha is not None:
         out[alpha == 0] = -1
     return out
-
-
-# ----------------------------------------------------------------------------------------------
-# pictures
-
-#: Colour of unknown cells in :func:`save_probability_png` (light blue).
-UNKNOWN_RGB = (170, 200, 235)
-
-
-def save_probability_png(path, probability, unknown_mask=None) -> Path:
-    """Write a picture of a probability grid as PNG (atomically); return the path.
-
-    Args:
-        path: the PNG file to write.
-        probability: float array ``(H, W)`` in [0, 1], occupancy probability per cell, row 0 =
-            lowest y (drawn at the bottom of the picture). Free (0) is white, occupied (1) black,
-            gray levels in between: ``gray = round(255·(1 − p))``.
-        unknown_mask: optional bool array ``(H, W)``; True cells are drawn light blue
-            (:data:`UNKNOWN_RGB`). NaN probabilities are drawn as unknown too.
-
-    Raises:
-        ShapeError: not a non-empty 2-D array, or the mask's shape differs.
-        InvalidArgumentError: a probability outside [0, 1].
-    """
-    prob = np.asarray(probability, dtype=np.float64)
-    if prob.ndim != 2 or prob.shape[0] == 0 or prob.shape[1] == 0:
-        raise ShapeError(f"probability must be a non-empty (H, W) array, got shape {prob.shape}")
-    unknown = np.isnan(prob)
-    if unknown_mask is not None:
-        mask = np.asarray(unknown_mask, dtype=bool)
-        if mask.shape != prob.shape:
-            raise ShapeError(
-                f"unknown_mask has shape {mask.shape}, probability has shape {prob.shape}"
-            )
-        unknown = unknown | mask
-    known_values = prob[~unknown]
-    if known_values.size and (
-        not np.all(np.isfinite(known_values))
-        or known_values.min() < 0.0
-        or known_values.max() > 1.0
-    ):
-        raise InvalidArgumentError("probability values must lie in [0, 1]")
-    gray = np.rint(255.0 * (1.0 - np.where(unknown, 0.0, prob))).astype(np.uint8)
-    rgb = np.repeat(gray[:, :, None], 3, axis=-1)
-    rgb[unknown] = UNKNOWN_RGB
-    return write_png(path, rgb[::-1])

@@ -21,7 +21,6 @@ from .. import checks
 from .._threads import OneCallAtATime, no_lock, thread_count
 from ..errors import InvalidArgumentError, ShapeError
 from ..logodds import logit32, occupancy_classes
-from ..png import write_png
 from . import insertion, pool, query, views
 from .keys import CENTER, MAX_KEY, NO_SHIFT, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
 from .marking import prepare_rays, ray_voxels
@@ -480,14 +479,26 @@ class OcTree(OneCallAtATime):
 
     # ------------------------------------------------------------------ pictures and exports
 
-    def save_height_png(self, path, pixel: float | None = None) -> None:
-        """Top-down picture: occupied columns coloured by their highest occupied z, known empty
-        columns white, unknown grey (see :mod:`occmap.octree.views`)."""
-        write_png(path, views.height_image(self, pixel))
+    def save_height_png(self, path, pixel: float | None = None, z_max: float | str | None = "ceiling"):
+        """A labelled top-down figure: occupied columns coloured by their highest occupied z (an
+        indoor map cut under its ceiling), known empty columns white, unknown light blue
+        (:func:`occmap.viz.maps.height_figure`); returns the path."""
+        from ..viz import figure, maps
 
-    def save_slice_png(self, path, z: float, pixel: float | None = None) -> None:
-        """Horizontal slice at height ``z``: occupied black, free white, unknown grey."""
-        write_png(path, views.slice_image(self, z, pixel))
+        return figure.save(maps.height_figure(self, pixel, z_max), path)
+
+    def save_slice_png(self, path, z: float, pixel: float | None = None):
+        """A labelled figure of the horizontal slice at height ``z`` metres: occupied dark, free
+        white, unknown light blue (:func:`occmap.viz.maps.slice_figure`); returns the path."""
+        from ..viz import figure, maps
+
+        return figure.save(maps.slice_figure(self, z, pixel), path)
+
+    def _repr_png_(self) -> bytes:
+        """Jupyter shows an octree as its height map."""
+        from ..viz import figure, maps
+
+        return figure.png_bytes(maps.height_figure(self))
 
     def export_ply(self, path, binary: bool = True) -> int:
         """Occupied leaf centres as a PLY point cloud coloured by height; returns the point count."""

@@ -1,24 +1,20 @@
-"""Pictures and exports of an octree: a top-down height map, a horizontal slice, occupied voxels
-as a PLY point cloud.
+"""Rasters and exports of an octree: a top-down height map, the ceiling of an indoor map, a
+horizontal slice, occupied voxels as a PLY point cloud. The figures drawn from them are in
+:mod:`occmap.viz.maps`.
 
-Images are north-up: image row 0 is the largest y, column 0 the smallest x; one pixel is one
-voxel (``tree.resolution``) unless a coarser ``pixel`` size is asked for.
+Rasters have row 0 at the smallest y (the southern edge), column 0 at the smallest x; one pixel is
+one voxel (``tree.resolution``) unless a coarser ``pixel`` size is asked for.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from PIL import Image
-
 from .. import checks
 from ..errors import InvalidArgumentError
 from ..io.pointclouds import write_ply
 
 #: Colours of the height ramp (low → high), interpolated linearly: blue, teal, green, yellow.
 _RAMP = np.array([[48, 18, 59], [40, 120, 190], [30, 180, 140], [150, 210, 60], [250, 230, 40]], np.float64)
-UNKNOWN = (205, 205, 205)
-FREE = (255, 255, 255)
-OCCUPIED = (20, 20, 20)
 
 
 def height_colors(t) -> np.ndarray:
@@ -38,20 +34,24 @@ def _frame(tree, pixel):
     return pixel, x0, y0, max(1, int(round((x1 - x0) / pixel))), max(1, int(round((y1 - y0) / pixel)))
 
 
-def height_map(tree, pixel: float | None = None):
+def height_map(tree, pixel: float | None = None, z_max: float | None = None):
     """Top of the occupied space per column, seen from above: ``(top, known, origin, pixel)`` with
     ``top`` (rows, cols) float64 (the highest occupied z, NaN where a column holds none), ``known``
     (rows, cols) bool (any known voxel in the column), ``origin`` the world (x, y) of the image's
-    lower-left corner. Row 0 is the southern edge (y = origin y)."""
+    lower-left corner. Row 0 is the southern edge (y = origin y). With ``z_max``, occupied leaves
+    starting at or above it are left out (an indoor map seen from under its ceiling, see
+    :func:`ceiling`)."""
     if tree.num_nodes() == 0:
         raise InvalidArgumentError("the octree is empty: nothing to draw")
     pixel, x0, y0, w, h = _frame(tree, pixel)
     lv = tree.leaves()
+    half = lv.sizes / 2
     occupied = lv.log_odds >= tree.occupied_log_odds
+    if z_max is not None:
+        occupied &= lv.centers[:, 2] - half < float(z_max)
     top = np.full(h * w, -np.inf)
     known = np.zeros(h * w, bool)
     # a leaf covers a square of columns: rasterise each leaf over the pixels its footprint spans
-    half = lv.sizes / 2
     c0 = np.floor((lv.centers[:, 0] - half - x0) / pixel + 1e-9).astype(np.int64)
     c1 = np.ceil((lv.centers[:, 0] + half - x0) / pixel - 1e-9).astype(np.int64)
     r0 = np.floor((lv.centers[:, 1] - half - y0) / pixel + 1e-9).astype(np.int64)
@@ -65,27 +65,48 @@ def height_map(tree, pixel: float | None = None):
     cell = row * w + col
     known[cell] = True
     occ = occupied[leaf]
-    np.maximum.at(top, cell[occ], (lv.centers[:, 2] + half)[leaf][occ])
+    top_z = lv.centers[:, 2] + half
+    if z_max is not None:
+        top_z = np.minimum(top_z, float(z_max))
+    np.maximum.at(top, cell[occ], top_z[leaf][occ])
     top[np.isinf(top)] = np.nan
     return top.reshape(h, w), known.reshape(h, w), np.array([x0, y0]), pixel
 
 
-def height_image(tree, pixel: float | None = None, z_range=None) -> Image.Image:
-    """The height map as a picture: occupied columns coloured by height (``z_range`` (lo, hi), by
-    default the map's), known empty columns white, unknown grey."""
-    top, known, _, _ = height_map(tree, pixel)
-    rgb = np.empty(top.shape + (3,), np.uint8)
-    rgb[:] = UNKNOWN
-    rgb[known] = FREE
-    has = ~np.isnan(top)
-    if has.any():
-        lo, hi = (np.nanmin(top), np.nanmax(top)) if z_range is None else map(float, z_range)
-        rgb[has] = height_colors((top[has] - lo) / max(hi - lo, 1e-9))
-    return Image.fromarray(rgb[::-1])
+def ceiling(tree, cover: float = 0.2, thickness: float = 0.5) -> float | None:
+    """The height of an indoor map's ceiling, or None when the map has none (outdoors).
+
+    A ceiling is a horizontal layer of occupied voxels (one ``resolution`` thick) in the upper half
+    of the occupied height range that covers at least ``cover`` of the area over which anything is
+    occupied, with (nearly) nothing above it: at least 90 % of what is occupied from that layer up
+    lies within ``thickness`` metres of it (a roof over the ceiling, not the upper floors of a
+    town's taller buildings). The lowest such layer's bottom is returned. Leaves larger than a
+    voxel count with their whole footprint at their centre's layer."""
+    lv = tree.leaves()
+    occ = lv.log_odds >= tree.occupied_log_odds
+    if not occ.any():
+        return None
+    res = tree.resolution
+    layer = np.floor(lv.centers[occ, 2] / res).astype(np.int64)
+    lo = layer.min()
+    counts = np.bincount(layer - lo, weights=(lv.sizes[occ] / res) ** 2)
+    top, _, _, _ = height_map(tree)  # one pixel a voxel: its occupied columns are the footprint
+    footprint = np.count_nonzero(~np.isnan(top))
+    n = len(counts)
+    k = np.arange(n)
+    below = np.concatenate([[0.0], np.cumsum(counts)])  # below[k]: what lies under layer k
+    band = max(1, int(round(thickness / res)))
+    within = below[np.minimum(k + band, n)] - below[k]
+    from_here_up = below[n] - below[k]
+    upper = k >= n / 2
+    flat = np.flatnonzero(upper & (counts >= cover * footprint) & (within >= 0.9 * from_here_up))
+    return None if flat.size == 0 else float((lo + flat[0]) * res)
 
 
-def slice_image(tree, z: float, pixel: float | None = None) -> Image.Image:
-    """The horizontal slice at height ``z``: occupied black, free white, unknown grey."""
+def slice_map(tree, z: float, pixel: float | None = None):
+    """The horizontal slice at height ``z``: ``(occupancy, origin, pixel)`` with ``occupancy``
+    (rows, cols) int8 (−1 unknown, 0 free, 1 occupied; row 0 the southern edge) over the known
+    leaves' box, ``origin`` the world (x, y) of its lower-left corner."""
     if tree.num_nodes() == 0:
         raise InvalidArgumentError("the octree is empty: nothing to draw")
     pixel, x0, y0, w, h = _frame(tree, pixel)
@@ -93,11 +114,7 @@ def slice_image(tree, z: float, pixel: float | None = None) -> Image.Image:
     ys = y0 + (np.arange(h) + 0.5) * pixel
     X, Y = np.meshgrid(xs, ys)
     occ = tree.occupancy_at(np.stack([X.ravel(), Y.ravel(), np.full(X.size, float(z))], -1)).reshape(h, w)
-    rgb = np.empty((h, w, 3), np.uint8)
-    rgb[occ == -1] = UNKNOWN
-    rgb[occ == 0] = FREE
-    rgb[occ == 1] = OCCUPIED
-    return Image.fromarray(rgb[::-1])
+    return occ.astype(np.int8), np.array([x0, y0]), pixel
 
 
 def export_ply(tree, path, binary: bool = True) -> int:

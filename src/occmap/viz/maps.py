@@ -1,0 +1,128 @@
+"""Figures of maps: a 2D occupancy grid, an octree's height map and horizontal slices. Each has
+axes in metres, a scale bar, a colour key and a title, and is cropped to the known area.
+
+Each function returns a ``matplotlib.figure.Figure``; :func:`occmap.viz.figure.save` writes it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidArgumentError, ShapeError
+from .figure import FREE, UNKNOWN, figure, known_box, map_axes, raster_size
+
+__all__ = ["grid_figure", "height_figure", "slice_figure"]
+
+#: The occupied colour of categorical pictures (slices).
+OCCUPIED = (0.1, 0.1, 0.1)
+
+
+def _extent(origin, resolution: float, shape) -> tuple[float, float, float, float]:
+    x0, y0 = float(origin[0]), float(origin[1])
+    return x0, x0 + shape[1] * resolution, y0, y0 + shape[0] * resolution
+
+
+def _panel(shape, key_px: int = 160):
+    """A figure sized for a raster of ``shape`` with room for labels and a colour key, and its axes."""
+    w, h = raster_size(shape)
+    fig = figure(w + key_px + 110, h + 140)
+    return fig, fig.add_subplot()
+
+
+def _legend(fig, entries) -> None:
+    """Colour patches ``(label, rgb)`` in a row under the map."""
+    from matplotlib.patches import Patch
+
+    fig.legend(handles=[Patch(facecolor=c, edgecolor="0.4", label=t) for t, c in entries],
+               loc="outside lower center", ncols=len(entries), fontsize="small", frameon=False)
+
+
+def grid_figure(probability, known, origin, resolution: float, title: str = "occupancy grid", crop: bool = True):
+    """An occupancy grid: probability from white (free, 0) to black (occupied, 1) with its colour
+    bar, never-observed cells light blue.
+
+    Args:
+        probability: (H, W) occupancy probability in [0, 1], row 0 at the lowest y.
+        known: (H, W) bool, the observed cells (NaN probabilities count as unobserved).
+        origin: world (x, y) of cell (0, 0)'s outer corner, metres.
+        resolution: cell side, metres.
+        title: the figure's title.
+        crop: draw only the mapped part: the box of the occupied cells (p ≥ 0.65, map_server's
+            threshold) grown by 20 cells, within the observed ones (:func:`~occmap.viz.figure.known_box`).
+    """
+    from matplotlib.colors import PowerNorm
+
+    p = np.asarray(probability, dtype=np.float64)
+    seen = np.asarray(known, dtype=bool)
+    if p.ndim != 2 or p.shape != seen.shape or p.size == 0:
+        raise ShapeError(f"probability {p.shape} and known {seen.shape} must be the same non-empty (H, W)")
+    seen = seen & ~np.isnan(p)
+    bad = seen & ~((p >= 0.0) & (p <= 1.0))
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise InvalidArgumentError(f"probability[{r}, {c}] = {float(p[r, c])!r} is not in [0, 1]")
+    rows, cols = known_box(seen, seen & (p >= 0.65)) if crop else (slice(0, p.shape[0]), slice(0, p.shape[1]))
+    p, seen = p[rows, cols], seen[rows, cols]
+    corner = (origin[0] + cols.start * resolution, origin[1] + rows.start * resolution)
+    extent = _extent(corner, resolution, p.shape)
+    cmap = _cmap("gray_r")
+    fig, ax = _panel(p.shape)
+    # squared: free cells (p ≈ 0.1) draw white, the unknown colour stands out beside them
+    image = ax.imshow(np.ma.masked_array(p, ~seen), cmap=cmap, norm=PowerNorm(2.0, 0.0, 1.0), origin="lower",
+                      extent=extent, interpolation="nearest")
+    fig.colorbar(image, ax=ax, shrink=0.8, label="occupancy probability (0 free, 1 occupied)")
+    map_axes(ax, extent, f"{title}\n{resolution:g} m cells")
+    _legend(fig, [("never observed", UNKNOWN)])
+    return fig
+
+
+def _cmap(name: str):
+    """A copy of a named colour map whose masked cells draw as :data:`UNKNOWN`."""
+    from matplotlib import colormaps
+
+    return colormaps[name].with_extremes(bad=UNKNOWN)
+
+
+def height_figure(tree, pixel: float | None = None, z_max: float | str | None = "ceiling", title: str = "height map"):
+    """An octree seen from above: each column coloured by its highest occupied voxel (colour bar in
+    metres), known columns with nothing occupied white, unknown light blue.
+
+    ``z_max``: leave out what is occupied from this height up; ``"ceiling"`` (default) cuts an
+    indoor map just under its ceiling (:func:`occmap.octree.views.ceiling`; outdoor maps are not
+    cut), None never cuts."""
+    from matplotlib import colormaps
+
+    from ..octree import views
+
+    if isinstance(z_max, str):
+        z_max = views.ceiling(tree)
+    top, known, origin, px = views.height_map(tree, pixel, z_max=z_max)
+    extent = _extent(origin, px, top.shape)
+    fig, ax = _panel(top.shape)
+    ax.imshow(np.where(known, 1.0, np.nan), cmap=_cmap("gray"), vmin=0.0, vmax=1.0, origin="lower",
+              extent=extent, interpolation="nearest")
+    image = ax.imshow(np.ma.masked_invalid(top), cmap=colormaps["viridis"].with_extremes(bad=(0, 0, 0, 0)),
+                      origin="lower", extent=extent, interpolation="nearest")
+    fig.colorbar(image, ax=ax, shrink=0.8, label="height of the highest occupied voxel [m]")
+    cut = "" if z_max is None else f", below z = {z_max:.2f} m"
+    map_axes(ax, extent, f"{title}\n{px:g} m pixels{cut}")
+    _legend(fig, [("known, nothing occupied", FREE), ("unknown", UNKNOWN)])
+    return fig
+
+
+def slice_figure(tree, z: float, pixel: float | None = None, title: str = "horizontal slice"):
+    """The octree's horizontal slice at height ``z`` metres: occupied dark, free white, unknown
+    light blue."""
+    from ..octree import views
+
+    occ, origin, px = views.slice_map(tree, z, pixel)
+    rgb = np.empty(occ.shape + (3,))
+    rgb[occ == -1] = UNKNOWN
+    rgb[occ == 0] = FREE
+    rgb[occ == 1] = OCCUPIED
+    extent = _extent(origin, px, occ.shape)
+    fig, ax = _panel(occ.shape, key_px=0)
+    ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
+    map_axes(ax, extent, f"{title} at z = {float(z):g} m\n{px:g} m pixels")
+    _legend(fig, [("occupied", OCCUPIED), ("free", FREE), ("unknown", UNKNOWN)])
+    return fig
