@@ -201,10 +201,10 @@ def tracking_section(d: Loaded, quick: bool) -> list[str]:
     pe, he, res, loc = best
     image = ROOT / "docs" / "images" / f"localize_{d.run.key}.png"
     image.parent.mkdir(parents=True, exist_ok=True)
-    save_error_png(image, dist, pe, he, title=f"{d.run.title}, raw odometry localized in the corrected map: "
-                   "error against the corrected poses", curves=[
-                       ("plain AMCL", (230, 120, 30), plain_pe, plain_he), ("this filter", (30, 60, 230), pe, he)])
-    save_track_png(image.with_name(f"localize_{d.run.key}_track.png"), loc, res, reference=d.ref_poses[ok])
+    save_error_png(image, dist, [("plain AMCL", plain_pe, plain_he), ("this filter", pe, he)],
+                   f"{d.run.title}, raw odometry localized in the corrected map: error against the corrected poses")
+    save_track_png(image.with_name(f"localize_{d.run.key}_track.png"), loc, res, reference=d.ref_poses[ok],
+                   title=f"{d.run.title}: raw odometry localized in the corrected map")
     n_fit = int(d.fits[ok].sum())
     table = ["| filter | mean position error | p95 | max | mean heading error | max | where the reference fits: "
              "mean | max | update (median) |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]

@@ -90,8 +90,8 @@ def test_intel_stretch_is_tracked(intel, tmp_path):
     assert lines[0].startswith("stamp,x,y,theta") and len(lines) == len(raw) + 1
     png = save_track_png(tmp_path / "t.png", loc, res, reference=ref_poses[ok])
     assert Image.open(png).size[0] > 100
-    png = save_error_png(tmp_path / "e.png", travelled(ref_poses[ok]), pe, he, title="t")
-    assert Image.open(png).size == (900, 520)
+    png = save_error_png(tmp_path / "e.png", travelled(ref_poses[ok]), [("filter", pe, he)], title="t")
+    assert Image.open(png).size == (900, 560)
 
 
 def test_intel_global_localization_converges_within_30_m(intel):

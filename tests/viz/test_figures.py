@@ -143,3 +143,38 @@ def test_slice_figure_shows_walls_free_inside_and_unknown_outside(tmp_path):
     _, at = drawn(maps.slice_figure(tree, 1.5))
     assert close(at(5.0, 2.0), figure.UNKNOWN)
     assert tree.save_slice_png(tmp_path / "s.png", 1.5).exists() and tree._repr_png_()[:4] == b"\x89PNG"
+
+
+def test_track_figure_draws_the_estimate_over_the_map_and_names_every_line():
+    from occmap.viz import localization
+
+    occ = np.zeros((100, 200), bool)
+    occ[0, :] = occ[-1, :] = True
+    free = ~occ
+    free[:, 150:] = False  # the east end was never seen
+    xs = np.linspace(1.0, 8.0, 50)
+    est = np.column_stack([xs, np.full(50, 2.5), np.zeros(50)])
+    odo = est + [0.0, 0.5, 0.0]
+    fig = localization.track_figure(occ, free, (0.0, 0.0), 0.05, est, odo, est[::5], title="corridor")
+    rgb, at = drawn(fig)
+    u, v = fig.axes[0].transData.transform((4.0, 2.5))
+    r, c = rgb.shape[0] - 1 - int(v), int(u)
+    near = rgb[r - 2:r + 3, c - 2:c + 3].reshape(-1, 3).astype(int)
+    assert ((near[:, 2] > 150) & (near[:, 0] < 120)).any()  # the estimate, blue, where it was
+    assert at(4.0, 0.02).max() < 80  # the southern wall
+    assert close(at(9.0, 4.0), figure.UNKNOWN)
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels == ["odometry (from the first estimate)", "reference poses", "estimate", "start"]
+
+
+def test_error_figure_labels_units_and_keeps_a_spike_from_flattening_the_rest():
+    from occmap.viz import localization
+
+    d = np.linspace(0, 100, 1000)
+    pe = np.full(1000, 0.05)
+    pe[500] = 50.0  # one spike
+    fig = localization.error_figure(d, [("filter", pe, np.radians(np.full(1000, 1.0)))], "t")
+    top, bottom = fig.axes[:2]
+    assert top.get_ylabel() == "position error [m]" and bottom.get_ylabel() == "heading error [°]"
+    assert bottom.get_xlabel() == "distance travelled [m]"
+    assert top.get_ylim()[1] == pytest.approx(0.055) and bottom.get_ylim()[1] == pytest.approx(1.1)

@@ -25,7 +25,6 @@ from .._files import write_atomic
 from ..errors import InvalidArgumentError
 from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import wrap_angle
-from ..png import write_png
 from .likelihood_field import beam_end_points
 from .mcl import LocalizationWarning, MonteCarloLocalizer
 
@@ -203,100 +202,26 @@ def write_track_csv(path, result: ReplayResult):
     return write_atomic(path, ("\n".join(lines) + "\n").encode())
 
 
-def save_track_png(path, localizer: MonteCarloLocalizer, result: ReplayResult, reference=None, scale: float = 20.0):
-    """The map (free white, obstacles black, unknown grey) with the odometry track (anchored at the
-    first estimate, red), the estimated track (blue) and, when given, reference poses (green)."""
-    from PIL import Image
-
-    from ..canvas import Canvas
+def save_track_png(path, localizer: MonteCarloLocalizer, result: ReplayResult, reference=None,
+                   title: str = "localization"):
+    """Write a labelled figure of the run (:func:`occmap.viz.localization.track_figure`): the
+    localizer's map, the estimated track, the odometry anchored at the first estimate and, when
+    given, reference poses. Returns the path."""
+    from ..viz import figure, localization
 
     field = localizer.field
-    occ, free = field.occupied, field.free
-    H, W = occ.shape
-    res = field.resolution
-    ox, oy = field.origin
-    odo = anchor_odometry(result.odometry, result.poses[0])
-    pts = [result.poses[:, :2], np.array([[ox, oy], [ox + W * res, oy + H * res]])]
-    lo = np.min([p.min(axis=0) for p in pts], axis=0)
-    hi = np.max([p.max(axis=0) for p in pts], axis=0)
-    # keep the picture near the map: the odometry may wander far off
-    span = hi - lo
-    olo = np.maximum(odo[:, :2].min(axis=0), lo - 0.5 * span)
-    ohi = np.minimum(odo[:, :2].max(axis=0), hi + 0.5 * span)
-    lo, hi = np.minimum(lo, olo), np.maximum(hi, ohi)
-    canvas = Canvas((lo[0], hi[0], lo[1], hi[1]), scale=scale, background=(205, 205, 205))
-    img = np.full((H, W, 3), 205, dtype=np.uint8)
-    img[free] = 255
-    img[occ] = 0
-    tile = Image.fromarray(img[::-1])
-    tile = tile.resize((max(1, int(round(W * res * scale))), max(1, int(round(H * res * scale)))), Image.NEAREST)
-    u, v = canvas.pixels(np.array([ox, oy + H * res]))
-    canvas.image.paste(tile, (int(round(u)), int(round(v))))
-    canvas.polyline(odo[:, :2], (220, 40, 40), 1)
-    if reference is not None:
-        canvas.points(np.asarray(reference)[:, :2], (0, 160, 0), radius=1.5)
-    canvas.polyline(result.poses[:, :2], (30, 60, 230), 1)
-    canvas.text((lo[0], hi[1]), "blue: estimate   red: raw odometry" + ("   green: reference" if reference is not None else ""))
-    return canvas.save(path)
+    fig = localization.track_figure(field.occupied, field.free, field.origin, field.resolution, result.poses,
+                                    anchor_odometry(result.odometry, result.poses[0]), reference, title)
+    return figure.save(fig, path)
 
 
-def save_error_png(path, distance, position_error, heading_error, title: str = "", width: int = 900,
-                   height: int = 520, curves=None):
-    """Error curves against distance travelled: position error (m, upper panel) and heading error
-    (degrees, lower panel). ``curves`` adds more ``(label, colour, position_error, heading_error)``
-    series over the same ``distance``."""
-    from PIL import Image, ImageDraw
+def save_error_png(path, distance, curves, title: str = "localization error"):
+    """Write the error curves ``curves`` — ``(label, position_error, heading_error)`` each, metres
+    and radians over ``distance`` metres travelled — as a labelled figure
+    (:func:`occmap.viz.localization.error_figure`). Returns the path."""
+    from ..viz import figure, localization
 
-    series = [("", (30, 60, 230), np.asarray(position_error), np.asarray(heading_error))]
-    if curves:
-        series = list(curves)
-    img = Image.new("RGB", (width, height), (255, 255, 255))
-    draw = ImageDraw.Draw(img)
-    d = np.asarray(distance, dtype=np.float64)
-    left, right, top = 70, 20, 30
-    panel_h = (height - top - 60) // 2
-    xmax = float(d.max()) if d.size and d.max() > 0 else 1.0
-
-    def panel(y0, values, label, unit_scale):
-        vals = [np.asarray(v, dtype=np.float64) * unit_scale for v in values]
-        finite = np.concatenate([v[np.isfinite(v)] for v in vals]) if vals else np.zeros(0)
-        ymax = float(np.percentile(finite, 99.5)) * 1.1 if finite.size else 1.0
-        ymax = ymax if ymax > 0 else 1.0
-        draw.rectangle((left, y0, width - right, y0 + panel_h), outline=(0, 0, 0))
-        for k in range(5):
-            yv = ymax * k / 4
-            yy = y0 + panel_h - panel_h * k / 4
-            draw.line((left, yy, width - right, yy), fill=(230, 230, 230))
-            draw.text((5, yy - 6), f"{yv:.3g}", fill=(0, 0, 0))
-        draw.text((left + 5, y0 + 3), label, fill=(0, 0, 0))
-        return ymax
-
-    def xy(x, y, y0, ymax):
-        u = left + (width - left - right) * x / xmax
-        v = y0 + panel_h - panel_h * min(y, ymax) / ymax
-        return u, v
-
-    y_top, y_bot = top, top + panel_h + 30
-    ym1 = panel(y_top, [s[2] for s in series], "position error (m)", 1.0)
-    ym2 = panel(y_bot, [s[3] for s in series], "heading error (deg)", 180.0 / math.pi)
-    for label, colour, pe, he in series:
-        for vals, y0, ym, sc in ((pe, y_top, ym1, 1.0), (he, y_bot, ym2, 180.0 / math.pi)):
-            pts = [xy(x, v * sc, y0, ym) for x, v in zip(d, vals) if np.isfinite(v)]
-            if len(pts) >= 2:
-                draw.line(pts, fill=colour, width=1)
-    for k in range(6):
-        xv = xmax * k / 5
-        draw.text((left + (width - left - right) * k / 5 - 10, height - 25), f"{xv:.0f}", fill=(0, 0, 0))
-    draw.text((width // 2 - 80, height - 12), "distance travelled (m)", fill=(0, 0, 0))
-    draw.text((left, 8), title, fill=(0, 0, 0))
-    x_leg = width - right - 10
-    for label, colour, _, _ in reversed(series):
-        if label:
-            w = 8 * len(label) + 20
-            x_leg -= w
-            draw.line((x_leg, 14, x_leg + 14, 14), fill=colour, width=3)
-            draw.text((x_leg + 17, 8), label, fill=(0, 0, 0))
-    return write_png(path, img)
+    return figure.save(localization.error_figure(distance, curves, title), path)
 
 
 def make_localizer(grid, *, particles: int = 2000, beams: int = 60, seed=0, plain: bool = False,

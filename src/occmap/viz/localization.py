@@ -1,0 +1,80 @@
+"""Figures of a localization run: the track over the map, and the errors against distance travelled."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .figure import FREE, UNKNOWN, figure, map_axes, raster_size
+
+__all__ = ["error_figure", "track_figure"]
+
+OCCUPIED = (0.15, 0.15, 0.15)
+ESTIMATE = "#1f4fe0"
+ODOMETRY = "#d62728"
+REFERENCE = "#2ca02c"
+
+
+def track_figure(occupied, free, origin, resolution: float, estimate, odometry=None, reference=None,
+                 title: str = "localization"):
+    """The map (occupied dark, free white, unknown light blue) under the estimated track (blue),
+    the odometry track anchored at the first estimate (red) and reference poses (green dots).
+
+    ``occupied``, ``free``: (H, W) bool, row 0 at the lowest y; ``origin`` the world (x, y) of
+    cell (0, 0)'s corner; tracks (N, ≥2) in metres. The view holds the map and the estimate; an
+    odometry track that drifts off is cut half the map's size past it."""
+    occ, fr = np.asarray(occupied, bool), np.asarray(free, bool)
+    rgb = np.empty(occ.shape + (3,))
+    rgb[:] = UNKNOWN
+    rgb[fr] = FREE
+    rgb[occ] = OCCUPIED
+    x0, y0 = float(origin[0]), float(origin[1])
+    extent = (x0, x0 + occ.shape[1] * resolution, y0, y0 + occ.shape[0] * resolution)
+    est = np.asarray(estimate, dtype=np.float64)
+    lo = np.minimum([extent[0], extent[2]], est[:, :2].min(axis=0))
+    hi = np.maximum([extent[1], extent[3]], est[:, :2].max(axis=0))
+    if odometry is not None:
+        span = hi - lo
+        odo = np.asarray(odometry, dtype=np.float64)
+        lo = np.minimum(lo, np.maximum(odo[:, :2].min(axis=0), lo - 0.5 * span))
+        hi = np.maximum(hi, np.minimum(odo[:, :2].max(axis=0), hi + 0.5 * span))
+    view = (lo[0], hi[0], lo[1], hi[1])
+    w, h = raster_size((round((hi[1] - lo[1]) / resolution), round((hi[0] - lo[0]) / resolution)))
+    fig = figure(w + 110, h + 150)
+    ax = fig.add_subplot()
+    ax.set_facecolor(UNKNOWN)
+    ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
+    if odometry is not None:
+        ax.plot(odo[:, 0], odo[:, 1], color=ODOMETRY, lw=0.8, label="odometry (from the first estimate)")
+    if reference is not None:
+        ref = np.asarray(reference, dtype=np.float64)
+        ax.plot(ref[:, 0], ref[:, 1], ".", color=REFERENCE, ms=2.5, label="reference poses")
+    ax.plot(est[:, 0], est[:, 1], color=ESTIMATE, lw=0.9, label="estimate")
+    ax.plot(est[:1, 0], est[:1, 1], "o", color=ESTIMATE, ms=6, mfc="none", label="start")
+    map_axes(ax, view, f"{title}\nmap: {resolution:g} m cells, occupied dark, free white, unknown blue")
+    fig.legend(loc="outside lower center", ncols=4, fontsize="small", frameon=False)
+    return fig
+
+
+def error_figure(distance, curves, title: str = "localization error"):
+    """Position error (metres, upper panel) and heading error (degrees, lower panel) against the
+    distance travelled (metres): ``curves`` is a list of ``(label, position_error, heading_error)``
+    (radians), each drawn over ``distance``. The y axes stop at the 99.5th percentile × 1.1 so
+    that one spike does not flatten the rest."""
+    d = np.asarray(distance, dtype=np.float64)
+    fig = figure(900, 560)
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    for panel, column, scale, label in ((top, 1, 1.0, "position error [m]"),
+                                        (bottom, 2, 180.0 / np.pi, "heading error [°]")):
+        values = [np.asarray(c[column], dtype=np.float64) * scale for c in curves]
+        for (name, *_), v in zip(curves, values):
+            panel.plot(d, v, lw=0.8, label=name or None)
+        finite = np.concatenate([v[np.isfinite(v)] for v in values]) if values else np.zeros(0)
+        ymax = 1.1 * float(np.percentile(finite, 99.5)) if finite.size else 1.0
+        panel.set_ylim(0.0, ymax if ymax > 0 else 1.0)
+        panel.set_ylabel(label)
+        panel.grid(True, color="0.9")
+    bottom.set_xlabel("distance travelled [m]")
+    top.set_title(title)
+    if any(c[0] for c in curves):
+        top.legend(loc="upper left", fontsize="small")
+    return fig
