@@ -81,7 +81,7 @@ def main() -> None:
                 times_r += tr
                 times_l += tl
                 if seed == 0:
-                    grids_side_by_side(IMAGE, (radar, lidar))
+                    grids_side_by_side(IMAGE, (("street, radar alone", radar), ("street, lidar alone", lidar)))
             print(f"azimuth σ {sigma}°, seed {seed}: radar precision {rs[0]:.3f} recall {rs[1]:.3f}; "
                   f"lidar {ls[0]:.3f} / {ls[1]:.3f}")
         p, r = np.array(radar_scores).T

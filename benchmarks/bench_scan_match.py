@@ -116,7 +116,8 @@ def bag(data: Path) -> list[str]:
     poses, secs, stats = timed_run(scans)
     matched = map_scans(stack_scans(with_poses(scans, poses)), 0.025)
     as_recorded = map_scans(stack_scans(scans), 0.025)
-    grids_side_by_side(IMAGE, (as_recorded.grid, matched.grid), scale=3)
+    grids_side_by_side(IMAGE, (("every scan at the pose it carries (the origin)", as_recorded.grid),
+                               ("scan-matched", matched.grid)))
     steps = np.diff(poses, axis=0)
     path_length = float(np.hypot(steps[:, 0], steps[:, 1]).sum())
     turned = math.degrees(float(np.abs(np.diff(np.unwrap(poses[:, 2]))).sum()))

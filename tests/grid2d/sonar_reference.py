@@ -168,19 +168,12 @@ def _save_png(image, path) -> Path:
 
 
 def sonar_map_png(data_dir, out_png) -> Path:
-    """occmap's cone-model map of ``data_dir/sonar`` (:func:`map_with_cone_model`) as a
-    probability picture (free white, occupied black, unknown light blue), y flipped like the
-    exercise's plot, 2 px per cell."""
-    from PIL import Image
-
-    from ..io.mapserver import save_probability_png
-    from ..io.sonar import read_sonar_ring
+    """occmap's cone-model map of ``data_dir/sonar`` (:func:`map_with_cone_model`) as a labelled
+    figure (free white, occupied black, never observed light blue; north up) at ``out_png``."""
+    from occmap.io.sonar import read_sonar_ring
 
     g = map_with_cone_model(read_sonar_ring(Path(data_dir) / "sonar"))
-    path = save_probability_png(out_png, g.probability()[::-1], unknown_mask=~g.observed[::-1])
-    with Image.open(path) as img:
-        big = img.resize((img.width * 2, img.height * 2), Image.NEAREST)
-    return _save_png(big, path)
+    return g.save_png(out_png, "8-sonar ring, occmap's cone model (20°, no echo clears)")
 
 
 def sonar_side_by_side(data_dir, out_png) -> dict:
@@ -191,7 +184,7 @@ def sonar_side_by_side(data_dir, out_png) -> dict:
     reference, ``{"exercise_model": {...}, "cone_model": {...}}`` (see :func:`agreement`)."""
     from PIL import Image, ImageDraw
 
-    from ..io.sonar import read_sonar_ring
+    from occmap.io.sonar import read_sonar_ring
 
     folder = Path(data_dir) / "sonar"
     log = read_sonar_ring(folder)

@@ -276,9 +276,8 @@ def test_plan_picture(small, tmp_path):
     from PIL import Image
 
     small.render_png(tmp_path / "town.png", resolution=2.0)
-    px = np.asarray(Image.open(tmp_path / "town.png").convert("RGB"))
-    assert px.shape == (165, 210, 3)
-    red = np.all(px == (220, 0, 0), axis=2)
+    px = np.asarray(Image.open(tmp_path / "town.png").convert("RGB")).astype(int)
+    red = (px[..., 0] > 180) & (px[..., 1] < 90) & (px[..., 2] < 90)
     assert red.sum() > 300  # the route
-    grey = px[..., 0] == px[..., 1]
-    assert (px[grey][:, 0] < 200).mean() > 0.2 and (px[grey][:, 0] == 255).mean() > 0.2  # buildings, ground
+    grey = (px[..., 0] == px[..., 1]) & (px[..., 1] == px[..., 2])
+    assert (px[grey][:, 0] < 150).sum() > 2000 and (px[grey][:, 0] == 255).sum() > 5000  # buildings, ground

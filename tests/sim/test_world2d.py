@@ -505,10 +505,11 @@ def test_free_space_excludes_a_closed_room():
     assert free2[30, 30] and not free2[4, 4]
 
 
-def test_render_png(office, tmp_path):
+def test_render_png_draws_walls_free_space_and_the_trajectory(office, tmp_path):
     from PIL import Image
 
-    p = tmp_path / "world.png"
-    office.render_png(p, resolution=0.1)
-    im = Image.open(p)
-    assert im.size == (200, 150)
+    p = office.render_png(tmp_path / "world.png", resolution=0.1)
+    rgb = np.asarray(Image.open(p).convert("RGB")).astype(int)
+    red = (rgb[..., 0] > 180) & (rgb[..., 1] < 90) & (rgb[..., 2] < 90)
+    assert red.sum() > 200  # the default trajectory
+    assert (rgb.max(axis=-1) < 60).sum() > 1000  # walls (and text)

@@ -163,8 +163,9 @@ def test_track_figure_draws_the_estimate_over_the_map_and_names_every_line():
     assert ((near[:, 2] > 150) & (near[:, 0] < 120)).any()  # the estimate, blue, where it was
     assert at(4.0, 0.02).max() < 80  # the southern wall
     assert close(at(9.0, 4.0), figure.UNKNOWN)
-    labels = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert labels == ["odometry (from the first estimate)", "reference poses", "estimate", "start"]
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["occupied", "free", "unknown", "odometry (from the first estimate)", "reference poses",
+                      "estimate", "start"]
 
 
 def test_error_figure_labels_units_and_keeps_a_spike_from_flattening_the_rest():

@@ -59,7 +59,7 @@ def geometry_tour() -> list[str]:
 def motion_picture(path: Path, seed: int = 7) -> dict:
     """Draw the motion-model demo to ``path``; returns a few figures for the summary."""
     from .. import geometry as g
-    from ..canvas import Canvas
+    from ..viz import figure
 
     dt = 0.1
     # differential drive: straight, left arc, straight, right arc (wheel speeds in m/s)
@@ -87,16 +87,19 @@ def motion_picture(path: Path, seed: int = 7) -> dict:
 
     lo = np.minimum(robot[:, :2].min(0), car[:, :2].min(0)) - 1.0
     hi = np.maximum(robot[:, :2].max(0), car[:, :2].max(0)) + 1.0
-    canvas = Canvas((lo[0], hi[0], lo[1], hi[1]), scale=90)
-    canvas.grid(1.0)
-    for cloud in snapshots:
-        canvas.points(cloud[:, :2], (230, 120, 40))
-    canvas.polyline(robot[:, :2], (30, 90, 200), 3)
-    canvas.poses(robot[::15], (30, 90, 200), length=0.35)
-    canvas.polyline(car[:, :2], (40, 150, 60), 3)
-    canvas.poses(car[::15], (40, 150, 60), length=0.35)
-    canvas.text((lo[0] + 0.2, hi[1] - 0.2), "blue: differential drive   green: car (bicycle model)   orange: odometry-model particles", (0, 0, 0))
-    canvas.save(path)
+    fig = figure.figure(1000, 620)
+    ax = fig.add_subplot()
+    ax.grid(True, color="0.92")
+    cloud = np.concatenate(snapshots)
+    ax.plot(cloud[:, 0], cloud[:, 1], ",", color="#e67828", label="odometry-model particles (every 3 s)")
+    for poses, colour, label in ((robot, "#1e5ac8", "differential drive"), (car, "#289628", "car (bicycle model)")):
+        ax.plot(poses[:, 0], poses[:, 1], color=colour, lw=2, label=label)
+        every = poses[::15]
+        ax.quiver(every[:, 0], every[:, 1], np.cos(every[:, 2]), np.sin(every[:, 2]), color=colour, angles="xy",
+                  scale_units="xy", scale=1 / 0.35, width=0.004)
+    figure.map_axes(ax, (lo[0], hi[0], lo[1], hi[1]), "motion models, stepped every 0.1 s (arrows: heading every 1.5 s)")
+    ax.legend(loc="upper left", fontsize="small", markerscale=8)
+    figure.save(fig, path)
     spread = np.linalg.norm(snapshots[-1][:, :2] - robot[-1, :2], axis=1)
     return {"robot_end": robot[-1], "car_end": car[-1], "particles": len(particles), "spread_m": float(np.median(spread))}
 
@@ -119,7 +122,7 @@ def map_simulated_office(out: Path, seed: int = 1) -> list[str]:
         counts = grid.insert_scans(P, np.where(R >= 10.0, np.inf, R), scans[0].angles, max_range=10.0)
     seconds = clock.seconds
     grid.save(out / "sim_office.yaml")
-    grid.save_png(out / "sim_office.png")
+    grid.save_png(out / "sim_office.png", "simulated office, mapped from its noisy scans")
     world.render_png(out / "sim_office_truth.png", poses=poses)
     return [
         f"simulated office: {counts['scans']} scans, {counts['points']:,} beams (σ 1 cm, 1 % outliers) in {seconds:.2f} s",
@@ -135,7 +138,7 @@ def map_intel(out: Path, data: Path) -> list[str]:
     log = read_carmen(data / "carmen" / "intel-corrected.log.gz")
     summary = map_scans(log.stack(), 0.05, max_range=30.0)
     summary.grid.save(out / "intel.yaml")
-    summary.grid.save_png(out / "intel.png")
+    summary.grid.save_png(out / "intel.png", "Intel Research Lab (corrected log)")
     return ["Intel Research Lab (corrected log, D. Hähnel):"] + ["  " + line for line in summary.lines()] + [
         f"  wrote {out / 'intel.yaml'} (+ .pgm) and {out / 'intel.png'}"
     ]
@@ -147,13 +150,16 @@ def street_tracking(out: Path, seed: int = 0) -> list[str]:
     tracks were from the objects they follow; returns lines describing it."""
     from .._clock import WorkClock
     from ..local import LocalMap
-    from ..local.replay import frame_image, save_gif, tracked_objects
+    from ..local.replay import tracked_objects
     from ..sim.street import PARKED, Street
+    from ..viz.animation import CostmapAnimation
 
     street = Street.default()
     lidar_rng, radar_rng = np.random.default_rng(seed), np.random.default_rng(1000 + seed)
     lm = LocalMap((40.0, 40.0), 0.1, tracking=True)
-    frames, errors = [], []
+    frames = CostmapAnimation(lm.shape, lm.resolution, 2, "simulated street: costmap and tracks (lidar + radar)",
+                              tracking=True)
+    errors = []
     clock = WorkClock()
     stamps = np.round(np.arange(0.0, street.duration + 1e-9, 0.1), 1)
     for k, t in enumerate(stamps):
@@ -170,8 +176,8 @@ def street_tracking(out: Path, seed: int = 0) -> list[str]:
             errors.append(d.min() if d.size else np.inf)
         if k % 2 == 0:
             robot = lm.world_to_cell(scan.pose[:2])
-            frames.append(frame_image(lm.costmap()[0], (int(robot[0]), int(robot[1])), 2, tracked_objects(lm, 1.0)))
-    path = save_gif(out / "street.gif", frames, 10.0)
+            frames.add(lm.costmap()[0], (int(robot[0]), int(robot[1])), tracked_objects(lm, 1.0), f"t = {t:.1f} s")
+    path = frames.save(out / "street.gif", 10.0)
     errors = np.array(errors)
     near = errors[errors < 2.5]
     return [
@@ -201,8 +207,8 @@ def map_town_3d(out: Path, n_scans: int = 30, resolution: float = 0.2) -> list[s
     seconds = clock.seconds
     points = sum(len(c) for c in clouds)
     write_bt(tree, out / "town.bt")
-    tree.save_height_png(out / "town_height.png")
-    tree.save_slice_png(out / "town_slice_1m.png", 1.0)
+    tree.save_height_png(out / "town_height.png", title="simulated town")
+    tree.save_slice_png(out / "town_slice_1m.png", 1.0, title="simulated town")
     occupied = len(tree.occupied_centers())
     return [
         f"simulated town, HDL-32E drive: {n_scans} scans, {points:,} points at {resolution:g} m in {seconds:.2f} s "
@@ -227,7 +233,7 @@ def map_scan_dat(out: Path, data: Path, resolution: float = 0.1) -> list[str]:
         tree.insert_point_cloud(cloud.world_points(), cloud.origin)
     seconds = clock.seconds
     write_bt(tree, out / "scan_dat.bt")
-    tree.save_height_png(out / "scan_dat_height.png")
+    tree.save_height_png(out / "scan_dat_height.png", title="scan.dat (OctoMap's sample scans)")
     return [
         f"OctoMap sample scan (scan.dat): {len(cloud):,} points at {resolution:g} m in {seconds:.2f} s, "
         f"{tree.num_nodes():,} nodes",

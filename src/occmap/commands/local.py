@@ -44,13 +44,15 @@ def add_parser(subparsers):
 def run(args) -> int:
     import math
     import time
+    from pathlib import Path
 
     import numpy as np
 
     from .._clock import WorkClock
     from ..errors import InvalidArgumentError
     from ..local import LocalMap
-    from ..local.replay import frame_image, save_gif, tracked_objects
+    from ..local.replay import tracked_objects
+    from ..viz.animation import CostmapAnimation
 
     check_outputs({"-o": args.output}, {"LOG": args.log})
     source = _sources.laser_source(args, args.log, every=args.every)
@@ -63,12 +65,13 @@ def run(args) -> int:
 
         matcher = ScanMatcher()
     lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None, tracking=args.tracking)
-    frames = []
+    frames = CostmapAnimation(lm.shape, args.resolution, args.scale, f"local costmap: {Path(args.log).name}",
+                              args.tracking)
     used = 0
     clamped = 0
     clock = WorkClock()
     t0 = time.perf_counter()
-    last = None
+    last = first = None
     for scan in source:
         if matcher is not None:
             scan = replace(scan, pose=matcher.add(_scan_match.with_prior(source, scan)))
@@ -77,6 +80,7 @@ def run(args) -> int:
             clamped += 1  # logs with wrapped or shuffled stamps: hold the clock
             stamp = last
         last = stamp
+        first = stamp if first is None else first
         x, y = float(scan.pose[0]), float(scan.pose[1])
         if not (math.isfinite(x) and math.isfinite(y)):
             lm.stats["dropped_poses"] += 1
@@ -87,8 +91,8 @@ def run(args) -> int:
             cost = lm.costmap()[0] if used % args.frame_every == 0 else None
         if cost is not None:
             robot = lm.world_to_cell(np.array([x, y]))
-            frames.append(frame_image(cost, (int(robot[0]), int(robot[1])), args.scale,
-                                      tracked_objects(lm, 1.0) if args.tracking else None))
+            frames.add(cost, (int(robot[0]), int(robot[1])), tracked_objects(lm, 1.0) if args.tracking else None,
+                       f"t = {stamp - first:.1f} s")
         used += 1
         if len(frames) >= args.max_frames:
             break
@@ -97,7 +101,7 @@ def run(args) -> int:
         print(describe(matcher.stats))
     if not frames:
         raise InvalidArgumentError(f"{args.log}: no laser scans to replay")
-    path = save_gif(args.output, frames, args.fps)
+    path = frames.save(args.output, args.fps)
     H, W = lm.shape
     print(f"{used} scans through a {W}×{H} local map at {args.resolution:g} m "
           f"(half-life {args.half_life:g} s): {1e3 * clock.seconds / max(used, 1):.2f} ms per scan for move + "

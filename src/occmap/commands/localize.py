@@ -39,6 +39,7 @@ def run(args) -> int:
     import math
     import sys
     import time
+    from pathlib import Path
 
     import numpy as np
 
@@ -89,6 +90,7 @@ def run(args) -> int:
             print(f"{before:,} reference poses fall before the global localization converged")
     print(f"wrote {args.output}")
     if args.png:
-        print(f"wrote {save_track_png(args.png, loc, result)}")
+        title = f"{Path(args.log).name} localized in {Path(args.map).name}"
+        print(f"wrote {save_track_png(args.png, loc, result, title=title)}")
     print(f"total {time.perf_counter() - t0:.2f} s")
     return 0

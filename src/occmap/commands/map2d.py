@@ -137,6 +137,6 @@ def _write(args, summary, t0: float) -> int:
         print(line)
     print(f"wrote {args.output} and {image}")
     if args.png:
-        print(f"wrote {summary.grid.save_png(args.png)}")
+        print(f"wrote {summary.grid.save_png(args.png, f'occupancy grid of {Path(args.log).name}')}")
     print(f"total {time.perf_counter() - t0:.2f} s")
     return 0

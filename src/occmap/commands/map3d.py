@@ -5,6 +5,7 @@ topic), written as ``.bt``, ``.ot`` or ``.ply``."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 from . import _notes, _options, _sources, _tiles
 from ._octree_files import check_octree_output, save_octree
@@ -116,7 +117,8 @@ def run(args) -> int:
           f"{tree.num_leaves():,} leaves, {tree.memory_usage() / 2**20:.1f} MiB")
     print(f"wrote {args.output}")
     if args.png:
-        tree.save_height_png(args.png)
+        name = Path(args.inputs[0]).name + (f" and {len(args.inputs) - 1} more" if len(args.inputs) > 1 else "")
+        tree.save_height_png(args.png, title=f"height map of {name}")
         print(f"wrote {args.png}")
     print(f"total {time.perf_counter() - t0:.2f} s")
     return 0

@@ -629,6 +629,19 @@ class LocalMap(OneCallAtATime):
         self.stats["dropped_poses"] += int(bad)
         return PathCheck(out, int(first), int(bad))
 
+    def _repr_png_(self) -> bytes:
+        """Jupyter shows a local map as a labelled frame of its costmap, the window's centre marked
+        as the robot, with tracking its confirmed tracks and their footprints 1 s ahead."""
+        from ..viz.animation import CostmapAnimation
+        from .replay import tracked_objects
+
+        frame = CostmapAnimation(self.shape, self.resolution, 2, repr(self), tracking=self._objects is not None)
+        robot = self.world_to_cell(self.center)
+        frame.add(self.costmap()[0], (int(robot[0]), int(robot[1])),
+                  None if self._objects is None else tracked_objects(self, 1.0),
+                  "" if self.time is None else f"t = {self.time:g} s")
+        return frame.png_bytes()
+
     def __repr__(self) -> str:
         H, W = self.shape
         o = self.origin

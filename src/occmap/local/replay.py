@@ -78,6 +78,8 @@ def tracked_objects(lm, ahead: float):
 
     t = lm.tracks()
     keep = np.flatnonzero(t.confirmed)
+    if keep.size == 0:
+        return np.zeros((0, 4, 2)), np.zeros((0, 4, 2))
     ids, states, _, sizes = lm.objects.tracker.predicted(lm.time + ahead)
     row = {int(i): k for k, i in enumerate(ids)}  # a few dozen tracks at most
     later = np.array([row[int(i)] for i in t.id[keep]], dtype=np.int64)

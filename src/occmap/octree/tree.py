@@ -479,20 +479,21 @@ class OcTree(OneCallAtATime):
 
     # ------------------------------------------------------------------ pictures and exports
 
-    def save_height_png(self, path, pixel: float | None = None, z_max: float | str | None = "ceiling"):
+    def save_height_png(self, path, pixel: float | None = None, z_max: float | str | None = "ceiling",
+                        title: str = "height map"):
         """A labelled top-down figure: occupied columns coloured by their highest occupied z (an
         indoor map cut under its ceiling), known empty columns white, unknown light blue
         (:func:`occmap.viz.maps.height_figure`); returns the path."""
         from ..viz import figure, maps
 
-        return figure.save(maps.height_figure(self, pixel, z_max), path)
+        return figure.save(maps.height_figure(self, pixel, z_max, title), path)
 
-    def save_slice_png(self, path, z: float, pixel: float | None = None):
+    def save_slice_png(self, path, z: float, pixel: float | None = None, title: str = "horizontal slice"):
         """A labelled figure of the horizontal slice at height ``z`` metres: occupied dark, free
         white, unknown light blue (:func:`occmap.viz.maps.slice_figure`); returns the path."""
         from ..viz import figure, maps
 
-        return figure.save(maps.slice_figure(self, z, pixel), path)
+        return figure.save(maps.slice_figure(self, z, pixel, title), path)
 
     def _repr_png_(self) -> bytes:
         """Jupyter shows an octree as its height map."""

@@ -60,7 +60,6 @@ from .. import checks
 from ..cloud import PointCloud
 from ..errors import InvalidArgumentError
 from ..geometry.se3 import SE3
-from ..png import write_png
 from ..scan import LaserScan
 from .world2d import _arc_lengths, _beam_angles, _corrupt, _poses_along
 from .world3d import VELODYNE_VLP16, LidarModel, World3D, _car, _tree, level_poses, simulate_lidar
@@ -372,10 +371,12 @@ class City:
         return self.world.occupied(np.concatenate([p, np.full(p.shape[:-1] + (1,), float(height))],
                                                   axis=-1))
 
-    def render_png(self, path, resolution: float = 1.0) -> None:
-        """Write a plan of the town seen from above: the height of the top surface in grey (the
-        ground white, 60 m and higher black), the route in red from its start in green. North
-        (+y) is up; ``resolution`` metres per pixel."""
+    def render_png(self, path, resolution: float = 1.0):
+        """Write a labelled plan of the town seen from above (:func:`occmap.viz.maps.heights_figure`):
+        the height of the top surface (colour bar in metres, the ground at its low end), the route
+        in red from its start in green. ``resolution`` metres per pixel. Returns the path."""
+        from ..viz import figure, maps
+
         res = checks.resolution(resolution)
         xmin, ymin, xmax, ymax = self.bounds
         xs = np.arange(xmin + res / 2.0, xmax, res)
@@ -384,15 +385,14 @@ class City:
         top = self.world.bounds[5] + 1.0
         origins = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, top)])
         down = np.broadcast_to((0.0, 0.0, -1.0), origins.shape)
-        depth = self.world.cast(origins, down).reshape(X.shape)
-        grey = np.clip(255.0 * (1.0 - (top - depth) / 60.0), 0.0, 255.0).astype(np.uint8)
-        rgb = np.repeat(grey[:, :, None], 3, axis=2)
-        dense = self.route_poses(np.arange(0.0, self.route_length, res / 2.0))
-        px = ((dense[:, 0] - xmin) / res).astype(np.int64).clip(0, len(xs) - 1)
-        py = ((dense[:, 1] - ymin) / res).astype(np.int64).clip(0, len(ys) - 1)
-        rgb[py, px] = (220, 0, 0)
-        rgb[max(py[0] - 3, 0):py[0] + 4, max(px[0] - 3, 0):px[0] + 4] = (0, 170, 0)
-        write_png(path, rgb[::-1])
+        height = top - self.world.cast(origins, down).reshape(X.shape)
+        route = self.route_poses(np.arange(0.0, self.route_length, res / 2.0))
+        tracks = [("route", route, dict(color="#d62728", lw=1.2)),
+                  ("start", route[:1], dict(ls="none", marker="o", color="#2ca02c", ms=7))]
+        fig = maps.heights_figure(height, np.isfinite(height), (xmin, ymin), res,
+                                  f"simulated town from above\n{res:g} m pixels", "height of the top surface [m]",
+                                  tracks, cmap="gray_r")
+        return figure.save(fig, path)
 
 
 @lru_cache(maxsize=4)

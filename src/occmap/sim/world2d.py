@@ -21,7 +21,6 @@ import numpy as np
 
 from .. import checks
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
-from ..png import write_png
 from ..raster.walk2d import cell_of
 from ..scan import LaserScan
 from . import _kernels
@@ -346,32 +345,24 @@ class World2D:
 
     # ------------------------------------------------------------------ picture
 
-    def render_png(self, path, resolution: float = 0.05, poses=None, scale: int = 1) -> None:
-        """Write a picture of the world: walls and obstacles black, free space white, the outside
-        grey, and ``poses`` (N, 3) (default: the default trajectory, when there are waypoints) as
-        a red line with its start in green. North (+y) is up."""
-        from PIL import Image, ImageDraw
+    def render_png(self, path, resolution: float = 0.05, poses=None, title: str = "simulated world (truth)"):
+        """Write a labelled figure of the world (:func:`occmap.viz.maps.plan_figure`): walls and
+        obstacles dark, the free space the robot can reach white, the rest light blue, and
+        ``poses`` (N, 3) (default: the default trajectory, when there are waypoints) as a red
+        line from a green start. Returns the path."""
+        from ..viz import figure, maps
 
         occ, org = self.occupancy(resolution)
         free, _ = self.free_space(resolution) if self.waypoints is not None else (~occ, org)
-        img = np.full(occ.shape + (3,), 160, dtype=np.uint8)
-        img[free] = 255
-        img[occ] = 0
-        im = Image.fromarray(img[::-1])  # row 0 is the bottom of the world
-        if scale != 1:
-            im = im.resize((im.width * scale, im.height * scale), Image.NEAREST)
         if poses is None and self.waypoints is not None:
             poses = self.default_trajectory(n=2000)
+        tracks = []
         if poses is not None:
             poses = np.asarray(poses, dtype=np.float64)
-            H = occ.shape[0]
-            px = (poses[:, 0] - org[0]) / resolution * scale
-            py = (H - (poses[:, 1] - org[1]) / resolution) * scale
-            draw = ImageDraw.Draw(im)
-            draw.line(list(zip(px.tolist(), py.tolist())), fill=(220, 0, 0), width=max(1, scale))
-            r = 3 * scale
-            draw.ellipse([px[0] - r, py[0] - r, px[0] + r, py[0] + r], fill=(0, 170, 0))
-        write_png(path, im)
+            tracks = [("trajectory", poses, dict(color="#d62728", lw=1.2)),
+                      ("start", poses[:1], dict(ls="none", marker="o", color="#2ca02c", ms=7))]
+        plan = np.where(occ, 1, np.where(free, 0, -1))
+        return figure.save(maps.plan_figure(plan, org, resolution, f"{title}\n{resolution:g} m cells", tracks), path)
 
 
 def default_path(world: World2D, n: int = 1000) -> np.ndarray:

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._files import write_atomic
 
-__all__ = ["figure", "map_axes", "png_bytes", "save", "known_box", "nice_length", "raster_size"]
+__all__ = ["figure", "legend", "map_axes", "png_bytes", "save", "known_box", "nice_length", "raster_size"]
 
 #: Colours shared by the figures (RGB in 0 … 1): never-observed cells, free cells.
 UNKNOWN = (0.72, 0.82, 0.95)
@@ -32,7 +32,7 @@ def figure(width_px: int, height_px: int, dpi: int = 100):
     """A new ``matplotlib.figure.Figure`` of about ``width_px × height_px`` pixels."""
     from matplotlib.figure import Figure
 
-    return Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi, layout="constrained")
+    return Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi, layout="compressed")
 
 
 def raster_size(shape, max_px: int = MAX_AXES_PX, min_px: int = MIN_AXES_PX) -> tuple[int, int]:
@@ -75,6 +75,17 @@ def map_axes(ax, extent, title: str, xlabel: str = "x [m]", ylabel: str = "y [m]
                           frameon=True, size_vertical=(y1 - y0) / 400.0, color="black")
     bar.patch.set_alpha(0.8)
     ax.add_artist(bar)
+
+
+def legend(ax, handles=()) -> None:
+    """A legend of ``handles`` and the labelled artists of ``ax`` in rows under the axes, below
+    their x label (inside the figure: the layout makes room for it)."""
+    from matplotlib.transforms import ScaledTranslation
+
+    handles = list(handles) + ax.get_legend_handles_labels()[0]
+    below = ax.transAxes + ScaledTranslation(0.0, -0.5, ax.figure.dpi_scale_trans)  # half an inch down
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=below,
+              ncols=min(len(handles), 4), fontsize="small", frameon=False)
 
 
 def known_box(known: np.ndarray, occupied: np.ndarray | None = None, margin: int = 20, keep: float = 0.995):

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .figure import FREE, UNKNOWN, figure, map_axes, raster_size
+from .figure import figure
+from .maps import plan_figure
 
 __all__ = ["error_figure", "track_figure"]
 
-OCCUPIED = (0.15, 0.15, 0.15)
 ESTIMATE = "#1f4fe0"
 ODOMETRY = "#d62728"
 REFERENCE = "#2ca02c"
@@ -22,37 +22,24 @@ def track_figure(occupied, free, origin, resolution: float, estimate, odometry=N
     ``occupied``, ``free``: (H, W) bool, row 0 at the lowest y; ``origin`` the world (x, y) of
     cell (0, 0)'s corner; tracks (N, ≥2) in metres. The view holds the map and the estimate; an
     odometry track that drifts off is cut half the map's size past it."""
-    occ, fr = np.asarray(occupied, bool), np.asarray(free, bool)
-    rgb = np.empty(occ.shape + (3,))
-    rgb[:] = UNKNOWN
-    rgb[fr] = FREE
-    rgb[occ] = OCCUPIED
+    occ = np.where(np.asarray(occupied, bool), 1, np.where(np.asarray(free, bool), 0, -1))
     x0, y0 = float(origin[0]), float(origin[1])
-    extent = (x0, x0 + occ.shape[1] * resolution, y0, y0 + occ.shape[0] * resolution)
     est = np.asarray(estimate, dtype=np.float64)
-    lo = np.minimum([extent[0], extent[2]], est[:, :2].min(axis=0))
-    hi = np.maximum([extent[1], extent[3]], est[:, :2].max(axis=0))
+    lo = np.minimum([x0, y0], est[:, :2].min(axis=0))
+    hi = np.maximum([x0 + occ.shape[1] * resolution, y0 + occ.shape[0] * resolution], est[:, :2].max(axis=0))
+    tracks = []
     if odometry is not None:
         span = hi - lo
         odo = np.asarray(odometry, dtype=np.float64)
         lo = np.minimum(lo, np.maximum(odo[:, :2].min(axis=0), lo - 0.5 * span))
         hi = np.maximum(hi, np.minimum(odo[:, :2].max(axis=0), hi + 0.5 * span))
-    view = (lo[0], hi[0], lo[1], hi[1])
-    w, h = raster_size((round((hi[1] - lo[1]) / resolution), round((hi[0] - lo[0]) / resolution)))
-    fig = figure(w + 110, h + 150)
-    ax = fig.add_subplot()
-    ax.set_facecolor(UNKNOWN)
-    ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
-    if odometry is not None:
-        ax.plot(odo[:, 0], odo[:, 1], color=ODOMETRY, lw=0.8, label="odometry (from the first estimate)")
+        tracks.append(("odometry (from the first estimate)", odo, dict(color=ODOMETRY, lw=0.8)))
     if reference is not None:
-        ref = np.asarray(reference, dtype=np.float64)
-        ax.plot(ref[:, 0], ref[:, 1], ".", color=REFERENCE, ms=2.5, label="reference poses")
-    ax.plot(est[:, 0], est[:, 1], color=ESTIMATE, lw=0.9, label="estimate")
-    ax.plot(est[:1, 0], est[:1, 1], "o", color=ESTIMATE, ms=6, mfc="none", label="start")
-    map_axes(ax, view, f"{title}\nmap: {resolution:g} m cells, occupied dark, free white, unknown blue")
-    fig.legend(loc="outside lower center", ncols=4, fontsize="small", frameon=False)
-    return fig
+        tracks.append(("reference poses", reference, dict(ls="none", marker=".", color=REFERENCE, ms=2.5)))
+    tracks += [("estimate", est, dict(color=ESTIMATE, lw=0.9)),
+               ("start", est[:1], dict(ls="none", marker="o", color=ESTIMATE, ms=6, mfc="none"))]
+    return plan_figure(occ, (x0, y0), resolution, f"{title}\nmap: {resolution:g} m cells", tracks,
+                       (lo[0], hi[0], lo[1], hi[1]))
 
 
 def error_figure(distance, curves, title: str = "localization error"):

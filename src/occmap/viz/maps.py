@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidArgumentError, ShapeError
-from .figure import FREE, UNKNOWN, figure, known_box, map_axes, raster_size
+from .figure import FREE, UNKNOWN, figure, known_box, legend, map_axes, raster_size
 
-__all__ = ["grid_figure", "height_figure", "slice_figure"]
+__all__ = ["grid_figure", "height_figure", "heights_figure", "plan_figure", "slice_figure"]
 
 #: The occupied colour of categorical pictures (slices).
 OCCUPIED = (0.1, 0.1, 0.1)
@@ -29,12 +29,11 @@ def _panel(shape, key_px: int = 160):
     return fig, fig.add_subplot()
 
 
-def _legend(fig, entries) -> None:
-    """Colour patches ``(label, rgb)`` in a row under the map."""
+def _legend(ax, entries) -> None:
+    """Colour patches ``(label, rgb)``, then the labelled lines of ``ax``, in rows under the map."""
     from matplotlib.patches import Patch
 
-    fig.legend(handles=[Patch(facecolor=c, edgecolor="0.4", label=t) for t, c in entries],
-               loc="outside lower center", ncols=len(entries), fontsize="small", frameon=False)
+    legend(ax, [Patch(facecolor=c, edgecolor="0.4", label=t) for t, c in entries])
 
 
 def grid_figure(probability, known, origin, resolution: float, title: str = "occupancy grid", crop: bool = True):
@@ -72,7 +71,7 @@ def grid_figure(probability, known, origin, resolution: float, title: str = "occ
                       extent=extent, interpolation="nearest")
     fig.colorbar(image, ax=ax, shrink=0.8, label="occupancy probability (0 free, 1 occupied)")
     map_axes(ax, extent, f"{title}\n{resolution:g} m cells")
-    _legend(fig, [("never observed", UNKNOWN)])
+    _legend(ax, [("never observed", UNKNOWN)])
     return fig
 
 
@@ -90,23 +89,33 @@ def height_figure(tree, pixel: float | None = None, z_max: float | str | None = 
     ``z_max``: leave out what is occupied from this height up; ``"ceiling"`` (default) cuts an
     indoor map just under its ceiling (:func:`occmap.octree.views.ceiling`; outdoor maps are not
     cut), None never cuts."""
-    from matplotlib import colormaps
-
     from ..octree import views
 
     if isinstance(z_max, str):
         z_max = views.ceiling(tree)
     top, known, origin, px = views.height_map(tree, pixel, z_max=z_max)
-    extent = _extent(origin, px, top.shape)
+    cut = "" if z_max is None else f", below z = {z_max:.2f} m"
+    return heights_figure(top, known, origin, px, f"{title}\n{px:g} m pixels{cut}",
+                          "height of the highest occupied voxel [m]")
+
+
+def heights_figure(top, known, origin, pixel: float, title: str, key: str, tracks=(), cmap: str = "viridis"):
+    """A raster of heights seen from above: ``top`` (H, W) metres (NaN: nothing there) coloured
+    with a colour bar labelled ``key``, cells ``known`` with no height white, the rest light blue;
+    ``tracks`` drawn over it (see :func:`plan_figure`). Row 0 at ``origin``'s y."""
+    from matplotlib import colormaps
+
+    top = np.asarray(top, dtype=np.float64)
+    extent = _extent(origin, pixel, top.shape)
     fig, ax = _panel(top.shape)
     ax.imshow(np.where(known, 1.0, np.nan), cmap=_cmap("gray"), vmin=0.0, vmax=1.0, origin="lower",
               extent=extent, interpolation="nearest")
-    image = ax.imshow(np.ma.masked_invalid(top), cmap=colormaps["viridis"].with_extremes(bad=(0, 0, 0, 0)),
+    image = ax.imshow(np.ma.masked_invalid(top), cmap=colormaps[cmap].with_extremes(bad=(0, 0, 0, 0)),
                       origin="lower", extent=extent, interpolation="nearest")
-    fig.colorbar(image, ax=ax, shrink=0.8, label="height of the highest occupied voxel [m]")
-    cut = "" if z_max is None else f", below z = {z_max:.2f} m"
-    map_axes(ax, extent, f"{title}\n{px:g} m pixels{cut}")
-    _legend(fig, [("known, nothing occupied", FREE), ("unknown", UNKNOWN)])
+    fig.colorbar(image, ax=ax, shrink=0.8, label=key)
+    _tracks(ax, tracks)
+    map_axes(ax, extent, title)
+    _legend(ax, [("known, nothing occupied", FREE), ("unknown", UNKNOWN)])
     return fig
 
 
@@ -116,13 +125,32 @@ def slice_figure(tree, z: float, pixel: float | None = None, title: str = "horiz
     from ..octree import views
 
     occ, origin, px = views.slice_map(tree, z, pixel)
+    return plan_figure(occ, origin, px, f"{title} at z = {float(z):g} m\n{px:g} m pixels")
+
+
+def plan_figure(occupancy, origin, resolution: float, title: str, tracks=(), view=None):
+    """A map in three colours — ``occupancy`` (H, W) int: 1 occupied (dark), 0 free (white),
+    −1 unknown (light blue), row 0 at ``origin``'s y — under ``tracks``: ``(label, xy (N, ≥2),
+    style)`` each, drawn with ``Axes.plot(x, y, **style)`` and named in the legend. ``view``
+    (xmin, xmax, ymin, ymax) metres: the part shown (default: the raster)."""
+    occ = np.asarray(occupancy)
     rgb = np.empty(occ.shape + (3,))
-    rgb[occ == -1] = UNKNOWN
+    rgb[:] = UNKNOWN
     rgb[occ == 0] = FREE
     rgb[occ == 1] = OCCUPIED
-    extent = _extent(origin, px, occ.shape)
-    fig, ax = _panel(occ.shape, key_px=0)
+    extent = _extent(origin, resolution, occ.shape)
+    view = extent if view is None else tuple(map(float, view))
+    shape = (round((view[3] - view[2]) / resolution), round((view[1] - view[0]) / resolution))
+    fig, ax = _panel(shape, key_px=0)
+    ax.set_facecolor(UNKNOWN)
     ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
-    map_axes(ax, extent, f"{title} at z = {float(z):g} m\n{px:g} m pixels")
-    _legend(fig, [("occupied", OCCUPIED), ("free", FREE), ("unknown", UNKNOWN)])
+    _tracks(ax, tracks)
+    map_axes(ax, view, title)
+    _legend(ax, [("occupied", OCCUPIED), ("free", FREE), ("unknown", UNKNOWN)])
     return fig
+
+
+def _tracks(ax, tracks) -> None:
+    for label, xy, style in tracks:
+        xy = np.asarray(xy, dtype=np.float64)
+        ax.plot(xy[:, 0], xy[:, 1], label=label, **style)
