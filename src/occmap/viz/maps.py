@@ -1,5 +1,6 @@
-"""Figures of maps: a 2D occupancy grid, an octree's height map and horizontal slices. Each has
-axes in metres, a scale bar, a colour key and a title, and is cropped to the known area.
+"""Figures of maps: a 2D occupancy grid (cropped to its walls), an octree's height map (an indoor
+one cut under its ceiling) and horizontal slices, any raster of heights, and a three-colour plan
+with tracks over it. Each has axes in metres, a scale bar, a colour key and a title.
 
 Each function returns a ``matplotlib.figure.Figure``; :func:`occmap.viz.figure.save` writes it.
 """
