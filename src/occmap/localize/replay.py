@@ -6,7 +6,9 @@
   poses serve as the reference for the raw run (for Intel: 910 of the raw log's 13,631 scans).
 * :func:`replay` feeds a log's raw odometry and scans to a :class:`MonteCarloLocalizer` and
   records the track; :func:`track_errors` compares it with reference poses and
-  :func:`convergence_distance` says how far a global localization travelled until it converged.
+  :func:`convergence_distance` says how far a global localization travelled until it converged;
+  :func:`reference_fit` and :func:`reference_offset` say how well the reference poses agree with
+  their own map (how far the map places each reference scan from its pose).
 * :func:`save_track_png` draws the track over the map beside the odometry track (anchored at the
   first estimate), :func:`save_error_png` the error curves, :func:`write_track_csv` the track.
 """
@@ -27,9 +29,11 @@ from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import wrap_angle
 from .likelihood_field import beam_end_points
 from .mcl import LocalizationWarning, MonteCarloLocalizer
+from .scan_match import match
 
 __all__ = [
-    "DEFAULTS", "PLAIN", "ReplayResult", "convergence_distance", "make_localizer", "pair_scans", "reference_fit", "replay",
+    "DEFAULTS", "PLAIN", "ReplayResult", "convergence_distance", "make_localizer", "pair_scans", "reference_fit",
+    "reference_offset", "replay",
     "save_error_png",
     "save_track_png", "track_errors", "write_track_csv",
 ]
@@ -164,6 +168,26 @@ def reference_fit(field, scans) -> np.ndarray:
         if bx.size:
             out[k] = float(np.median(field.distances(s.pose, bx, by)))
     return out
+
+
+def reference_offset(field, scans) -> tuple[np.ndarray, np.ndarray]:
+    """Where the map places each scan, seen from its own pose (a corrected log's): the position (m)
+    and absolute heading (rad) offsets from the pose to the scan match
+    (:func:`~occmap.localize.scan_match.match`, cutoff ``field.params.refine_cutoff``) started there;
+    NaN where the match fails or the scan has no valid reading. An estimate that follows the map
+    (the scan-match refinement) lands where the match does, so these offsets are the error it shows
+    against the reference even when it is right about the map: a floor under the measured error."""
+    dist = np.full(len(scans), np.nan)
+    turn = np.full(len(scans), np.nan)
+    for k, s in enumerate(scans):
+        _, _, bx, by = beam_end_points(s.ranges, s.angles, s.max_range, field.params)
+        if not bx.size:
+            continue
+        x, _ = match(field, s.pose, bx, by, field.params.refine_cutoff)
+        if x is not None:
+            dist[k] = math.hypot(x[0] - s.pose[0], x[1] - s.pose[1])
+            turn[k] = abs(float(wrap_angle(x[2] - s.pose[2])))
+    return dist, turn
 
 
 def travelled(poses) -> np.ndarray:
