@@ -12,4 +12,4 @@ prints as one line on stderr with exit code 2.
 """
 
 #: The commands in the order ``occmap --help`` lists them; each names a module of this package.
-NAMES = ("demo", "map2d", "map3d", "info", "convert", "export", "render", "local", "localize", "warmup")
+NAMES = ("demo", "map2d", "map3d", "info", "convert", "export", "render", "view", "local", "localize", "warmup")

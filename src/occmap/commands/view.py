@@ -1,0 +1,48 @@
+"""``occmap view PATH``: an interactive 3D view of a map in the browser, served at
+``http://127.0.0.1:PORT/`` until interrupted (:class:`occmap.viz.viewer.Viewer`)."""
+
+from __future__ import annotations
+
+from . import _options
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("view", help="show a map in 3D in the browser (octrees, tile stores, point clouds, "
+                              "2D maps) until interrupted")
+    p.add_argument("file", help="a .bt / .ot file, a tile store folder, a point cloud, a scan graph (.graph) or a "
+                   "map_server .yaml")
+    p.add_argument("--port", type=_options.port, default=8080, help="TCP port (default 8080; 0: any free one)")
+    p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser tab")
+    p.add_argument("--max-voxels", type=_options.count, default=None,
+                   help="boxes drawn at most per class of space (default 500,000; coarser octree levels beyond it)")
+    return p
+
+
+def run(args) -> int:
+    import signal
+    import threading
+    import webbrowser
+
+    from ..viz.viewer import DEFAULT_MAX_VOXELS, Viewer
+
+    viewer = Viewer(args.file, port=args.port, max_voxels=args.max_voxels or DEFAULT_MAX_VOXELS)
+    try:
+        t = viewer.timings
+        print(f"{viewer.scene.path}: {viewer.scene.kind}, {viewer.scene.summary}")
+        if viewer.occupied is not None:
+            o = viewer.occupied
+            print(f"  drawn: {o.voxels.count:,} occupied boxes at depth {o.depth} ({o.leaves:,} occupied leaves)")
+        print(f"  read in {t['read']:.2f} s, scene sent in {t['scene']:.2f} s")
+        print(f"serving at {viewer.url} (Ctrl-C to stop)", flush=True)
+        if not args.no_browser:
+            webbrowser.open(viewer.url)
+        stop = threading.Event()
+        signal.signal(signal.SIGTERM, lambda *_: stop.set())
+        try:
+            stop.wait()
+        except KeyboardInterrupt:
+            pass
+    finally:
+        viewer.stop()
+    print("stopped")
+    return 0

@@ -1,0 +1,205 @@
+"""What a path holds, as arrays a 3D viewer draws: octree nodes at any depth (``.bt``/``.ot``
+files, octree tile stores), points (point clouds, scan graphs), a textured plane (map_server maps,
+2D tile stores) and the sensor's path where the file records one.
+
+Every reader is occmap's own (:mod:`occmap.io`, :mod:`occmap.world`); this module only turns what
+they return into :class:`Scene` arrays. Coordinates are the map's, in metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import InvalidArgumentError, MissingFileError
+from ..logodds import logit32
+from ._lod import Voxels
+
+#: Extensions read as OctoMap files, map_server maps and scan graphs; point clouds are those of
+#: :func:`occmap.io.pointclouds.read_cloud`.
+OCTREE_SUFFIXES = (".bt", ".ot")
+MAP2D_SUFFIXES = (".yaml", ".yml")
+GRAPH_SUFFIXES = (".graph",)
+
+
+@dataclass
+class Plane:
+    """A picture lying in the plane z = 0: RGB (H, W, 3) uint8 with row 0 at the map's *top*
+    (largest y, as a picture is shown), its size in metres, its centre and yaw (radians)."""
+
+    rgb: np.ndarray
+    width: float
+    height: float
+    center: np.ndarray
+    yaw: float = 0.0
+
+
+@dataclass
+class Scene:
+    """A map ready to draw. ``nodes_at(depth)`` gives an octree's known nodes down to ``depth``
+    (None for maps without voxels); ``occupied_log_odds`` is its threshold."""
+
+    path: Path
+    kind: str
+    summary: str
+    resolution: float
+    bounds: tuple[np.ndarray, np.ndarray]
+    nodes_at: Callable[[int], Voxels] | None = None
+    occupied_log_odds: float = 0.0
+    points: np.ndarray | None = None
+    plane: Plane | None = None
+    sensor_path: np.ndarray | None = field(default=None)
+
+
+def viewable(path: Path) -> bool:
+    """Whether :func:`open_scene` takes ``path`` (by its name and kind; the content is not read)."""
+    from ..io._compression import EXTENSIONS
+    from ..io.pointclouds import _READERS
+
+    if path.is_dir():
+        return (path / "index.json").is_file()
+    suffixes = [s.lower() for s in path.suffixes]
+    if suffixes and suffixes[-1] in EXTENSIONS:
+        suffixes.pop()
+    last = suffixes[-1] if suffixes else ""
+    return last in OCTREE_SUFFIXES + MAP2D_SUFFIXES + GRAPH_SUFFIXES or last in _READERS
+
+
+def open_scene(path) -> Scene:
+    """Read ``path``: an OctoMap file, a tile store folder, a map_server ``.yaml``, a scan graph or
+    a point cloud. Raises :class:`~occmap.errors.OccmapError` (a missing file, a bad format, a
+    kind of file it cannot show) naming the path."""
+    path = Path(path)
+    if not path.exists():
+        raise MissingFileError(path, "no such file or folder")
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        return _tile_store(path)
+    if suffix in OCTREE_SUFFIXES:
+        return _octree(path)
+    if suffix in MAP2D_SUFFIXES:
+        return _map2d(path)
+    if suffix in GRAPH_SUFFIXES:
+        return _graph(path)
+    if viewable(path):
+        return _cloud(path)
+    raise InvalidArgumentError(f"{str(path)!r}: cannot show this kind of file; expected an OctoMap file (.bt, .ot), "
+                               "a tile store folder, a map_server .yaml, a scan graph (.graph) or a point cloud "
+                               "(.pcd, .ply, .xyz, .bin, .3d, ...)")
+
+
+def _octree(path: Path) -> Scene:
+    from ..io.octomap import read_octree
+
+    tree = read_octree(path)
+    lo, hi = _bounds(tree.leaves(depth=8))  # a cheap box: nodes 256 voxels wide, the map's reach
+    summary = f"{tree.num_nodes():,} nodes, {tree.num_leaves():,} leaves, {tree.resolution:g} m"
+    return Scene(path, "octree", summary, tree.resolution, (lo, hi),
+                 nodes_at=lambda d: Voxels.of_leaves(tree.leaves(depth=d)),
+                 occupied_log_odds=float(tree.occupied_log_odds))
+
+
+def _bounds(leaves) -> tuple[np.ndarray, np.ndarray]:
+    if not len(leaves.sizes):
+        return np.zeros(3), np.zeros(3)
+    half = 0.5 * leaves.sizes[:, None]
+    return (leaves.centers - half).min(axis=0), (leaves.centers + half).max(axis=0)
+
+
+def _tile_store(path: Path) -> Scene:
+    from ..world.store import TileStore
+
+    store = TileStore.open(path)
+    if store.kind == "grid":
+        return _grid_store(path)
+    from ..io.octomap import read_ot
+    from ..octree.keys import DEPTH
+
+    params = {k: tuple(v) if k == "clamp" else v for k, v in store.params.items()}
+    side = store.tile_size * store.resolution
+    tiles = [(np.array(index, np.float64) * side, read_ot(store.path / entry["file"], **params))
+             for index, entry in sorted(store.tiles.items())]
+    top = DEPTH - (store.tile_size.bit_length() - 1)  # a tile is one node of this depth: no coarser node is its own
+
+    def nodes_at(depth: int) -> Voxels:
+        d = max(depth, top)
+        return Voxels.concatenate(Voxels.of_leaves(tree.leaves(depth=d), shift) for shift, tree in tiles)
+
+    if tiles:
+        lo = np.min([t for t, _ in tiles], axis=0)
+        hi = np.max([t for t, _ in tiles], axis=0) + side
+    else:
+        lo = hi = np.zeros(3)
+    nodes = sum(tree.num_nodes() for _, tree in tiles)
+    l_occ = logit32(params.get("occupied_threshold", 0.5))
+    summary = f"{len(tiles):,} tiles of {store.tile_size} voxels, {nodes:,} nodes, {store.resolution:g} m"
+    return Scene(path, "octree tile store", summary, store.resolution, (lo, hi), nodes_at=nodes_at,
+                 occupied_log_odds=float(l_occ))
+
+
+def _grid_store(path: Path) -> Scene:
+    from ..world import TiledGrid2D
+
+    with TiledGrid2D.open(path) as grid:
+        res = grid.resolution
+        x0, y0, x1, y1 = grid.extent or (0, 0, 1, 1)
+        occ = grid.occupancy(((x0 + 0.5) * res, (y0 + 0.5) * res, (x1 - 0.5) * res, (y1 - 0.5) * res))
+    plane = _occupancy_plane(occ, res, np.array([x0 * res, y0 * res]), 0.0)
+    summary = f"2D tile store, {occ.shape[1]} × {occ.shape[0]} cells, {res:g} m"
+    return Scene(path, "grid tile store", summary, res, _plane_bounds(plane), plane=plane)
+
+
+def _map2d(path: Path) -> Scene:
+    from ..io.mapserver import load_map
+
+    m = load_map(path)
+    plane = _occupancy_plane(m.occupancy, m.resolution, np.array(m.origin[:2]), m.origin[2])
+    summary = f"2D map, {m.occupancy.shape[1]} × {m.occupancy.shape[0]} cells, {m.resolution:g} m"
+    return Scene(path, "2D map", summary, m.resolution, _plane_bounds(plane), plane=plane)
+
+
+def _occupancy_plane(occupancy: np.ndarray, resolution: float, corner: np.ndarray, yaw: float) -> Plane:
+    """nav_msgs values (row 0 at the lowest y) as map_server's picture: unknown grey, free white,
+    occupied black, grey levels between; its centre from the outer corner of cell (0, 0)."""
+    occ = np.asarray(occupancy)
+    grey = np.where(occ < 0, 205, np.rint(255 * (1 - np.clip(occ, 0, 100) / 100.0))).astype(np.uint8)
+    rgb = np.repeat(grey[::-1, :, None], 3, axis=2)
+    h, w = occ.shape
+    c, s = np.cos(yaw), np.sin(yaw)
+    half = np.array([w, h]) * resolution / 2
+    center = corner + np.array([c * half[0] - s * half[1], s * half[0] + c * half[1]])
+    return Plane(rgb, w * resolution, h * resolution, np.array([center[0], center[1], 0.0]), float(yaw))
+
+
+def _plane_bounds(plane: Plane) -> tuple[np.ndarray, np.ndarray]:
+    r = 0.5 * np.hypot(plane.width, plane.height)
+    return plane.center - [r, r, 0.0], plane.center + [r, r, 0.0]
+
+
+def _graph(path: Path) -> Scene:
+    from ..io.scangraph import read_scangraph
+
+    graph = read_scangraph(path)
+    points = graph.world_points()
+    origins = np.array([n.origin for n in graph.nodes]).reshape(-1, 3)
+    summary = f"scan graph, {len(graph)} scans, {len(points):,} points"
+    return _points_scene(path, "scan graph", summary, points, origins)
+
+
+def _cloud(path: Path) -> Scene:
+    from ..io.pointclouds import read_cloud
+
+    cloud = read_cloud(path)
+    summary = f"point cloud, {len(cloud.points):,} points" + (f" ({cloud.dropped:,} dropped)" if cloud.dropped else "")
+    return _points_scene(path, "point cloud", summary, cloud.world_points(),
+                         cloud.origin[None, :] if cloud.has_pose else None)
+
+
+def _points_scene(path, kind, summary, points, origins) -> Scene:
+    both = points if origins is None else np.concatenate([points, origins])
+    lo, hi = (both.min(axis=0), both.max(axis=0)) if len(both) else (np.zeros(3), np.zeros(3))
+    size = float(np.clip(np.linalg.norm(hi - lo) / 2000, 0.01, 0.2))  # about a pixel at full view
+    return Scene(path, kind, summary, size, (lo, hi), points=points.astype(np.float32), sensor_path=origins)

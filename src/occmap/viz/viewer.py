@@ -1,0 +1,322 @@
+"""An interactive 3D viewer in the browser: :class:`Viewer` serves a map at
+``http://127.0.0.1:PORT/`` through `viser <https://viser.studio>`_ (a web 3D viewer for robotics,
+with its built client in its wheel: it works offline).
+
+What it draws (coordinates are the map's, metres, z up):
+
+- **octrees** (``.bt``/``.ot``, octree tile stores): occupied nodes as boxes coloured by height
+  (or by probability), free space on demand, as translucent boxes. Level of detail: a coarse
+  depth (:data:`~occmap.viz._lod.COARSE_DEPTH`) goes out first, then the deepest depth whose
+  occupied nodes number at most ``max_voxels`` (an inner node holds the maximum of its children,
+  so a coarser depth hides no obstacle: :mod:`occmap.viz._lod`);
+- **point clouds** and **scan graphs**: points coloured by height, and the sensor's path;
+- **2D maps** (map_server ``.yaml``, 2D tile stores): the map's picture as a plane at z = 0.
+
+The panel holds the colour mode, the free-space switch, a slice (cut the map above a height, or
+keep the one layer a height crosses) and a way to open another map in the running server (a
+file next to the first one, or any path); :meth:`Viewer.load` does the same from Python.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import io
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import checks
+from ..errors import OccmapError
+from ._lod import COARSE_DEPTH, Level, Voxels, cut, pick_level, ramp
+from ._maps import Scene, open_scene, viewable
+
+#: Boxes drawn at most per class of space (occupied, free): about 20 MB to the browser, smooth on
+#: an integrated GPU. OctoMap's largest sample (fr_079.bt) has 372,904 occupied leaves.
+DEFAULT_MAX_VOXELS = 500_000
+#: Points of a cloud drawn at most (every k-th point beyond it).
+MAX_POINTS = 2_000_000
+
+FREE_COLOR = (120, 200, 140)
+PATH_COLOR = (230, 40, 40)
+SLICES = {"off": "off", "cut above z": "below", "only at z": "at"}
+COLOURS = ("height", "probability")
+
+# a unit cube centred on the origin: 8 corners, 12 triangles wound outwards
+_CUBE_VERTICES = np.array([[x, y, z] for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)], np.float32)
+_CUBE_FACES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                        [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.uint32)
+
+
+class Viewer:
+    """A map served to the browser at :attr:`url` until :meth:`stop` (or the end of a ``with``).
+
+    Parameters
+    ----------
+    path : str or Path
+        What to show (see the module docstring).
+    port : int
+        TCP port; 0 picks a free one (:attr:`port` tells which).
+    host : str
+        Address to bind; the loopback interface by default, so only this computer sees the map.
+    max_voxels : int
+        Boxes drawn at most per class of space (level of detail).
+
+    Attributes
+    ----------
+    scene : the map shown (:class:`occmap.viz._maps.Scene`)
+    occupied : :class:`occmap.viz._lod.Level` or None, the occupied boxes drawn (depth, count, leaves)
+    timings : dict, seconds from the start of the last :meth:`load` to ``"read"`` (file read),
+        ``"coarse"`` (coarse level sent) and ``"scene"`` (the whole scene sent)
+    """
+
+    def __init__(self, path, port: int = 8080, host: str = "127.0.0.1", max_voxels: int = DEFAULT_MAX_VOXELS):
+        import viser
+
+        self.max_voxels = checks.count("max_voxels", max_voxels, minimum=1)
+        port = checks.count("port", port, minimum=0)
+        with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the caller prints the address
+            self.server = viser.ViserServer(host=host, port=port, label="occmap", verbose=False)
+        self.server.scene.set_up_direction("+z")
+        self.server.scene.configure_environment_map(hdri=None)
+        self._lock = threading.RLock()
+        self.scene: Scene | None = None
+        self.occupied: Level | None = None
+        self._free: Level | None = None
+        self._points: Voxels | None = None
+        self._z_range = (0.0, 1.0)
+        self.timings: dict[str, float] = {}
+        self._build_panel()
+        try:
+            self.load(path)
+        except BaseException:
+            self.server.stop()
+            raise
+
+    @property
+    def port(self) -> int:
+        return self.server.get_port()
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.port}/"
+
+    def stop(self) -> None:
+        """Close the server (its port is free again)."""
+        self.server.stop()
+
+    def __enter__(self) -> Viewer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------------ loading
+
+    def load(self, path) -> Scene:
+        """Show ``path`` instead of the current map, in every open browser tab. Raises
+        :class:`~occmap.errors.OccmapError` when it cannot be read (the current map stays)."""
+        with self._lock:
+            start = time.perf_counter()
+            scene = open_scene(path)
+            timings = {"read": time.perf_counter() - start}
+            if self.scene is not None:
+                self.server.scene.remove_by_name("/map")
+            self.scene, self.occupied, self._free, self._points = scene, None, None, None
+            self._nodes_at = functools.lru_cache(maxsize=2)(scene.nodes_at) if scene.nodes_at else None
+            if self._nodes_at is not None:
+                coarse = pick_level(lambda d: self._nodes_at(min(d, COARSE_DEPTH)), self._is_occupied, self.max_voxels)
+                self.occupied = coarse
+                self._draw_voxels()
+                timings["coarse"] = time.perf_counter() - start
+                self.occupied = pick_level(self._nodes_at, self._is_occupied, self.max_voxels)
+            if scene.points is not None:
+                pts = scene.points[::-(-len(scene.points) // MAX_POINTS) or 1]
+                self._points = Voxels(pts, np.full(len(pts), scene.resolution, np.float32), np.zeros(len(pts), np.float32))
+            self._update_panel()
+            self._draw_all()
+            self._aim_cameras()
+            timings["scene"] = time.perf_counter() - start
+            self.timings = timings
+            return scene
+
+    def _is_occupied(self, v: Voxels) -> np.ndarray:
+        return v.log_odds >= self.scene.occupied_log_odds
+
+    def _is_free(self, v: Voxels) -> np.ndarray:
+        return v.log_odds < self.scene.occupied_log_odds
+
+    def _open_from_panel(self, path: str) -> None:
+        try:
+            self.load(path)
+        except (OccmapError, OSError) as e:
+            self._info.content = f"**could not open** `{path}`: {e}\n\n{self._describe()}"
+
+    # ------------------------------------------------------------------ drawing
+
+    def _draw_all(self) -> None:
+        self._draw_voxels()
+        self._draw_free()
+        self._draw_points()
+        self._draw_plane()
+        self._draw_path()
+        self._draw_slice_plane()
+
+    def _slice(self, v: Voxels) -> Voxels:
+        mode = SLICES[self._slice_mode.value]
+        return v if mode == "off" else v.subset(cut(v, mode, float(self._z.value)))
+
+    def _colors(self, v: Voxels, value_range_of: Voxels, free: bool) -> np.ndarray:
+        if self._colour.value == "probability":
+            lo, hi = (value_range_of.log_odds.min(), value_range_of.log_odds.max()) if value_range_of.count else (0, 1)
+            return ramp(v.log_odds, (lo, hi))
+        if free:
+            return np.array(FREE_COLOR, np.uint8)
+        return ramp(v.centers[:, 2], self._z_range)
+
+    def _boxes(self, name: str, v: Voxels, colors, opacity=None) -> None:
+        if not v.count:
+            self.server.scene.remove_by_name(name)
+            return
+        self.server.scene.add_batched_meshes_simple(
+            name, _CUBE_VERTICES, _CUBE_FACES,
+            batched_wxyzs=np.broadcast_to(np.array([1, 0, 0, 0], np.float32), (v.count, 4)),
+            batched_positions=v.centers, batched_scales=v.sizes, batched_colors=colors, opacity=opacity,
+            lod="off", material="toon3", cast_shadow=False, receive_shadow=False)
+
+    def _draw_voxels(self) -> None:
+        if self.occupied is None:
+            return
+        all_v = self.occupied.voxels
+        if all_v.count:
+            self._z_range = (float(all_v.centers[:, 2].min()), float(all_v.centers[:, 2].max()))
+        v = self._slice(all_v)
+        self._boxes("/map/occupied", v, self._colors(v, all_v, free=False))
+
+    def _draw_free(self) -> None:
+        if self._nodes_at is None or not self._show_free.value:
+            self.server.scene.remove_by_name("/map/free")
+            return
+        if self._free is None:
+            self._free = pick_level(self._nodes_at, self._is_free, self.max_voxels)
+        v = self._slice(self._free.voxels)
+        self._boxes("/map/free", v, self._colors(v, self._free.voxels, free=True), opacity=0.25)
+
+    def _draw_points(self) -> None:
+        if self._points is None:
+            return
+        all_p = self._points
+        if all_p.count:
+            self._z_range = (float(all_p.centers[:, 2].min()), float(all_p.centers[:, 2].max()))
+        p = self._slice(all_p)
+        self.server.scene.add_point_cloud("/map/points", p.centers, ramp(p.centers[:, 2], self._z_range),
+                                          point_size=self.scene.resolution, point_shape="square",
+                                          precision="float32", point_shading="flat")
+
+    def _draw_plane(self) -> None:
+        plane = self.scene.plane
+        if plane is None:
+            return
+        half = plane.yaw / 2
+        self.server.scene.add_image("/map/plane", plane.rgb, plane.width, plane.height, format="png",
+                                    position=plane.center, wxyz=(np.cos(half), 0.0, 0.0, np.sin(half)),
+                                    cast_shadow=False, receive_shadow=False)
+
+    def _draw_path(self) -> None:
+        track = self.scene.sensor_path
+        if track is None or not len(track):
+            return
+        self.server.scene.add_point_cloud("/map/sensor", track.astype(np.float32), PATH_COLOR,
+                                          point_size=4 * self.scene.resolution, point_shape="circle",
+                                          precision="float32", point_shading="flat")
+        if len(track) > 1:
+            segments = np.stack([track[:-1], track[1:]], axis=1).astype(np.float32)
+            self.server.scene.add_line_segments("/map/sensor_path", segments, PATH_COLOR, line_width=3.0)
+
+    def _draw_slice_plane(self) -> None:
+        if SLICES[self._slice_mode.value] == "off":
+            self.server.scene.remove_by_name("/map/slice")
+            return
+        lo, hi = self._bounds()
+        size = hi[:2] - lo[:2]
+        self.server.scene.add_grid("/map/slice", float(size[0]), float(size[1]), plane="xy",
+                                   cell_size=max(self.scene.resolution * 10, 0.1), section_size=1.0,
+                                   plane_color=(90, 140, 230), plane_opacity=0.15,
+                                   position=(*((lo[:2] + hi[:2]) / 2), float(self._z.value)))
+
+    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The box of what is drawn: the occupied boxes or the points where there are some."""
+        drawn = self.occupied.voxels if self.occupied is not None else self._points
+        if drawn is not None and drawn.count:
+            half = drawn.sizes[:, None] / 2
+            return (drawn.centers - half).min(axis=0).astype(np.float64), (drawn.centers + half).max(axis=0).astype(np.float64)
+        return self.scene.bounds
+
+    def _aim_cameras(self) -> None:
+        lo, hi = self._bounds()
+        center = (lo + hi) / 2
+        reach = max(float(np.linalg.norm(hi - lo)), 1.0)
+        position = center + reach * np.array([-0.3, -0.5, 0.45])
+        self.server.initial_camera.position = tuple(position)
+        self.server.initial_camera.look_at = tuple(center)
+        for client in self.server.get_clients().values():
+            client.camera.position = position
+            client.camera.look_at = center
+
+    # ------------------------------------------------------------------ the panel
+
+    def _build_panel(self) -> None:
+        gui = self.server.gui
+        self._info = gui.add_markdown("")
+        self._colour = gui.add_dropdown("Colour by", COLOURS, initial_value="height")
+        self._show_free = gui.add_checkbox("Free space", False)
+        self._slice_mode = gui.add_dropdown("Slice", tuple(SLICES), initial_value="off")
+        self._z = gui.add_slider("Slice z (m)", min=0.0, max=1.0, step=0.01, initial_value=1.0)
+        self._nearby = gui.add_dropdown("Maps here", ("",), initial_value="")
+        self._path_text = gui.add_text("Open path", "")
+        self._open = gui.add_button("Open")
+
+        def redraw(_event) -> None:
+            with self._lock:
+                self._draw_voxels()
+                self._draw_free()
+                self._draw_points()
+                self._draw_slice_plane()
+
+        for control in (self._colour, self._show_free, self._slice_mode, self._z):
+            control.on_update(redraw)
+
+        @self._nearby.on_update
+        def _(_event) -> None:
+            name = self._nearby.value
+            if name and self.scene is not None and name != self.scene.path.name:
+                self._path_text.value = str(self.scene.path.parent / name)
+                self._open_from_panel(self._path_text.value)
+
+        @self._open.on_click
+        def _(_event) -> None:
+            self._open_from_panel(self._path_text.value.strip())
+
+    def _update_panel(self) -> None:
+        lo, hi = self._bounds()
+        step = float(self.scene.resolution)
+        z_lo, z_hi = float(np.floor(lo[2] / step) * step), float(np.ceil(hi[2] / step) * step)
+        self._z.min, self._z.max, self._z.step = z_lo, max(z_hi, z_lo + step), step
+        self._z.value = self._z.max
+        here = self.scene.path.parent
+        names = sorted(p.name for p in here.iterdir() if p != self.scene.path.resolve() and viewable(p)) if here.is_dir() else []
+        self._nearby.options = (self.scene.path.name, *(n for n in names if n != self.scene.path.name))
+        self._nearby.value = self.scene.path.name
+        self._path_text.value = str(self.scene.path)
+        self._info.content = self._describe()
+
+    def _describe(self) -> str:
+        s = self.scene
+        text = f"**{s.path.name}** — {s.kind}: {s.summary}"
+        if self.occupied is not None:
+            o = self.occupied
+            text += (f"\n\n{o.voxels.count:,} occupied boxes drawn at depth {o.depth} "
+                     f"({o.leaves:,} occupied leaves)")
+        return text
