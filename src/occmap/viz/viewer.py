@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import checks
-from ..errors import OccmapError
+from ..errors import InvalidArgumentError, OccmapError
 from ._lod import COARSE_DEPTH, Level, Voxels, cut, pick_level, ramp
 from ._maps import Scene, open_scene, viewable
 
@@ -43,6 +43,7 @@ FREE_COLOR = (120, 200, 140)
 PATH_COLOR = (230, 40, 40)
 SLICES = {"off": "off", "cut above z": "below", "only at z": "at"}
 COLOURS = ("height", "probability")
+STYLES = ("points", "boxes")
 
 # a unit cube centred on the origin: 8 corners, 12 triangles wound outwards
 _CUBE_VERTICES = np.array([[x, y, z] for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)], np.float32)
@@ -63,6 +64,10 @@ class Viewer:
         Address to bind; the loopback interface by default, so only this computer sees the map.
     max_voxels : int
         Boxes drawn at most per class of space (level of detail).
+    style : str
+        ``"points"`` (square points as wide as the boxes: one vertex each, smooth with half a
+        million of them even on software graphics) or ``"boxes"`` (instances of one shaded cube,
+        36 vertices each); the panel switches it.
 
     Attributes
     ----------
@@ -72,7 +77,8 @@ class Viewer:
         ``"coarse"`` (coarse level sent) and ``"scene"`` (the whole scene sent)
     """
 
-    def __init__(self, path, port: int = 8080, host: str = "127.0.0.1", max_voxels: int = DEFAULT_MAX_VOXELS):
+    def __init__(self, path, port: int = 8080, host: str = "127.0.0.1", max_voxels: int = DEFAULT_MAX_VOXELS,
+                 style: str = "points"):
         import viser
 
         self.max_voxels = checks.count("max_voxels", max_voxels, minimum=1)
@@ -87,8 +93,12 @@ class Viewer:
         self._free: Level | None = None
         self._points: Voxels | None = None
         self._z_range = (0.0, 1.0)
+        self._loading = False
         self.timings: dict[str, float] = {}
         self._build_panel()
+        if style not in STYLES:
+            raise InvalidArgumentError(f"style must be one of {STYLES}, got {style!r}")
+        self._style.value = style
         try:
             self.load(path)
         except BaseException:
@@ -122,22 +132,27 @@ class Viewer:
             start = time.perf_counter()
             scene = open_scene(path)
             timings = {"read": time.perf_counter() - start}
-            if self.scene is not None:
-                self.server.scene.remove_by_name("/map")
-            self.scene, self.occupied, self._free, self._points = scene, None, None, None
-            self._nodes_at = functools.lru_cache(maxsize=2)(scene.nodes_at) if scene.nodes_at else None
-            if self._nodes_at is not None:
-                coarse = pick_level(lambda d: self._nodes_at(min(d, COARSE_DEPTH)), self._is_occupied, self.max_voxels)
-                self.occupied = coarse
-                self._draw_voxels()
-                timings["coarse"] = time.perf_counter() - start
-                self.occupied = pick_level(self._nodes_at, self._is_occupied, self.max_voxels)
-            if scene.points is not None:
-                pts = scene.points[::-(-len(scene.points) // MAX_POINTS) or 1]
-                self._points = Voxels(pts, np.full(len(pts), scene.resolution, np.float32), np.zeros(len(pts), np.float32))
-            self._update_panel()
-            self._draw_all()
-            self._aim_cameras()
+            self._loading = True
+            try:
+                if self.scene is not None:
+                    self.server.scene.remove_by_name("/map")
+                self.scene, self.occupied, self._free, self._points = scene, None, None, None
+                self._nodes_at = functools.lru_cache(maxsize=2)(scene.nodes_at) if scene.nodes_at else None
+                if self._nodes_at is not None:
+                    self.occupied = pick_level(lambda d: self._nodes_at(min(d, COARSE_DEPTH)), self._is_occupied,
+                                               self.max_voxels)
+                    self._draw_voxels()
+                    timings["coarse"] = time.perf_counter() - start
+                    self.occupied = pick_level(self._nodes_at, self._is_occupied, self.max_voxels)
+                if scene.points is not None:
+                    pts = scene.points[::-(-len(scene.points) // MAX_POINTS) or 1]
+                    self._points = Voxels(pts, np.full(len(pts), scene.resolution, np.float32),
+                                          np.zeros(len(pts), np.float32))
+                self._update_panel()
+                self._draw_all()
+                self._aim_cameras()
+            finally:
+                self._loading = False
             timings["scene"] = time.perf_counter() - start
             self.timings = timings
             return scene
@@ -176,14 +191,27 @@ class Viewer:
             return np.array(FREE_COLOR, np.uint8)
         return ramp(v.centers[:, 2], self._z_range)
 
-    def _boxes(self, name: str, v: Voxels, colors, opacity=None) -> None:
+    def _boxes(self, name: str, v: Voxels, colors, see_through: bool = False) -> None:
+        """Boxes as instances of one cube, or as square points (one per box, as wide as it; far
+        cheaper to draw), by the panel's choice. ``see_through`` boxes (free space) are drawn
+        translucent, or as points a third as wide, so that the occupied ones show through them."""
+        self.server.scene.remove_by_name(name)
         if not v.count:
-            self.server.scene.remove_by_name(name)
+            return
+        if self._style.value == "points":
+            colors = np.broadcast_to(colors, (v.count, 3))
+            for size in np.unique(v.sizes):
+                sel = v.sizes == size
+                self.server.scene.add_point_cloud(f"{name}/{size:g}", v.centers[sel], colors[sel],
+                                                  point_size=float(size) / (3 if see_through else 1),
+                                                  point_shape="square",
+                                                  precision="float32", point_shading="flat")
             return
         self.server.scene.add_batched_meshes_simple(
             name, _CUBE_VERTICES, _CUBE_FACES,
             batched_wxyzs=np.broadcast_to(np.array([1, 0, 0, 0], np.float32), (v.count, 4)),
-            batched_positions=v.centers, batched_scales=v.sizes, batched_colors=colors, opacity=opacity,
+            batched_positions=v.centers, batched_scales=v.sizes, batched_colors=colors,
+            opacity=0.25 if see_through else None,
             lod="off", material="toon3", cast_shadow=False, receive_shadow=False)
 
     def _draw_voxels(self) -> None:
@@ -202,7 +230,7 @@ class Viewer:
         if self._free is None:
             self._free = pick_level(self._nodes_at, self._is_free, self.max_voxels)
         v = self._slice(self._free.voxels)
-        self._boxes("/map/free", v, self._colors(v, self._free.voxels, free=True), opacity=0.25)
+        self._boxes("/map/free", v, self._colors(v, self._free.voxels, free=True), see_through=True)
 
     def _draw_points(self) -> None:
         if self._points is None:
@@ -271,6 +299,7 @@ class Viewer:
         gui = self.server.gui
         self._info = gui.add_markdown("")
         self._colour = gui.add_dropdown("Colour by", COLOURS, initial_value="height")
+        self._style = gui.add_dropdown("Draw as", STYLES, initial_value=STYLES[0])
         self._show_free = gui.add_checkbox("Free space", False)
         self._slice_mode = gui.add_dropdown("Slice", tuple(SLICES), initial_value="off")
         self._z = gui.add_slider("Slice z (m)", min=0.0, max=1.0, step=0.01, initial_value=1.0)
@@ -280,12 +309,14 @@ class Viewer:
 
         def redraw(_event) -> None:
             with self._lock:
+                if self._loading or self.scene is None:  # the panel set by load(), which draws afterwards
+                    return
                 self._draw_voxels()
                 self._draw_free()
                 self._draw_points()
                 self._draw_slice_plane()
 
-        for control in (self._colour, self._show_free, self._slice_mode, self._z):
+        for control in (self._colour, self._style, self._show_free, self._slice_mode, self._z):
             control.on_update(redraw)
 
         @self._nearby.on_update
