@@ -286,7 +286,7 @@ class Viewer:
         lo, hi = self._bounds()
         center = (lo + hi) / 2
         reach = max(float(np.linalg.norm(hi - lo)), 1.0)
-        position = center + reach * np.array([-0.3, -0.5, 0.45])
+        position = center + reach * np.array([-0.4, -0.65, 0.55])
         self.server.initial_camera.position = tuple(position)
         self.server.initial_camera.look_at = tuple(center)
         for client in self.server.get_clients().values():

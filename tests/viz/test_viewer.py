@@ -1,0 +1,238 @@
+"""``occmap view``: the viewer opened in a real headless Chromium (system package ``chromium``,
+driven by Playwright), its screenshots checked pixel by pixel; the level of detail checked against
+the octree's leaves; the command's start, address and clean stop.
+
+The browser may reach the viewer's own address only: every other request is refused and recorded,
+so the screenshots also show that the viewer draws with no internet.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+
+from occmap.octree.views import height_colors
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run"]
+VIEW = {"width": 800, "height": 600}
+PALETTE = height_colors(np.linspace(0.0, 1.0, 256)).astype(np.int64)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if CHROMIUM is None:
+        pytest.skip("no chromium on this machine: install the system package (apt-get install chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed (the test extra)")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def geb079(data_dir):
+    return data_dir / "octomap" / "geb079.bt"
+
+
+def ramp_pixels(png: bytes) -> int:
+    """Pixels of the left half of a screenshot (the panel is on the right) that lie on the height
+    ramp: within 12 of one of its colours per channel, and coloured (not a grey of the page)."""
+    from io import BytesIO
+
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(BytesIO(png)).convert("RGB"))[:, : VIEW["width"] // 2].reshape(-1, 3).astype(np.int64)
+    rgb = rgb[rgb.max(axis=1) - rgb.min(axis=1) > 35]
+    near = np.zeros(len(rgb), bool)
+    for c in PALETTE[::4]:
+        near |= np.all(np.abs(rgb - c) <= 12, axis=1)
+    return int(near.sum())
+
+
+class Page:
+    """A browser tab on a viewer that may fetch nothing but the viewer's own address."""
+
+    def __init__(self, browser, url: str):
+        self.page = browser.new_page(viewport=VIEW)
+        self.refused: list[str] = []
+        self.page.route("**/*", self._route)
+        self.origin = url.rstrip("/")
+        self.page.goto(url)
+
+    def _route(self, route):
+        url = route.request.url
+        if url.startswith(self.origin) or url.startswith(("data:", "blob:")):
+            route.continue_()
+        else:
+            self.refused.append(url)
+            route.abort()
+
+    def drawn(self, at_least: int = 2000, timeout: float = 20.0) -> tuple[bytes, int]:
+        """A screenshot once the map is drawn (ramp pixels ≥ ``at_least``), and its ramp pixels."""
+        end = time.monotonic() + timeout
+        while True:
+            png = self.page.screenshot()
+            n = ramp_pixels(png)
+            if n >= at_least or time.monotonic() > end:
+                return png, n
+            self.page.wait_for_timeout(500)
+
+    def open_in_panel(self, path) -> None:
+        """Type ``path`` into the panel's "Open path" field and press "Open", as a person would."""
+        field = self.page.locator('xpath=//label[text()="Open path"]/ancestor::div'
+                                  '[contains(@class, "mantine-Flex-root")][1]//input')
+        field.fill(str(path))
+        self.page.get_by_role("button", name="Open").click()
+
+
+def small_tile_store(path):
+    """A tile store of one synthetic scan: a room 6 × 4 × 2.5 m seen from its middle, tiles of
+    32 voxels (1.6 m), so the room spans many tiles."""
+    from occmap.world import TiledOcTree
+
+    u, v = np.meshgrid(np.linspace(0, 1, 120), np.linspace(0, 1, 50))
+    u, v = u.ravel(), v.ravel()
+    walls = [np.stack([u * 6, np.zeros_like(u), v * 2.5], 1), np.stack([u * 6, np.full_like(u, 4.0), v * 2.5], 1),
+             np.stack([np.zeros_like(u), u * 4, v * 2.5], 1), np.stack([np.full_like(u, 6.0), u * 4, v * 2.5], 1)]
+    points = np.concatenate(walls) + [0.013, 0.017, 0.011]
+    with TiledOcTree.create(path, 0.05, tile_size=32) as tiles:
+        tiles.insert_point_cloud(points, [3.0, 2.0, 1.2])
+    return TiledOcTree.open(path)
+
+
+def test_geb079_drawn_offline_then_a_tile_store_opened_from_the_panel(browser, geb079, tmp_path):
+    from occmap.viz.viewer import Viewer
+
+    store = tmp_path / "room-tiles"
+    tiled = small_tile_store(store)
+    with Viewer(geb079, port=0) as viewer:
+        assert viewer.url.startswith("http://127.0.0.1:")
+        # every occupied leaf drawn: OctoMap's count for this file (143,729, the data's README)
+        assert (viewer.occupied.depth, viewer.occupied.voxels.count, viewer.occupied.leaves) == (16, 143_729, 143_729)
+        tab = Page(browser, viewer.url)
+        first, n_first = tab.drawn()
+        _keep("geb079", first)
+        assert n_first >= 2000, f"the map is not drawn: {n_first} pixels of the height ramp"
+        assert tab.refused == [], f"the viewer asked for other addresses: {tab.refused}"
+
+        tab.open_in_panel(store)  # the second map, in the same server and the same tab
+        deadline = time.monotonic() + 20
+        while viewer.scene.path != store and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert viewer.scene.kind == "octree tile store"
+        lv = tiled.leaves()
+        occupied = lv.centers[lv.log_odds >= 0]
+        drawn = viewer.occupied.voxels.centers
+        assert len(drawn) == len(occupied) > 1000
+        assert np.allclose(np.sort(drawn, axis=0), np.sort(occupied, axis=0), atol=1e-4)  # the same voxels, placed
+        tab.page.wait_for_timeout(1000)
+        second, n_second = tab.drawn()
+        _keep("tile-store", second)
+        assert n_second >= 2000, f"the tile store is not drawn: {n_second} pixels of the height ramp"
+        a = np.asarray(_image(first), np.int64)
+        b = np.asarray(_image(second), np.int64)
+        changed = np.mean(np.any(np.abs(a - b) > 40, axis=2)[:, : VIEW["width"] // 2])
+        assert changed > 0.05, f"only {changed:.1%} of the picture changed after opening the second map"
+        assert tab.refused == []
+
+
+def _keep(name: str, png: bytes) -> None:
+    """Save a screenshot in ``$OCCMAP_SCREENSHOTS`` when set, to look at."""
+    folder = os.environ.get("OCCMAP_SCREENSHOTS")
+    if folder:
+        with open(os.path.join(folder, f"viewer-{name}.png"), "wb") as f:
+            f.write(png)
+
+
+def _image(png: bytes):
+    from io import BytesIO
+
+    from PIL import Image
+
+    return Image.open(BytesIO(png)).convert("RGB")
+
+
+def test_large_map_level_of_detail_is_conservative_and_capped(data_dir):
+    """fr_079.bt capped at 50,000 boxes: a coarser depth, at most the cap, and every occupied leaf
+    inside a drawn box (an inner node holds its children's maximum: nothing hidden)."""
+    from occmap.io.octomap import read_octree
+    from occmap.viz._lod import pick_level
+    from occmap.viz._maps import open_scene
+
+    scene = open_scene(data_dir / "octomap" / "fr_079.bt")
+    occ = lambda v: v.log_odds >= scene.occupied_log_odds  # noqa: E731
+    level = pick_level(scene.nodes_at, occ, 50_000)
+    assert level.leaves == 372_904 and level.depth == 14 and level.voxels.count <= 50_000
+    tree = read_octree(data_dir / "octomap" / "fr_079.bt")
+    lv = tree.leaves()
+    size = tree.resolution * 2 ** (16 - level.depth)
+    fine = (lv.log_odds >= tree.occupied_log_odds) & (lv.sizes <= size)  # leaves no larger than a drawn box
+    small = np.isclose(level.voxels.sizes, size)
+    assert small.sum() > 0.9 * level.voxels.count
+    boxes = {tuple(k) for k in np.floor(level.voxels.centers[small] / size).astype(np.int64).tolist()}
+    assert len(boxes) == small.sum()  # each box once
+    # the boxes are exactly those holding an occupied leaf: none hidden, none drawn in vain
+    assert boxes == {tuple(k) for k in np.floor(lv.centers[fine] / size).astype(np.int64).tolist()}
+
+
+def test_command_serves_until_interrupted(geb079):
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    cmd = [sys.executable, "-m", "occmap", "view", str(geb079), "--port", "0", "--no-browser"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        url = None
+        deadline = time.monotonic() + 60
+        while url is None and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            found = re.search(r"serving at (http://127\.0\.0\.1:\d+/)", line)
+            url = found and found.group(1)
+        assert url, "the command never printed its address"
+        with urllib.request.urlopen(url, timeout=10) as r:
+            assert r.status == 200 and b"<html" in r.read(2000).lower()
+        proc.send_signal(signal.SIGINT)  # Ctrl-C
+        out, err = proc.communicate(timeout=30)
+        assert proc.returncode == 0, err
+        assert "Traceback" not in err
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
+
+def test_command_refuses_bad_paths_in_one_line(tmp_path, capsys):
+    from occmap.cli import main
+
+    bad = tmp_path / "not-a-map.bt"
+    bad.write_bytes(b"# Octomap OcTree binary file\nid OcTree\nsize 7\nres 0.1\ndata\n\x03")
+    for path, says in ((tmp_path / "missing.bt", "missing.bt"), (bad, "not-a-map.bt"), (tmp_path, "index.json"),
+                       (tmp_path / "notes.txt.md", "cannot show")):
+        if path.suffix == ".md":
+            path.write_text("hello")
+        assert main(["view", str(path), "--port", "0", "--no-browser"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("occmap view: error:") and says in err and err.count("\n") == 1, err
+
+
+def test_slice_and_colour_modes_select_and_colour_the_right_boxes():
+    from occmap.viz._lod import Voxels, cut, ramp
+
+    v = Voxels(np.array([[0, 0, 0.5], [0, 0, 1.5], [0, 0, 2.25]], np.float32), np.array([1, 1, 0.5], np.float32),
+               np.zeros(3, np.float32))
+    assert cut(v, "below", 1.0).tolist() == [True, True, False]  # bottoms at 0, 1, 2
+    assert cut(v, "at", 1.0).tolist() == [False, True, False]
+    assert cut(v, "at", 2.3).tolist() == [False, False, True]
+    assert cut(v, "off", -5.0).all()
+    c = ramp(v.centers[:, 2], (0.5, 2.25))
+    assert c[0].tolist() == [48, 18, 59] and c[2].tolist() == [250, 230, 40]  # the ramp's two ends
