@@ -16,6 +16,7 @@ has the scene, before the process is stopped. Medians of alternating rounds.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import shutil
 import signal
@@ -99,6 +100,7 @@ def main() -> int:
         leaves[name] = (t.size(), occupied, t.getNumLeafNodes() - occupied)
 
     runs = {name: [] for name in maps}
+    load = os.getloadavg()[0]
     browser = playwright = None
     if CHROMIUM:
         from playwright.sync_api import sync_playwright
@@ -136,7 +138,8 @@ def main() -> int:
         "process's peak resident memory (largest of the rounds) with the browser connected. Target for fr_079.bt: "
         "≤ 3 s and ≤ 1 GB. octovis draws every leaf (the free ones too when asked); occmap draws the occupied "
         "nodes of the deepest depth with at most 500,000 of them (free space on demand, likewise capped), as "
-        "square points by default. Counts from OctoMap's own reader (octomap-python).",
+        "square points by default. Counts from OctoMap's own reader (octomap-python). Load average "
+        f"{load:.1f} on {os.cpu_count()} cores when the runs began (the machine is shared).",
         "",
         "| map | nodes | leaves octovis draws: occupied / free | occmap draws (occupied) | start → scene sent (s) | "
         "in the viewer (s) | → drawn in Chromium (s) | peak RSS (MiB) |",

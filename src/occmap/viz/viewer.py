@@ -189,7 +189,10 @@ class Viewer:
             return ramp(v.log_odds, (lo, hi))
         if free:
             return np.array(FREE_COLOR, np.uint8)
-        return ramp(v.centers[:, 2], self._z_range)
+        lo, hi = self._z_range
+        if SLICES[self._slice_mode.value] == "below":  # the ramp spans what the cut leaves
+            hi = max(lo, min(hi, float(self._z.value)))
+        return ramp(v.centers[:, 2], (lo, hi))
 
     def _boxes(self, name: str, v: Voxels, colors, see_through: bool = False) -> None:
         """Boxes as instances of one cube, or as square points (one per box, as wide as it; far
@@ -239,7 +242,7 @@ class Viewer:
         if all_p.count:
             self._z_range = (float(all_p.centers[:, 2].min()), float(all_p.centers[:, 2].max()))
         p = self._slice(all_p)
-        self.server.scene.add_point_cloud("/map/points", p.centers, ramp(p.centers[:, 2], self._z_range),
+        self.server.scene.add_point_cloud("/map/points", p.centers, self._colors(p, all_p, free=False),
                                           point_size=self.scene.resolution, point_shape="square",
                                           precision="float32", point_shading="flat")
 
@@ -270,8 +273,9 @@ class Viewer:
         lo, hi = self._bounds()
         size = hi[:2] - lo[:2]
         self.server.scene.add_grid("/map/slice", float(size[0]), float(size[1]), plane="xy",
-                                   cell_size=max(self.scene.resolution * 10, 0.1), section_size=1.0,
-                                   plane_color=(90, 140, 230), plane_opacity=0.15,
+                                   cell_size=1.0, cell_thickness=0.5, cell_color=(170, 190, 230),
+                                   section_size=10.0, section_color=(120, 150, 220),
+                                   plane_color=(90, 140, 230), plane_opacity=0.1,
                                    position=(*((lo[:2] + hi[:2]) / 2), float(self._z.value)))
 
     def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -286,7 +290,7 @@ class Viewer:
         lo, hi = self._bounds()
         center = (lo + hi) / 2
         reach = max(float(np.linalg.norm(hi - lo)), 1.0)
-        position = center + reach * np.array([-0.4, -0.65, 0.55])
+        position = center + reach * np.array([-0.25, -0.45, 0.4])
         self.server.initial_camera.position = tuple(position)
         self.server.initial_camera.look_at = tuple(center)
         for client in self.server.get_clients().values():
