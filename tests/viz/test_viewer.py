@@ -236,3 +236,30 @@ def test_slice_and_colour_modes_select_and_colour_the_right_boxes():
     assert cut(v, "off", -5.0).all()
     c = ramp(v.centers[:, 2], (0.5, 2.25))
     assert c[0].tolist() == [48, 18, 59] and c[2].tolist() == [250, 230, 40]  # the ramp's two ends
+
+
+def test_a_2d_map_lies_where_its_yaml_puts_it(tmp_path):
+    from occmap.io.mapserver import save_map
+    from occmap.viz._maps import open_scene
+
+    occ = np.zeros((2, 4), np.int8)
+    occ[0, 0], occ[1, 3] = 100, -1
+    save_map(tmp_path / "m.yaml", occ, 0.5, (1.0, 2.0, np.pi / 2))
+    plane = open_scene(tmp_path / "m.yaml").plane
+    # the map's x axis along the world's +y (yaw 90°): centre = corner + R(yaw) · (1.0, 0.5)
+    assert np.allclose(plane.center, [0.5, 3.0, 0.0]) and (plane.width, plane.height) == (2.0, 1.0)
+    assert plane.yaw == pytest.approx(np.pi / 2)
+    assert plane.rgb[0, 0].tolist() == [0, 0, 0] and plane.rgb[1, 3].tolist() == [205] * 3  # row 0: lowest y
+    assert plane.rgb[1, 0].tolist() == [255] * 3
+
+
+def test_a_cloud_is_shown_in_the_world_with_its_sensor(tmp_path):
+    from occmap.geometry import SE3
+    from occmap.io.pointclouds import write_pcd
+    from occmap.viz._maps import open_scene
+
+    pose = SE3.from_euler_zyx(np.pi / 2, 0.0, 0.0, translation=[10.0, 0.0, 1.0])
+    write_pcd(tmp_path / "c.pcd", np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.5]]), viewpoint=pose)
+    scene = open_scene(tmp_path / "c.pcd")
+    assert np.allclose(scene.points, [[10.0, 1.0, 1.0], [8.0, 0.0, 1.5]], atol=1e-6)
+    assert np.allclose(scene.sensor_path, [[10.0, 0.0, 1.0]])

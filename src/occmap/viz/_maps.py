@@ -27,8 +27,9 @@ GRAPH_SUFFIXES = (".graph",)
 
 @dataclass
 class Plane:
-    """A picture lying in the plane z = 0: RGB (H, W, 3) uint8 with row 0 at the map's *top*
-    (largest y, as a picture is shown), its size in metres, its centre and yaw (radians)."""
+    """A picture lying in the plane z = 0: RGB (H, W, 3) uint8 with row 0 along the map's lowest
+    y (as nav_msgs rows; the viewer lays an image's first row along the plane's −y edge), its size
+    in metres, its centre and yaw (radians)."""
 
     rgb: np.ndarray
     width: float
@@ -166,7 +167,7 @@ def _occupancy_plane(occupancy: np.ndarray, resolution: float, corner: np.ndarra
     occupied black, grey levels between; its centre from the outer corner of cell (0, 0)."""
     occ = np.asarray(occupancy)
     grey = np.where(occ < 0, 205, np.rint(255 * (1 - np.clip(occ, 0, 100) / 100.0))).astype(np.uint8)
-    rgb = np.repeat(grey[::-1, :, None], 3, axis=2)
+    rgb = np.repeat(grey[:, :, None], 3, axis=2)
     h, w = occ.shape
     c, s = np.cos(yaw), np.sin(yaw)
     half = np.array([w, h]) * resolution / 2

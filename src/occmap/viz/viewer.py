@@ -40,6 +40,7 @@ DEFAULT_MAX_VOXELS = 500_000
 MAX_POINTS = 2_000_000
 
 FREE_COLOR = (120, 200, 140)
+BACKGROUND = (232, 234, 238)
 PATH_COLOR = (230, 40, 40)
 SLICES = {"off": "off", "cut above z": "below", "only at z": "at"}
 COLOURS = ("height", "probability")
@@ -86,13 +87,16 @@ class Viewer:
         with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the caller prints the address
             self.server = viser.ViserServer(host=host, port=port, label="occmap", verbose=False)
         self.server.scene.set_up_direction("+z")
-        self.server.scene.configure_environment_map(hdri=None)
+        self.server.scene.configure_environment_map(hdri=None)  # its light washes the colours out
+        # a light grey page, so that the white of free space on a 2D map stands out
+        self.server.scene.set_background_image(np.full((8, 8, 3), BACKGROUND, np.uint8), format="png")
         self._lock = threading.RLock()
         self.scene: Scene | None = None
         self.occupied: Level | None = None
         self._free: Level | None = None
         self._points: Voxels | None = None
         self._z_range = (0.0, 1.0)
+        self._marker = 1.0
         self._loading = False
         self.timings: dict[str, float] = {}
         self._build_panel()
@@ -172,6 +176,9 @@ class Viewer:
     # ------------------------------------------------------------------ drawing
 
     def _draw_all(self) -> None:
+        lo, hi = self._bounds()
+        self._marker = max(float(np.linalg.norm(hi - lo)) / 100, 2 * self.scene.resolution)
+        self.server.scene.add_frame("/map/origin", axes_length=5 * self._marker, axes_radius=self._marker / 4)
         self._draw_voxels()
         self._draw_free()
         self._draw_points()
@@ -260,7 +267,7 @@ class Viewer:
         if track is None or not len(track):
             return
         self.server.scene.add_point_cloud("/map/sensor", track.astype(np.float32), PATH_COLOR,
-                                          point_size=4 * self.scene.resolution, point_shape="circle",
+                                          point_size=self._marker, point_shape="circle",
                                           precision="float32", point_shading="flat")
         if len(track) > 1:
             segments = np.stack([track[:-1], track[1:]], axis=1).astype(np.float32)
