@@ -80,7 +80,7 @@ def pick_level(nodes_at: Callable[[int], Voxels], keep: Callable[[Voxels], np.nd
 
 def ramp(values, value_range) -> np.ndarray:
     """RGB (N, 3) uint8 of ``values`` on occmap's height ramp (dark blue → yellow) over
-    ``value_range`` (lo, hi): heights in metres, or log-odds when colouring by probability."""
+    ``value_range`` (lo, hi): heights in metres, or probabilities over (0, 1)."""
     lo, hi = value_range
     return height_colors((np.asarray(values, np.float64) - lo) / max(hi - lo, 1e-9))
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from .. import checks
 from ..errors import InvalidArgumentError, OccmapError
+from ..logodds import probability
 from ._lod import COARSE_DEPTH, Level, Voxels, cut, pick_level, ramp
 from ._maps import Scene, open_scene, viewable
 
@@ -190,10 +191,11 @@ class Viewer:
         mode = SLICES[self._slice_mode.value]
         return v if mode == "off" else v.subset(cut(v, mode, float(self._z.value)))
 
-    def _colors(self, v: Voxels, value_range_of: Voxels, free: bool) -> np.ndarray:
+    def _colors(self, v: Voxels, free: bool) -> np.ndarray:
+        """Height ramp over the drawn heights (free space one colour), or the same ramp over the
+        occupancy probability 0 … 1 (a ``.bt`` holds only its two clamping values)."""
         if self._colour.value == "probability":
-            lo, hi = (value_range_of.log_odds.min(), value_range_of.log_odds.max()) if value_range_of.count else (0, 1)
-            return ramp(v.log_odds, (lo, hi))
+            return ramp(probability(v.log_odds), (0.0, 1.0))
         if free:
             return np.array(FREE_COLOR, np.uint8)
         lo, hi = self._z_range
@@ -231,7 +233,7 @@ class Viewer:
         if all_v.count:
             self._z_range = (float(all_v.centers[:, 2].min()), float(all_v.centers[:, 2].max()))
         v = self._slice(all_v)
-        self._boxes("/map/occupied", v, self._colors(v, all_v, free=False))
+        self._boxes("/map/occupied", v, self._colors(v, free=False))
 
     def _draw_free(self) -> None:
         if self._nodes_at is None or not self._show_free.value:
@@ -240,7 +242,7 @@ class Viewer:
         if self._free is None:
             self._free = pick_level(self._nodes_at, self._is_free, self.max_voxels)
         v = self._slice(self._free.voxels)
-        self._boxes("/map/free", v, self._colors(v, self._free.voxels, free=True), see_through=True)
+        self._boxes("/map/free", v, self._colors(v, free=True), see_through=True)
 
     def _draw_points(self) -> None:
         if self._points is None:
@@ -249,7 +251,7 @@ class Viewer:
         if all_p.count:
             self._z_range = (float(all_p.centers[:, 2].min()), float(all_p.centers[:, 2].max()))
         p = self._slice(all_p)
-        self.server.scene.add_point_cloud("/map/points", p.centers, self._colors(p, all_p, free=False),
+        self.server.scene.add_point_cloud("/map/points", p.centers, self._colors(p, free=False),
                                           point_size=self.scene.resolution, point_shape="square",
                                           precision="float32", point_shading="flat")
 
