@@ -126,8 +126,8 @@ def test_geb079_drawn_offline_then_a_tile_store_opened_from_the_panel(browser, g
         assert n_first >= 2000, f"the map is not drawn: {n_first} pixels of the height ramp"
         assert tab.refused == [], f"the viewer asked for other addresses: {tab.refused}"
         viewer._show_free.value = True  # as the panel's check box does: every free leaf (284,415, the README)
-        assert (viewer._free.depth, viewer._free.voxels.count) == (16, 284_415)
-        assert np.all(viewer._free.voxels.log_odds < 0)
+        assert (viewer.free.depth, viewer.free.voxels.count) == (16, 284_415)
+        assert np.all(viewer.free.voxels.log_odds < 0)
         viewer._show_free.value = False
 
         tab.open_in_panel(store)  # the second map, in the same server and the same tab

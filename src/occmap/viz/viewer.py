@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
+import math
 import threading
 import time
 from pathlib import Path
@@ -39,6 +40,8 @@ from ._maps import Scene, open_scene, viewable
 DEFAULT_MAX_VOXELS = 500_000
 #: Points of a cloud drawn at most (every k-th point beyond it).
 MAX_POINTS = 2_000_000
+#: Maps listed beside the one shown, at most.
+MAX_LISTED = 500
 
 FREE_COLOR = (120, 200, 140)
 BACKGROUND = (232, 234, 238)
@@ -69,7 +72,7 @@ class Viewer:
     style : str
         ``"points"`` (square points as wide as the boxes: one vertex each, smooth with half a
         million of them even on software graphics) or ``"boxes"`` (instances of one shaded cube,
-        36 vertices each); the panel switches it.
+        12 triangles each); the panel switches it.
 
     Attributes
     ----------
@@ -85,6 +88,10 @@ class Viewer:
 
         self.max_voxels = checks.count("max_voxels", max_voxels, minimum=1)
         port = checks.count("port", port, minimum=0)
+        if port > 65535:
+            raise InvalidArgumentError(f"port must be 0 .. 65535, got {port}")
+        if style not in STYLES:
+            raise InvalidArgumentError(f"style must be one of {STYLES}, got {style!r}")
         with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the caller prints the address
             self.server = viser.ViserServer(host=host, port=port, label="occmap", verbose=False)
         self.server.scene.set_up_direction("+z")
@@ -100,15 +107,19 @@ class Viewer:
         self._marker = 1.0
         self._loading = False
         self.timings: dict[str, float] = {}
+        self._nodes_at = None
         self._build_panel()
-        if style not in STYLES:
-            raise InvalidArgumentError(f"style must be one of {STYLES}, got {style!r}")
         self._style.value = style
         try:
             self.load(path)
         except BaseException:
             self.server.stop()
             raise
+
+    @property
+    def free(self) -> Level | None:
+        """The free boxes drawn (None until free space is first shown)."""
+        return self._free
 
     @property
     def port(self) -> int:
@@ -150,7 +161,7 @@ class Viewer:
                     timings["coarse"] = time.perf_counter() - start
                     self.occupied = pick_level(self._nodes_at, self._is_occupied, self.max_voxels)
                 if scene.points is not None:
-                    pts = scene.points[::-(-len(scene.points) // MAX_POINTS) or 1]
+                    pts = scene.points[::max(1, math.ceil(len(scene.points) / MAX_POINTS))]
                     self._points = Voxels(pts, np.full(len(pts), scene.resolution, np.float32),
                                           np.zeros(len(pts), np.float32))
                 self._update_panel()
@@ -292,7 +303,8 @@ class Viewer:
         drawn = self.occupied.voxels if self.occupied is not None else self._points
         if drawn is not None and drawn.count:
             half = drawn.sizes[:, None] / 2
-            return (drawn.centers - half).min(axis=0).astype(np.float64), (drawn.centers + half).max(axis=0).astype(np.float64)
+            lo, hi = (drawn.centers - half).min(axis=0), (drawn.centers + half).max(axis=0)
+            return lo.astype(np.float64), hi.astype(np.float64)
         return self.scene.bounds
 
     def _aim_cameras(self) -> None:
@@ -349,9 +361,9 @@ class Viewer:
         z_lo, z_hi = float(np.floor(lo[2] / step) * step), float(np.ceil(hi[2] / step) * step)
         self._z.min, self._z.max, self._z.step = z_lo, max(z_hi, z_lo + step), step
         self._z.value = self._z.max
-        here = self.scene.path.parent
-        names = sorted(p.name for p in here.iterdir() if p != self.scene.path.resolve() and viewable(p)) if here.is_dir() else []
-        self._nearby.options = (self.scene.path.name, *(n for n in names if n != self.scene.path.name))
+        name = self.scene.path.name
+        names = sorted(p.name for p in self.scene.path.parent.iterdir() if p.name != name and viewable(p))
+        self._nearby.options = (name, *names[:MAX_LISTED])
         self._nearby.value = self.scene.path.name
         self._path_text.value = str(self.scene.path)
         self._info.content = self._describe()
