@@ -150,6 +150,10 @@ def test_geb079_drawn_offline_then_a_tile_store_opened_from_the_panel(browser, g
         assert changed > 0.05, f"only {changed:.1%} of the picture changed after opening the second map"
         assert tab.refused == []
 
+        tab.open_in_panel(tmp_path / "no-such-map.bt")  # a bad path: said in the panel, the map stays
+        tab.page.get_by_text("could not open").wait_for(timeout=10_000)
+        assert viewer.scene.path == store
+
 
 def _keep(name: str, png: bytes) -> None:
     """Save a screenshot in ``$OCCMAP_SCREENSHOTS`` when set, to look at."""
