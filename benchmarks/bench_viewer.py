@@ -52,6 +52,33 @@ def drawn_seconds(browser, url: str, timeout: float = 60.0) -> float:
     return seconds
 
 
+def octovis_run(path: Path) -> tuple[float, float] | None:
+    """octovis (OctoMap's viewer) opening ``path`` on a virtual display (Xvfb, software OpenGL):
+    its peak resident memory (bytes) and the CPU seconds it spent until it went idle (the map read
+    and drawn). None when octovis or Xvfb is not installed."""
+    if not (shutil.which("octovis") and shutil.which("Xvfb")):
+        return None
+    display = ":87"
+    xvfb = subprocess.Popen(["Xvfb", display, "-screen", "0", "1280x800x24"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    time.sleep(1.5)
+    viewer = subprocess.Popen(["octovis", str(path)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              env=dict(os.environ, DISPLAY=display, LIBGL_ALWAYS_SOFTWARE="1"))
+    try:
+        cpu, still = -1.0, 0
+        while still < 6:  # idle for 3 s
+            time.sleep(0.5)
+            fields = Path(f"/proc/{viewer.pid}/stat").read_text().rsplit(")", 1)[1].split()
+            now = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+            still, cpu = (still + 1, cpu) if now == cpu else (0, now)
+        status = Path(f"/proc/{viewer.pid}/status").read_text()
+        return int(re.search(r"VmHWM:\s+(\d+) kB", status).group(1)) * 1024, cpu
+    finally:
+        for proc in (viewer, xvfb):
+            proc.kill()
+            proc.wait()
+
+
 def one_run(path: Path, browser) -> dict:
     t0 = time.perf_counter()
     proc = subprocess.Popen([str(BIN / "occmap"), "view", str(path), "--port", "0", "--no-browser"],
@@ -99,6 +126,7 @@ def main() -> int:
         occupied = sum(1 for leaf in t.begin_leafs() if t.isNodeOccupied(leaf))
         leaves[name] = (t.size(), occupied, t.getNumLeafNodes() - occupied)
 
+    octovis = {name: octovis_run(path) for name, path in maps.items()}
     runs = {name: [] for name in maps}
     load = os.getloadavg()[0]
     browser = playwright = None
@@ -123,8 +151,11 @@ def main() -> int:
         nodes, occupied, free = leaves[name]
         browser_cell = f"{med(name, 'browser'):.2f}" if browser is not None else "no chromium"
         peak = max(x["peak_rss"] for x in runs[name]) / 2**20
+        o = octovis[name]
+        octovis_cells = f"{o[0] / 2**20:.0f} | {o[1]:.2f}" if o else "not installed | "
         rows.append(f"| {name} | {nodes:,} | {occupied:,} / {free:,} | {r['drawn']:,} (depth {r['depth']}) | "
-                    f"{med(name, 'start_to_scene'):.2f} | {med(name, 'in_viewer'):.2f} | {browser_cell} | {peak:.0f} |")
+                    f"{med(name, 'start_to_scene'):.2f} | {med(name, 'in_viewer'):.2f} | {browser_cell} | {peak:.0f} | "
+                    f"{octovis_cells} |")
         print(f"{name}: start to scene {med(name, 'start_to_scene'):.2f} s (viewer {med(name, 'in_viewer'):.2f} s), "
               f"browser {browser_cell} s, peak RSS {peak:.0f} MiB, drawn {r['drawn']:,} of {occupied:,} occupied "
               f"leaves ({nodes:,} nodes)")
@@ -138,12 +169,14 @@ def main() -> int:
         "process's peak resident memory (largest of the rounds) with the browser connected. Target for fr_079.bt: "
         "≤ 3 s and ≤ 1 GB. octovis draws every leaf (the free ones too when asked); occmap draws the occupied "
         "nodes of the deepest depth with at most 500,000 of them (free space on demand, likewise capped), as "
-        "square points by default. Counts from OctoMap's own reader (octomap-python). Load average "
+        "square points by default. Counts from OctoMap's own reader (octomap-python). octovis (the Debian "
+        "package, on a virtual X display with software OpenGL, its default view: occupied leaves) once per map: "
+        "its peak resident memory, and the CPU time it spent until it went idle (file read and drawn). Load average "
         f"{load:.1f} on {os.cpu_count()} cores when the runs began (the machine is shared).",
         "",
         "| map | nodes | leaves octovis draws: occupied / free | occmap draws (occupied) | start → scene sent (s) | "
-        "in the viewer (s) | → drawn in Chromium (s) | peak RSS (MiB) |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|",
+        "in the viewer (s) | → drawn in Chromium (s) | peak RSS (MiB) | octovis peak RSS (MiB) | octovis CPU (s) |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         *rows,
     ]
     if not args.no_write:

@@ -105,6 +105,7 @@ class Viewer:
         self._points: Voxels | None = None
         self._z_range = (0.0, 1.0)
         self._marker = 1.0
+        self._bounds = (np.zeros(3), np.ones(3))
         self._loading = False
         self.timings: dict[str, float] = {}
         self._nodes_at = None
@@ -164,6 +165,7 @@ class Viewer:
                     pts = scene.points[::max(1, math.ceil(len(scene.points) / MAX_POINTS))]
                     self._points = Voxels(pts, np.full(len(pts), scene.resolution, np.float32),
                                           np.zeros(len(pts), np.float32))
+                self._bounds = self._drawn_bounds()
                 self._update_panel()
                 self._draw_all()
                 self._aim_cameras()
@@ -188,7 +190,7 @@ class Viewer:
     # ------------------------------------------------------------------ drawing
 
     def _draw_all(self) -> None:
-        lo, hi = self._bounds()
+        lo, hi = self._bounds
         self._marker = max(float(np.linalg.norm(hi - lo)) / 100, 2 * self.scene.resolution)
         self.server.scene.add_frame("/map/origin", axes_length=5 * self._marker, axes_radius=self._marker / 4)
         self._draw_voxels()
@@ -290,7 +292,7 @@ class Viewer:
         if SLICES[self._slice_mode.value] == "off":
             self.server.scene.remove_by_name("/map/slice")
             return
-        lo, hi = self._bounds()
+        lo, hi = self._bounds
         size = hi[:2] - lo[:2]
         self.server.scene.add_grid("/map/slice", float(size[0]), float(size[1]), plane="xy",
                                    cell_size=1.0, cell_thickness=0.5, cell_color=(170, 190, 230),
@@ -298,7 +300,7 @@ class Viewer:
                                    plane_color=(90, 140, 230), plane_opacity=0.1,
                                    position=(*((lo[:2] + hi[:2]) / 2), float(self._z.value)))
 
-    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
+    def _drawn_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The box of what is drawn: the occupied boxes or the points where there are some."""
         drawn = self.occupied.voxels if self.occupied is not None else self._points
         if drawn is not None and drawn.count:
@@ -308,7 +310,7 @@ class Viewer:
         return self.scene.bounds
 
     def _aim_cameras(self) -> None:
-        lo, hi = self._bounds()
+        lo, hi = self._bounds
         center = (lo + hi) / 2
         reach = max(float(np.linalg.norm(hi - lo)), 1.0)
         position = center + reach * np.array([-0.25, -0.45, 0.4])
@@ -356,7 +358,7 @@ class Viewer:
             self._open_from_panel(self._path_text.value.strip())
 
     def _update_panel(self) -> None:
-        lo, hi = self._bounds()
+        lo, hi = self._bounds
         step = float(self.scene.resolution)
         z_lo, z_hi = float(np.floor(lo[2] / step) * step), float(np.ceil(hi[2] / step) * step)
         self._z.min, self._z.max, self._z.step = z_lo, max(z_hi, z_lo + step), step
