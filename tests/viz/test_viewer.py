@@ -271,3 +271,18 @@ def test_a_cloud_is_shown_in_the_world_with_its_sensor(tmp_path):
     scene = open_scene(tmp_path / "c.pcd")
     assert np.allclose(scene.points, [[10.0, 1.0, 1.0], [8.0, 0.0, 1.5]], atol=1e-6)
     assert np.allclose(scene.sensor_path, [[10.0, 0.0, 1.0]])
+
+
+def test_a_2d_tile_store_is_a_plane_around_its_scans(tmp_path):
+    from occmap.viz._maps import open_scene
+    from occmap.world import TiledGrid2D
+
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    with TiledGrid2D.create(tmp_path / "grid", 0.1, tile_size=32) as grid:  # a round room, radius 3 m, at (1, 2)
+        grid.insert_scans(np.array([[1.0, 2.0, 0.0]]), np.full((1, 360), 3.0), angles, max_range=10.0)
+    plane = open_scene(tmp_path / "grid").plane
+    assert np.allclose(plane.center[:2], [1.0, 2.0], atol=0.1) and abs(plane.width - 6.0) < 0.3
+    grey = plane.rgb[..., 0]
+    h, w = grey.shape
+    assert grey[h // 2, w // 2] > 128 and grey[0, 0] == 205  # free at the robot, unknown in the corners
+    assert (grey < 128).sum() > 100  # the wall
