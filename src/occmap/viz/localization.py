@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 from .figure import figure
@@ -61,7 +63,7 @@ def error_figure(distance, curves, title: str = "localization error"):
         panel.set_ylabel(label)
         panel.grid(True, color="0.9")
     bottom.set_xlabel("distance travelled [m]")
-    top.set_title(title)
+    top.set_title(textwrap.fill(title, 90))
     if any(c[0] for c in curves):
         top.legend(loc="upper left", fontsize="small")
     return fig
