@@ -177,7 +177,7 @@ def _recording(path: Path) -> Scene:
     plane = _occupancy_plane(rec.occupancy, rec.resolution, rec.origin, 0.0)
     h, w = rec.occupancy.shape
     has_ref = int(np.isfinite(rec.reference[:, 0]).sum())
-    summary = (f"localization run, {len(rec):,} steps over {rec.stamps[-1] - rec.stamps[0]:.1f} s, up to "
+    summary = (f"{len(rec):,} steps over {rec.stamps[-1] - rec.stamps[0]:.1f} s, up to "
                f"{rec.particles.shape[1]} particles a step, {has_ref:,} reference poses; map {w} × {h} cells, "
                f"{rec.resolution:g} m")
     return Scene(path, "localization run", summary, rec.resolution, _plane_bounds(plane), plane=plane,
