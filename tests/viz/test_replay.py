@@ -81,6 +81,10 @@ def test_bad_recordings_are_refused_naming_file_and_entry(run, tmp_path):
     not_zip.write_bytes(b"hello")
     with pytest.raises(FormatError, match=r"junk\.npz: not a NumPy \.npz"):
         LocalizationRecording.load(not_zip)
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(path.read_bytes()[:300])
+    with pytest.raises(FormatError, match=r"cut\.npz: not a NumPy \.npz"):
+        LocalizationRecording.load(cut)
     other = tmp_path / "other.npz"
     np.savez(other, a=np.zeros(3))
     with pytest.raises(FormatError, match=r"other\.npz: not an occmap localization recording"):

@@ -14,13 +14,14 @@ and a ``version``; :meth:`LocalizationRecording.load` checks both and every arra
 from __future__ import annotations
 
 import io
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._files import write_atomic
-from ..errors import FormatError, MissingFileError
+from ..errors import FormatError, InvalidArgumentError, MissingFileError
 
 #: The ``format`` entry of a recording file, and its version.
 FORMAT = "occmap localization recording"
@@ -63,7 +64,7 @@ class LocalizationRecording:
         n = len(result)
         ref = np.full((n, 3), np.nan) if reference is None else np.asarray(reference, np.float64)
         if result.particles is None:
-            raise ValueError("the replay kept no particles: run it with keep_particles > 0")
+            raise InvalidArgumentError("the replay kept no particles: run it with keep_particles > 0")
         return cls(result.stamps.copy(), result.poses.copy(), result.particles, ref, grid.occupancy(),
                    float(grid.resolution), np.asarray(grid.origin, np.float64))
 
@@ -85,18 +86,21 @@ class LocalizationRecording:
         try:
             with np.load(path, allow_pickle=False) as z:
                 entries = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError) as e:  # not a zip, a truncated one, a pickled entry
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:  # not a zip, a cut one, a pickle
             raise FormatError(path, f"not a NumPy .npz file ({e})") from None
         fmt = entries.get("format")
         if fmt is None or str(fmt) != FORMAT:
             raise FormatError(path, f"not an occmap localization recording (format entry {fmt!r})")
-        if int(entries.get("version", -1)) != VERSION:
-            raise FormatError(path, f"recording version {entries.get('version')!r}, this occmap reads {VERSION}")
+        version = entries.get("version")
+        if version is None or version.shape != () or version.dtype.kind not in "iu" or int(version) != VERSION:
+            raise FormatError(path, f"recording version {version!r}, this occmap reads {VERSION}")
 
         def entry(name, ndim, trailing=()):
             a = entries.get(name)
             if a is None:
                 raise FormatError(path, f"entry {name!r} missing")
+            if a.dtype.kind not in "iuf":
+                raise FormatError(path, f"entry {name!r} holds {a.dtype}, expected numbers")
             if a.ndim != ndim or a.shape[ndim - len(trailing):] != trailing:
                 raise FormatError(path, f"entry {name!r} has shape {a.shape}, expected {ndim} axes ending in "
                                         f"{trailing}")
@@ -106,7 +110,7 @@ class LocalizationRecording:
         n = len(stamps)
         out = cls(stamps.astype(np.float64), entry("estimates", 2, (3,)).astype(np.float64),
                   entry("particles", 3, (3,)).astype(np.float32), entry("reference", 2, (3,)).astype(np.float64),
-                  entry("occupancy", 2).astype(np.int8), float(entry("resolution", 0)),
+                  entry("occupancy", 2), float(entry("resolution", 0)),
                   entry("origin", 1, (2,)).astype(np.float64))
         for name in ("estimates", "particles", "reference"):
             if len(getattr(out, name)) != n:
@@ -115,6 +119,9 @@ class LocalizationRecording:
             raise FormatError(path, "the recording has no step")
         if not (np.isfinite(out.resolution) and out.resolution > 0):
             raise FormatError(path, f"entry 'resolution' is {out.resolution}, expected a positive number of metres")
-        if not np.isfinite(out.estimates).all():
-            raise FormatError(path, "entry 'estimates' holds NaN or infinite poses")
+        if out.occupancy.dtype != np.int8:
+            raise FormatError(path, f"entry 'occupancy' is {out.occupancy.dtype}, expected int8 (nav_msgs values)")
+        for name in ("estimates", "origin"):
+            if not np.isfinite(getattr(out, name)).all():
+                raise FormatError(path, f"entry {name!r} holds NaN or infinite values")
         return out
