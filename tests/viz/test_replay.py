@@ -127,12 +127,12 @@ def test_the_run_scrubbed_in_the_browser(browser, run):  # noqa: F811
         orange1 = _colour_pixels(last, PARTICLE_COLOR)
         blue1 = _colour_pixels(last, ESTIMATE_COLOR)
         assert len(orange1) > 20, f"particles not drawn at the last step: {len(orange1)} orange pixels"
-        # the cloud has moved with the robot; both tracks are drawn
+        # the cloud has moved with the robot; the estimate's track and the reference poses are drawn
         moved = np.hypot(*(orange1.mean(axis=0) - orange0.mean(axis=0)))
         assert moved > 20, f"the particles moved {moved:.1f} pixels between the first and last step"
         assert len(blue1) > 50, f"the estimate's track is not drawn: {len(blue1)} blue pixels"
         green1 = _colour_pixels(last, REFERENCE_COLOR)
-        assert len(green1) > 50, f"the reference's track is not drawn: {len(green1)} green pixels"
+        assert len(green1) > 50, f"the reference poses are not drawn: {len(green1)} green pixels"
         assert len(_colour_pixels(first, ESTIMATE_COLOR)) < len(blue1) / 4  # at step 0 no track yet
         assert tab.refused == []
 

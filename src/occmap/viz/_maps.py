@@ -77,8 +77,9 @@ def viewable(path: Path) -> bool:
 
 def open_scene(path) -> Scene:
     """Read ``path``: an OctoMap file, a tile store folder, a map_server ``.yaml``, a scan graph, a
-    recorded localization run (``.npz``, :mod:`occmap.localize.recording`) or a point cloud. Raises :class:`~occmap.errors.OccmapError` (a missing file, a bad format, a
-    kind of file it cannot show) naming the path."""
+    recorded localization run (``.npz``, :mod:`occmap.localize.recording`) or a point cloud.
+    Raises :class:`~occmap.errors.OccmapError` (a missing file, a bad format, a kind of file it
+    cannot show) naming the path."""
     path = Path(path)
     if not path.exists():
         raise MissingFileError(path, "no such file or folder")
@@ -96,8 +97,8 @@ def open_scene(path) -> Scene:
     if viewable(path):
         return _cloud(path)
     raise InvalidArgumentError(f"{str(path)!r}: cannot show this kind of file; expected an OctoMap file (.bt, .ot), "
-                               "a tile store folder, a map_server .yaml, a scan graph (.graph), a recorded run (.npz) or a "
-                               "point cloud (.pcd, .ply, .xyz, .bin, .3d, ...)")
+                               "a tile store folder, a map_server .yaml, a scan graph (.graph), a recorded run "
+                               "(.npz) or a point cloud (.pcd, .ply, .xyz, .bin, .3d, ...)")
 
 
 def _octree(path: Path) -> Scene:

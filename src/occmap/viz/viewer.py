@@ -14,7 +14,7 @@ What it draws (coordinates are the map's, metres, z up):
 - **recorded localization runs** (``.npz``, :mod:`occmap.localize.recording`): the map as a plane
   and, at the step the panel's time slider picks (or "Play" advances, :data:`PLAY_RATE` steps a
   second), the particles, the estimated pose as a frame, the estimate's track so far and the
-  reference's (where the run had one).
+  reference poses so far (where the run had them).
 
 The panel holds the colour mode, the free-space switch, a slice (cut the map above a height, or
 keep the one layer a height crosses) and a way to open another map in the running server (a
@@ -319,7 +319,8 @@ class Viewer:
 
     def _draw_step(self) -> None:
         """A recorded run at the slider's step: particles, the estimate (a frame, x ahead) and the
-        reference, with both tracks up to that step, all a little above the map plane."""
+        reference, with the estimate's track (a line) and the reference poses (dots) up to that step,
+        all a little above the map plane."""
         rec = self.scene.recording
         if rec is None:
             return
@@ -330,8 +331,19 @@ class Viewer:
         self.server.scene.add_point_cloud("/map/run/particles", _at_height(particles, z), PARTICLE_COLOR,
                                           point_size=self._marker / 2, point_shape="circle",
                                           precision="float32", point_shading="flat")
-        self._track("/map/run/estimate_track", rec.estimates[: i + 1], ESTIMATE_COLOR, z)
-        self._track("/map/run/reference_track", rec.reference[: i + 1], REFERENCE_COLOR, z)
+        track = _at_height(rec.estimates[: i + 1], z)
+        self.server.scene.remove_by_name("/map/run/estimate_track")
+        if i:
+            self.server.scene.add_line_segments("/map/run/estimate_track", np.stack([track[:-1], track[1:]], 1),
+                                                ESTIMATE_COLOR, thickness=2.0, thickness_units="screen")
+        # the reference as dots: a corrected log pairs with one scan in ~15 (Intel), too few for a line
+        known = rec.reference[: i + 1]
+        known = known[np.isfinite(known[:, 0])]
+        self.server.scene.remove_by_name("/map/run/reference_track")
+        if len(known):
+            self.server.scene.add_point_cloud("/map/run/reference_track", _at_height(known, z), REFERENCE_COLOR,
+                                              point_size=self._marker / 4, point_shape="circle",
+                                              precision="float32", point_shading="flat")
         x, y, theta = rec.estimates[i]
         self.server.scene.add_frame("/map/run/estimate", wxyz=(np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)),
                                     position=(x, y, z), axes_length=4 * self._marker, axes_radius=self._marker / 5)
@@ -346,16 +358,6 @@ class Viewer:
             error = ""
         self._info.content = (f"{self._describe()}\n\nstep {i + 1:,} of {len(rec):,}, "
                               f"t = {rec.stamps[i] - rec.stamps[0]:.2f} s, {len(particles)} particles shown{error}")
-
-    def _track(self, name: str, poses: np.ndarray, color, z: float) -> None:
-        """Line segments between consecutive poses both known (a reference has gaps: NaN rows)."""
-        both = np.isfinite(poses[:-1, 0]) & np.isfinite(poses[1:, 0])
-        if not both.any():
-            self.server.scene.remove_by_name(name)
-            return
-        xyz = _at_height(poses, z)
-        segments = np.stack([xyz[:-1][both], xyz[1:][both]], axis=1)
-        self.server.scene.add_line_segments(name, segments, color, thickness=2.0, thickness_units="screen")
 
     def _play_loop(self) -> None:
         """Advance a recorded run while "Play" is on, to its last step."""
