@@ -14,7 +14,9 @@ import pytest
 from PIL import Image
 
 from occmap.commands.localize import add_parser
+from occmap.grid2d import OccupancyGrid2D
 from occmap.io.carmen import iter_carmen, read_carmen
+from occmap.localize.recording import LocalizationRecording
 from occmap.localize.replay import (
     anchor_odometry, convergence_distance, make_localizer, pair_scans, replay, save_error_png, save_track_png,
     track_errors, travelled, write_track_csv,
@@ -137,8 +139,20 @@ def test_localize_command(intel, tmp_path, capsys):
     assert ok.sum() >= 10 and pe.mean() < 0.1
     # global localization: the error against the reference counts from where it converged
     corrected = intel_raw_path().with_name("intel-corrected.log.gz")
-    assert main(["localize", str(yaml), str(log), "-o", str(tmp_path / "g.csv"), "--reference", str(corrected)]) == 0
+    run = tmp_path / "g.npz"
+    assert main(["localize", str(yaml), str(log), "-o", str(tmp_path / "g.csv"), "--reference", str(corrected),
+                 "--record", str(run), "--record-particles", "50"]) == 0
     out = capsys.readouterr().out
+    # the recording (occmap view g.npz): the track written, 50 particles a step, the paired reference, the map
+    rec = LocalizationRecording.load(run)
+    track = np.loadtxt(tmp_path / "g.csv", delimiter=",", skiprows=1)
+    assert f"wrote {run} (600 steps, up to 50 particles each)" in out
+    assert len(rec) == 600 and rec.particles.shape == (600, 50, 3)
+    assert np.allclose(rec.estimates, track[:, 1:4], atol=2e-6) and np.allclose(rec.stamps, track[:, 0], atol=1e-6)
+    assert np.array_equal(np.flatnonzero(np.isfinite(rec.reference[:, 0])), np.sort(pairs[ok]))
+    assert np.array_equal(rec.reference[pairs[ok]], np.array([s.pose for s in ref])[ok])
+    shown = OccupancyGrid2D.load(yaml)  # the map as the command read it
+    assert np.array_equal(rec.occupancy, shown.occupancy()) and np.allclose(rec.origin, shown.origin)
     after = re.search(r"against (\d+) reference poses after it converged: position error mean ([0-9.]+) m", out)
     before = re.search(r"(\d+) reference poses fall before the global localization converged", out)
     assert after and before and float(after[2]) < 0.1
@@ -160,7 +174,6 @@ def test_replay_with_a_sensor_offset_reports_sensor_poses():
     """A laser 0.3 m behind the robot's centre, the odometry the robot's: the filter tracks the
     robot, and replay takes the initial pose and reports the track as the laser's (a log's poses)."""
     from occmap.geometry.se2 import compose_poses
-    from occmap.grid2d import OccupancyGrid2D
     from occmap.sim import World2D, simulate_scans
 
     world = World2D.default()

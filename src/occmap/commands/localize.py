@@ -30,6 +30,11 @@ def add_parser(subparsers):
     p.add_argument("--plain", action="store_true", help="plain AMCL: no roughening, no scan-match refinement")
     p.add_argument("--reference", metavar="LOG",
                    help="a corrected log of the same run: report the error against its poses")
+    p.add_argument("--record", metavar="RUN.npz",
+                   help="also record the run step by step (estimate, particles, reference, map) to scrub through "
+                        "with occmap view RUN.npz")
+    p.add_argument("--record-particles", type=_options.count, default=None, metavar="N",
+                   help="particles recorded a step at most (default 200: an even subsample of the cloud)")
     p.add_argument("--every", type=_options.count, default=1, help="use every N-th scan (default: %(default)s)")
     _sources.add_bag_options(p, "sensor_msgs/LaserScan", "odom", poses=False)
     return p
@@ -47,9 +52,10 @@ def run(args) -> int:
     from ..grid2d import OccupancyGrid2D
     from ..sources import CarmenScans
     from ..io.carmen import laser_offset, read_carmen
+    from ..localize.recording import MAX_PARTICLES, LocalizationRecording
     from ..localize.replay import make_localizer, pair_scans, replay, save_track_png, track_errors, write_track_csv
 
-    check_outputs({"-o": args.output, "--png": args.png},
+    check_outputs({"-o": args.output, "--png": args.png, "--record": args.record},
                   {"MAP.yaml": args.map, "LOG": args.log, "--reference": args.reference})
     t0 = time.perf_counter()
     grid = OccupancyGrid2D.load(args.map)
@@ -66,7 +72,8 @@ def run(args) -> int:
     loc = make_localizer(grid, particles=args.particles, beams=args.beams, seed=args.seed, plain=args.plain,
                          sensor_offset=offset)
     result = replay(loc, scans, init=args.init, cov=np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]),
-                    global_localization=glob, progress=sys.stderr.isatty())
+                    global_localization=glob, progress=sys.stderr.isatty(),
+                    keep_particles=(args.record_particles or MAX_PARTICLES) if args.record else 0)
     write_track_csv(args.output, result)
     ms = 1000.0 * result.seconds[result.updated]
     print(f"{len(result):,} scans, {int(result.updated.sum()):,} filter updates "
@@ -74,10 +81,13 @@ def run(args) -> int:
           f"{loc.stats.injected:,} particles injected")
     for w in sorted(set(result.warnings))[:5]:
         print(f"warning: {w}")
+    reference = None
     if args.reference:
         ref = read_carmen(args.reference)
         pairs = pair_scans(scans, ref.scans)
         ok = pairs >= 0
+        reference = np.full((len(scans), 3), np.nan)
+        reference[pairs[ok]] = np.array([s.pose for s in ref.scans])[ok]
         # a global localization's guesses before it converged are not its track: reported apart
         ok &= result.converged[np.maximum(pairs, 0)]
         before = int((pairs >= 0).sum() - ok.sum())
@@ -89,6 +99,9 @@ def run(args) -> int:
         if before:
             print(f"{before:,} reference poses fall before the global localization converged")
     print(f"wrote {args.output}")
+    if args.record:
+        rec = LocalizationRecording.of_replay(result, grid, reference)
+        print(f"wrote {rec.save(args.record)} ({len(rec):,} steps, up to {rec.particles.shape[1]} particles each)")
     if args.png:
         title = f"{Path(args.log).name} localized in {Path(args.map).name}"
         print(f"wrote {save_track_png(args.png, loc, result, title=title)}")

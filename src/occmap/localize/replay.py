@@ -29,6 +29,7 @@ from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import wrap_angle
 from .likelihood_field import beam_end_points
 from .mcl import LocalizationWarning, MonteCarloLocalizer
+from .recording import subsample
 from .scan_match import match
 
 __all__ = [
@@ -76,20 +77,24 @@ class ReplayResult:
     lost: np.ndarray  # (N,) bool: PoseEstimate.lost
     seconds: np.ndarray  # (N,) wall time of each update() call
     warnings: list
+    particles: np.ndarray | None = None  # (N, K, 3) float32 sensor poses kept (keep_particles), NaN rows unused
 
     def __len__(self) -> int:
         return len(self.stamps)
 
 
 def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global_localization: bool = False,
-           progress: bool = False) -> ReplayResult:
+           progress: bool = False, keep_particles: int = 0) -> ReplayResult:
     """Run ``localizer`` over ``scans`` (LaserScan records with ``odom``), starting from ``init``
     ``(x, y, theta)`` (with ``cov``) or, with ``global_localization``, from particles spread over
     the free space. Warnings of the filter are collected (``ReplayResult.warnings``), not shown.
 
     ``init`` and the track's poses are the *sensor's*, as a log's poses are (a CARMEN FLASER line's
     ``x y theta`` is the laser's). With a ``sensor_offset`` the filter tracks the robot (its odometry
-    is the robot's, :meth:`~occmap.io.carmen.CarmenLog.laser_offset`) and the poses are converted."""
+    is the robot's, :meth:`~occmap.io.carmen.CarmenLog.laser_offset`) and the poses are converted.
+
+    ``keep_particles`` > 0 keeps up to that many particles after each scan (an even subsample,
+    :func:`occmap.localize.recording.subsample`) as ``ReplayResult.particles``, for a recording."""
     scans = list(scans)
     if not scans:
         raise InvalidArgumentError("the log holds no scans")
@@ -111,6 +116,7 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
     lost = np.zeros(n, dtype=bool)
     secs = np.empty(n)
     stamps = np.array([s.stamp for s in scans], dtype=np.float64)
+    kept = np.full((n, keep_particles, 3), np.nan, np.float32) if keep_particles > 0 else None
     caught = []
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always", LocalizationWarning)
@@ -127,13 +133,16 @@ def replay(localizer: MonteCarloLocalizer, scans, *, init=None, cov=None, global
             converged[i] = est.converged
             lost[i] = est.lost
             odo[i] = o
+            if kept is not None:
+                sample = subsample(localizer.particles, keep_particles)
+                kept[i, : len(sample)] = compose_poses(sample, offset)
             if progress and (i % 200 == 0 or i == n - 1):
                 print(f"\rscan {i + 1:,}/{n:,}", end="", file=sys.stderr, flush=True)
         caught = [str(w.message) for w in seen if issubclass(w.category, LocalizationWarning)]
     poses = compose_poses(poses, offset)
     if progress:
         print(file=sys.stderr)
-    return ReplayResult(stamps, poses, odo, covs, ess, count, updated, converged, lost, secs, caught)
+    return ReplayResult(stamps, poses, odo, covs, ess, count, updated, converged, lost, secs, caught, kept)
 
 
 def track_errors(poses, reference) -> tuple[np.ndarray, np.ndarray]:

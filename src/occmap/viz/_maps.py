@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -18,11 +18,15 @@ from ..errors import InvalidArgumentError, MissingFileError
 from ..logodds import logit32
 from ._lod import Voxels
 
+if TYPE_CHECKING:
+    from ..localize.recording import LocalizationRecording
+
 #: Extensions read as OctoMap files, map_server maps and scan graphs; point clouds are those of
 #: :func:`occmap.io.pointclouds.read_cloud`.
 OCTREE_SUFFIXES = (".bt", ".ot")
 MAP2D_SUFFIXES = (".yaml", ".yml")
 GRAPH_SUFFIXES = (".graph",)
+RECORDING_SUFFIXES = (".npz",)
 
 
 @dataclass
@@ -41,7 +45,8 @@ class Plane:
 @dataclass
 class Scene:
     """A map ready to draw. ``nodes_at(depth)`` gives an octree's known nodes down to ``depth``
-    (None for maps without voxels); ``occupied_log_odds`` is its threshold."""
+    (None for maps without voxels); ``occupied_log_odds`` is its threshold; ``recording`` a run to
+    replay over the map."""
 
     path: Path
     kind: str
@@ -53,6 +58,7 @@ class Scene:
     points: np.ndarray | None = None
     plane: Plane | None = None
     sensor_path: np.ndarray | None = field(default=None)
+    recording: LocalizationRecording | None = None
 
 
 def viewable(path: Path) -> bool:
@@ -66,13 +72,14 @@ def viewable(path: Path) -> bool:
     if suffixes and suffixes[-1] in EXTENSIONS:
         suffixes.pop()
     last = suffixes[-1] if suffixes else ""
-    return last in OCTREE_SUFFIXES + MAP2D_SUFFIXES + GRAPH_SUFFIXES or last in _READERS
+    return last in OCTREE_SUFFIXES + MAP2D_SUFFIXES + GRAPH_SUFFIXES + RECORDING_SUFFIXES or last in _READERS
 
 
 def open_scene(path) -> Scene:
-    """Read ``path``: an OctoMap file, a tile store folder, a map_server ``.yaml``, a scan graph or
-    a point cloud. Raises :class:`~occmap.errors.OccmapError` (a missing file, a bad format, a
-    kind of file it cannot show) naming the path."""
+    """Read ``path``: an OctoMap file, a tile store folder, a map_server ``.yaml``, a scan graph, a
+    recorded localization run (``.npz``, :mod:`occmap.localize.recording`) or a point cloud.
+    Raises :class:`~occmap.errors.OccmapError` (a missing file, a bad format, a kind of file it
+    cannot show) naming the path."""
     path = Path(path)
     if not path.exists():
         raise MissingFileError(path, "no such file or folder")
@@ -85,11 +92,13 @@ def open_scene(path) -> Scene:
         return _map2d(path)
     if suffix in GRAPH_SUFFIXES:
         return _graph(path)
+    if suffix in RECORDING_SUFFIXES:
+        return _recording(path)
     if viewable(path):
         return _cloud(path)
     raise InvalidArgumentError(f"{str(path)!r}: cannot show this kind of file; expected an OctoMap file (.bt, .ot), "
-                               "a tile store folder, a map_server .yaml, a scan graph (.graph) or a point cloud "
-                               "(.pcd, .ply, .xyz, .bin, .3d, ...)")
+                               "a tile store folder, a map_server .yaml, a scan graph (.graph), a recorded run "
+                               "(.npz) or a point cloud (.pcd, .ply, .xyz, .bin, .3d, ...)")
 
 
 def _octree(path: Path) -> Scene:
@@ -160,6 +169,20 @@ def _map2d(path: Path) -> Scene:
     plane = _occupancy_plane(m.occupancy, m.resolution, np.array(m.origin[:2]), m.origin[2])
     summary = f"2D map, {m.occupancy.shape[1]} × {m.occupancy.shape[0]} cells, {m.resolution:g} m"
     return Scene(path, "2D map", summary, m.resolution, _plane_bounds(plane), plane=plane)
+
+
+def _recording(path: Path) -> Scene:
+    from ..localize.recording import LocalizationRecording
+
+    rec = LocalizationRecording.load(path)
+    plane = _occupancy_plane(rec.occupancy, rec.resolution, rec.origin, 0.0)
+    h, w = rec.occupancy.shape
+    has_ref = int(np.isfinite(rec.reference[:, 0]).sum())
+    summary = (f"{len(rec):,} steps over {rec.stamps[-1] - rec.stamps[0]:.1f} s, up to "
+               f"{rec.particles.shape[1]} particles a step, {has_ref:,} reference poses; map {w} × {h} cells, "
+               f"{rec.resolution:g} m")
+    return Scene(path, "localization run", summary, rec.resolution, _plane_bounds(plane), plane=plane,
+                 recording=rec)
 
 
 def _occupancy_plane(occupancy: np.ndarray, resolution: float, corner: np.ndarray, yaw: float) -> Plane:

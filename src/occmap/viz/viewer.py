@@ -10,7 +10,11 @@ What it draws (coordinates are the map's, metres, z up):
   occupied nodes number at most ``max_voxels`` (an inner node holds the maximum of its children,
   so a coarser depth hides no obstacle: :mod:`occmap.viz._lod`);
 - **point clouds** and **scan graphs**: points coloured by height, and the sensor's path;
-- **2D maps** (map_server ``.yaml``, 2D tile stores): the map's picture as a plane at z = 0.
+- **2D maps** (map_server ``.yaml``, 2D tile stores): the map's picture as a plane at z = 0;
+- **recorded localization runs** (``.npz``, :mod:`occmap.localize.recording`): the map as a plane
+  and, at the step the panel's time slider picks (or "Play" advances, :data:`PLAY_RATE` steps a
+  second), the particles, the estimated pose as a frame, the estimate's track so far and the
+  reference poses so far (where the run had them).
 
 The panel holds the colour mode, the free-space switch, a slice (cut the map above a height, or
 keep the one layer a height crosses) and a way to open another map in the running server (a
@@ -46,6 +50,11 @@ MAX_LISTED = 500
 FREE_COLOR = (120, 200, 140)
 BACKGROUND = (232, 234, 238)
 PATH_COLOR = (230, 40, 40)
+PARTICLE_COLOR = (255, 140, 0)
+ESTIMATE_COLOR = (30, 90, 230)
+REFERENCE_COLOR = (20, 170, 60)
+#: Steps a second a recorded run advances by while "Play" is on.
+PLAY_RATE = 10.0
 SLICES = {"off": "off", "cut above z": "below", "only at z": "at"}
 COLOURS = ("height", "probability")
 STYLES = ("points", "boxes")
@@ -111,16 +120,34 @@ class Viewer:
         self._nodes_at = None
         self._build_panel()
         self._style.value = style
+        self._closing = threading.Event()
         try:
             self.load(path)
         except BaseException:
             self.server.stop()
             raise
+        threading.Thread(target=self._play_loop, name="occmap-viewer-play", daemon=True).start()
 
     @property
     def free(self) -> Level | None:
         """The free boxes drawn (None until free space is first shown)."""
         return self._free
+
+    @property
+    def step(self) -> int | None:
+        """The step of a recorded run drawn (None for a map without one); set it to draw another,
+        as the panel's time slider does."""
+        return int(self._step.value) if self.scene is not None and self.scene.recording is not None else None
+
+    @step.setter
+    def step(self, value: int) -> None:
+        rec = self.scene.recording if self.scene is not None else None
+        if rec is None:
+            raise InvalidArgumentError(f"{self.scene.path.name} is not a recorded run: it has no steps")
+        step = checks.count("step", value, minimum=0)
+        if step >= len(rec):
+            raise InvalidArgumentError(f"step must be 0 .. {len(rec) - 1} (the run's steps), got {step}")
+        self._step.value = step
 
     @property
     def port(self) -> int:
@@ -132,6 +159,7 @@ class Viewer:
 
     def stop(self) -> None:
         """Close the server (its port is free again)."""
+        self._closing.set()
         self.server.stop()
 
     def __enter__(self) -> Viewer:
@@ -199,6 +227,7 @@ class Viewer:
         self._draw_plane()
         self._draw_path()
         self._draw_slice_plane()
+        self._draw_step()
 
     def _slice(self, v: Voxels) -> Voxels:
         mode = SLICES[self._slice_mode.value]
@@ -288,6 +317,60 @@ class Viewer:
             segments = np.stack([track[:-1], track[1:]], axis=1).astype(np.float32)
             self.server.scene.add_line_segments("/map/sensor_path", segments, PATH_COLOR, line_width=3.0)
 
+    def _draw_step(self) -> None:
+        """A recorded run at the slider's step: particles, the estimate (a frame, x ahead) and the
+        reference, with the estimate's track (a line) and the reference poses (dots) up to that step,
+        all a little above the map plane."""
+        rec = self.scene.recording
+        if rec is None:
+            return
+        i = min(int(self._step.value), len(rec) - 1)  # a slider spans two steps at least
+        z = self._marker / 4
+        particles = rec.particles[i]
+        particles = particles[np.isfinite(particles[:, 0])]
+        self.server.scene.add_point_cloud("/map/run/particles", _at_height(particles, z), PARTICLE_COLOR,
+                                          point_size=self._marker / 2, point_shape="circle",
+                                          precision="float32", point_shading="flat")
+        track = _at_height(rec.estimates[: i + 1], z)
+        self.server.scene.remove_by_name("/map/run/estimate_track")
+        if i:
+            self.server.scene.add_line_segments("/map/run/estimate_track", np.stack([track[:-1], track[1:]], 1),
+                                                ESTIMATE_COLOR, thickness=2.0, thickness_units="screen")
+        # the reference as dots: a corrected log pairs with one scan in ~15 (Intel), too few for a line
+        known = rec.reference[: i + 1]
+        known = known[np.isfinite(known[:, 0])]
+        self.server.scene.remove_by_name("/map/run/reference_track")
+        if len(known):
+            self.server.scene.add_point_cloud("/map/run/reference_track", _at_height(known, z), REFERENCE_COLOR,
+                                              point_size=self._marker / 4, point_shape="circle",
+                                              precision="float32", point_shading="flat")
+        x, y, theta = rec.estimates[i]
+        self.server.scene.add_frame("/map/run/estimate", wxyz=(np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)),
+                                    position=(x, y, z), axes_length=4 * self._marker, axes_radius=self._marker / 5)
+        ref = rec.reference[i]
+        if np.isfinite(ref).all():
+            self.server.scene.add_point_cloud("/map/run/reference", _at_height(ref[None], z), REFERENCE_COLOR,
+                                              point_size=1.5 * self._marker, point_shape="circle",
+                                              precision="float32", point_shading="flat")
+            error = f"; {float(np.hypot(*(ref[:2] - (x, y)))):.3f} m from the reference"
+        else:
+            self.server.scene.remove_by_name("/map/run/reference")
+            error = ""
+        self._info.content = (f"{self._describe()}\n\nstep {i + 1:,} of {len(rec):,}, "
+                              f"t = {rec.stamps[i] - rec.stamps[0]:.2f} s, {len(particles)} particles shown{error}")
+
+    def _play_loop(self) -> None:
+        """Advance a recorded run while "Play" is on, to its last step."""
+        while not self._closing.wait(1.0 / PLAY_RATE):
+            with self._lock:
+                rec = self.scene.recording if self.scene is not None else None
+                if rec is None or not self._play.value or self._loading:
+                    continue
+                if self._step.value >= len(rec) - 1:
+                    self._play.value = False
+                else:
+                    self._step.value += 1
+
     def _draw_slice_plane(self) -> None:
         if SLICES[self._slice_mode.value] == "off":
             self.server.scene.remove_by_name("/map/slice")
@@ -313,7 +396,9 @@ class Viewer:
         lo, hi = self._bounds
         center = (lo + hi) / 2
         reach = max(float(np.linalg.norm(hi - lo)), 1.0)
-        position = center + reach * np.array([-0.25, -0.45, 0.4])
+        # a run on a 2D map from nearly above (the robot's moves read as on paper), a map from aside
+        position = center + reach * np.array([0.0, -0.2, 0.5] if self.scene.recording is not None
+                                             else [-0.25, -0.45, 0.4])
         self.server.initial_camera.position = tuple(position)
         self.server.initial_camera.look_at = tuple(center)
         for client in self.server.get_clients().values():
@@ -333,6 +418,8 @@ class Viewer:
         self._nearby = gui.add_dropdown("Maps here", ("",), initial_value="")
         self._path_text = gui.add_text("Open path", "")
         self._open = gui.add_button("Open")
+        self._step = gui.add_slider("Step", min=0, max=1, step=1, initial_value=0, visible=False)
+        self._play = gui.add_checkbox("Play", False, visible=False)
 
         def redraw(_event) -> None:
             with self._lock:
@@ -345,6 +432,12 @@ class Viewer:
 
         for control in (self._colour, self._style, self._show_free, self._slice_mode, self._z):
             control.on_update(redraw)
+
+        @self._step.on_update
+        def _(_event) -> None:
+            with self._lock:
+                if not self._loading and self.scene is not None:
+                    self._draw_step()
 
         @self._nearby.on_update
         def _(_event) -> None:
@@ -369,6 +462,11 @@ class Viewer:
         self._nearby.value = self.scene.path.name
         self._path_text.value = str(self.scene.path)
         self._info.content = self._describe()
+        rec = self.scene.recording
+        self._play.value = False
+        self._step.max = max(len(rec) - 1, 1) if rec is not None else 1
+        self._step.value = 0
+        self._step.visible = self._play.visible = rec is not None
 
     def _describe(self) -> str:
         s = self.scene
@@ -378,3 +476,11 @@ class Viewer:
             text += (f"\n\n{o.voxels.count:,} occupied boxes drawn at depth {o.depth} "
                      f"({o.leaves:,} occupied leaves)")
         return text
+
+
+def _at_height(poses: np.ndarray, z: float) -> np.ndarray:
+    """Points (N, 3) float32 at the positions of poses (N, 3) ``(x, y, theta)``, lifted to ``z``."""
+    out = np.empty((len(poses), 3), np.float32)
+    out[:, :2] = poses[:, :2]
+    out[:, 2] = z
+    return out
