@@ -51,17 +51,28 @@ class ObjectLayer:
     """
 
     def __init__(self, params: TrackerParams | None = None, cover_margin: float = 0.2, threshold: float = 0.5,
-                 open_margin: float = 0.2):
+                 open_margin: float = 0.2, vacated_within: float = 2.0, vacated_reach: float = 1.0):
         self.tracker = Tracker(params)
         self.cover_margin = checks.non_negative("cover_margin", cover_margin, "metres")
         self.open_margin = checks.non_negative("open_margin", open_margin, "metres")
         self.threshold = checks.probability("threshold", threshold)
+        self.vacated_within = checks.non_negative("vacated_within", vacated_within, "seconds")
+        self.vacated_reach = checks.positive("vacated_reach", vacated_reach, "metres")
         self.moving = np.empty((0, 2))
+        self._hits = np.empty((0, 2))  # static returns that newly occupied their cell, and when
+        self._hit_stamps = np.empty(0)
         self.stats = {"moving_returns": 0}
         self._grid = np.zeros((3, 0, 0), np.int32)  # promote_components' scratch, zero between scans
 
+    def recent_hits(self, stamp: float) -> np.ndarray:
+        """The static returns of the last ``vacated_within`` seconds before ``stamp`` whose cell was
+        not known occupied (``(M, 2)``, world): the cells a map should watch for being vacated."""
+        keep = self._hit_stamps >= stamp - self.vacated_within
+        self._hits, self._hit_stamps = self._hits[keep], self._hit_stamps[keep]
+        return self._hits
+
     def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
-                     sensor, stamp: float, max_range: float | None = None, grid=None) -> None:
+                     sensor, stamp: float, max_range: float | None = None, grid=None, vacated=None, unseen=None) -> None:
         """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
         clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
         ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
@@ -72,6 +83,14 @@ class ObjectLayer:
         moving = known_free[hit]
         if len(self.tracker) and len(pts):
             moving = moving | self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True)
+        blocked = np.ascontiguousarray(known_occupied[hit])
+        if vacated is not None and len(vacated) and len(pts):
+            # an object standing when first seen, then walking on inside its own shadow: its
+            # returns lie in cells never seen free, but just past cells an earlier scan hit and
+            # later scans saw through (vacated: something moved off them)
+            trail = np.empty(len(pts), np.bool_)
+            K.near_any(pts, np.ascontiguousarray(vacated, dtype=np.float64), self.vacated_reach, trail)
+            moving = moving | (trail & unseen[hit])
         if moving.any() and grid is not None:
             # an object moving into cells the map has not seen free yet (away from the sensor,
             # out of its own shadow) is one object, not a moving part and a static one; returns
@@ -80,11 +99,13 @@ class ObjectLayer:
             if self._grid.shape != (3, H, W):
                 self._grid = np.zeros((3, H, W), np.int32)
             promoted = np.empty(len(pts), np.bool_)
-            K.promote_components(pts, moving, np.ascontiguousarray(known_occupied[hit]), float(origin[0]),
-                                 float(origin[1]), float(resolution),
+            K.promote_components(pts, moving, blocked, float(origin[0]), float(origin[1]), float(resolution),
                                  int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
                                  float(np.hypot(*self.tracker.params.max_size)), self._grid, promoted)
             moving |= promoted
+        new = ~moving & ~blocked
+        self._hits = np.concatenate([self._hits, pts[new]])
+        self._hit_stamps = np.concatenate([self._hit_stamps, np.full(int(new.sum()), float(stamp))])
         kinds[hit[moving]] = 2
         self.moving = pts[moving]
         self.stats["moving_returns"] += int(moving.sum())
