@@ -4,9 +4,12 @@ where they will be.
 Per scan (:meth:`ObjectLayer.sort_returns`) a return is taken as *moving* when its cell and its
 neighbours are known free in the static layer and no cell within ``open_margin`` of it known
 occupied (something stands where the map has seen through, away from walls), when it falls on a
-confirmed track's footprint predicted to the scan (grown by ``cover_margin``), or when it belongs to
-a small cluster of returns mostly moving and its cell is not known occupied (the part of an object
-in cells not seen yet). Moving returns do not mark the static layer — their rays still clear it up
+confirmed track's footprint predicted to the scan (grown by ``cover_margin``), when its cell has
+never been seen and it lies within ``vacated_reach`` of a vacated cell or of the last scan's moving
+returns in such cells (an object that stood when first seen walks on inside its own shadow: the
+cells it stood on, hit by a scan of the last ``vacated_within`` seconds, are then seen through — the
+map knows something left them), or when it belongs to a small cluster of returns mostly moving and
+its cell is not known occupied (the part of an object in cells not seen yet). Moving returns do not mark the static layer — their rays still clear it up
 to them — so a moving object leaves no trail; they are clustered into detections (:mod:`.detection`)
 that update the tracks (:mod:`.tracker`). Returns in unknown cells away from tracks are static: a
 parked car stays in the map.
@@ -48,6 +51,11 @@ class ObjectLayer:
     open_margin : float
         Metres around a return's cell in which no cell may be known occupied for the return to be
         moving (walls that grazing rays clear, or that pose errors shift, are not).
+    vacated_within : float
+        Seconds for which a static return that newly occupied its cell is watched for being
+        vacated (0: never; objects present from the start stay static while in their shadow).
+    vacated_reach : float
+        Metres from a vacated cell within which returns in cells never seen are moving.
     """
 
     def __init__(self, params: TrackerParams | None = None, cover_margin: float = 0.2, threshold: float = 0.5,
@@ -61,6 +69,7 @@ class ObjectLayer:
         self.moving = np.empty((0, 2))
         self._hits = np.empty((0, 2))  # static returns that newly occupied their cell, and when
         self._hit_stamps = np.empty(0)
+        self._shadowed = np.empty((0, 2))  # the last scan's moving returns in cells never seen
         self.stats = {"moving_returns": 0}
         self._grid = np.zeros((3, 0, 0), np.int32)  # promote_components' scratch, zero between scans
 
@@ -76,21 +85,26 @@ class ObjectLayer:
         """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
         clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
         ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
-        holds free (and open around) or occupied; ``grid`` ``(origin, resolution, (H, W))`` is the
-        map's window, in which the returns are joined into objects."""
+        holds free (and open around) or occupied, ``unseen`` (N,) which lie in cells never seen;
+        ``vacated`` ``(M, 2)`` are the points of :meth:`recent_hits` whose cells the map has since
+        seen through; ``grid`` ``(origin, resolution, (H, W))`` is the map's window, in which the
+        returns are joined into objects."""
         hit = np.flatnonzero(kinds == 1)
         pts = np.ascontiguousarray(ends[hit])
         moving = known_free[hit]
         if len(self.tracker) and len(pts):
             moving = moving | self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True)
         blocked = np.ascontiguousarray(known_occupied[hit])
-        if vacated is not None and len(vacated) and len(pts):
+        shadow = np.zeros(len(pts), bool) if unseen is None else unseen[hit]
+        seeds = self._shadowed if vacated is None else np.concatenate([np.reshape(vacated, (-1, 2)), self._shadowed])
+        if len(seeds) and len(pts):
             # an object standing when first seen, then walking on inside its own shadow: its
-            # returns lie in cells never seen free, but just past cells an earlier scan hit and
-            # later scans saw through (vacated: something moved off them)
-            trail = np.empty(len(pts), np.bool_)
-            K.near_any(pts, np.ascontiguousarray(vacated, dtype=np.float64), self.vacated_reach, trail)
-            moving = moving | (trail & unseen[hit])
+            # returns lie in cells never seen, but just past cells an earlier scan hit and later
+            # scans saw through (vacated: something moved off them), or near the last scan's
+            # moving returns in such cells (the object walks on; it marks no cells to vacate)
+            near = np.empty(len(pts), np.bool_)
+            K.near_any(pts, np.ascontiguousarray(seeds), self.vacated_reach, near)
+            moving = moving | (near & shadow)
         if moving.any() and grid is not None:
             # an object moving into cells the map has not seen free yet (away from the sensor,
             # out of its own shadow) is one object, not a moving part and a static one; returns
@@ -108,6 +122,7 @@ class ObjectLayer:
         self._hit_stamps = np.concatenate([self._hit_stamps, np.full(int(new.sum()), float(stamp))])
         kinds[hit[moving]] = 2
         self.moving = pts[moving]
+        self._shadowed = pts[moving & shadow]
         self.stats["moving_returns"] += int(moving.sum())
         sensor = np.asarray(sensor, dtype=np.float64)[:2]
         self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range), sensor)
