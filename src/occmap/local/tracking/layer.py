@@ -7,7 +7,7 @@ occupied (something stands where the map has seen through, away from walls), whe
 confirmed track's footprint predicted to the scan (grown by ``cover_margin``), when its cell has
 never been seen and it lies within ``vacated_reach`` of a vacated cell or of the last scan's moving
 returns in such cells (an object that stood when first seen walks on inside its own shadow: the
-cells it stood on, hit by a scan of the last ``vacated_within`` seconds, are then seen through — the
+cells it stood on, first seen by a hit in the last ``vacated_within`` seconds, are then seen through — the
 map knows something left them), or when it belongs to a small cluster of returns mostly moving and
 its cell is not known occupied (the part of an object in cells not seen yet). Moving returns do not mark the static layer — their rays still clear it up
 to them — so a moving object leaves no trail; they are clustered into detections (:mod:`.detection`)
@@ -52,7 +52,7 @@ class ObjectLayer:
         Metres around a return's cell in which no cell may be known occupied for the return to be
         moving (walls that grazing rays clear, or that pose errors shift, are not).
     vacated_within : float
-        Seconds for which a static return that newly occupied its cell is watched for being
+        Seconds for which a static return on a cell seen for the first time is watched for being
         vacated (0: never; objects present from the start stay static while in their shadow).
     vacated_reach : float
         Metres from a vacated cell within which returns in cells never seen are moving.
@@ -67,15 +67,15 @@ class ObjectLayer:
         self.vacated_within = checks.non_negative("vacated_within", vacated_within, "seconds")
         self.vacated_reach = checks.positive("vacated_reach", vacated_reach, "metres")
         self.moving = np.empty((0, 2))
-        self._hits = np.empty((0, 2))  # static returns that newly occupied their cell, and when
+        self._hits = np.empty((0, 2))  # static returns on cells seen for the first time, and when
         self._hit_stamps = np.empty(0)
         self._shadowed = np.empty((0, 2))  # the last scan's moving returns in cells never seen
         self.stats = {"moving_returns": 0}
         self._grid = np.zeros((3, 0, 0), np.int32)  # promote_components' scratch, zero between scans
 
     def recent_hits(self, stamp: float) -> np.ndarray:
-        """The static returns of the last ``vacated_within`` seconds before ``stamp`` whose cell was
-        not known occupied (``(M, 2)``, world): the cells a map should watch for being vacated."""
+        """The static returns of the last ``vacated_within`` seconds before ``stamp`` whose cell had
+        never been seen (``(M, 2)``, world): the cells a map should watch for being vacated."""
         keep = self._hit_stamps >= stamp - self.vacated_within
         self._hits, self._hit_stamps = self._hits[keep], self._hit_stamps[keep]
         return self._hits
@@ -117,7 +117,7 @@ class ObjectLayer:
                                  int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
                                  float(np.hypot(*self.tracker.params.max_size)), self._grid, promoted)
             moving |= promoted
-        new = ~moving & ~blocked
+        new = ~moving & shadow  # static returns on cells never seen before: watched for being vacated
         self._hits = np.concatenate([self._hits, pts[new]])
         self._hit_stamps = np.concatenate([self._hit_stamps, np.full(int(new.sum()), float(stamp))])
         kinds[hit[moving]] = 2
