@@ -117,9 +117,12 @@ class ObjectLayer:
                                  int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
                                  float(np.hypot(*self.tracker.params.max_size)), self._grid, promoted)
             moving |= promoted
-        new = ~moving & shadow  # static returns on cells never seen before: watched for being vacated
-        self._hits = np.concatenate([self._hits, pts[new]])
-        self._hit_stamps = np.concatenate([self._hit_stamps, np.full(int(new.sum()), float(stamp))])
+        new = pts[~moving & shadow]  # static returns on cells never seen before: watched for being vacated
+        if len(new) and grid is not None:  # one per cell (a cloud puts many in one)
+            cell = np.floor((new - grid[0]) / grid[1]).astype(np.int64)
+            new = new[np.unique(cell[:, 1] * grid[2][1] + cell[:, 0], return_index=True)[1]]
+        self._hits = np.concatenate([self._hits, new])
+        self._hit_stamps = np.concatenate([self._hit_stamps, np.full(len(new), float(stamp))])
         kinds[hit[moving]] = 2
         self.moving = pts[moving]
         self._shadowed = pts[moving & shadow]
