@@ -317,9 +317,10 @@ class LocalMap(OneCallAtATime):
         """``(open, occupied, unseen)`` per ray end (bool (N,), false but for returns): the return
         in open free space — its cell and neighbours known free and no cell within the layer's
         ``open_margin`` known occupied (not the edge of a wall that grazing rays have cleared or that
-        a small pose error shifts); its cell known occupied; its cell never observed. With ``vacated``, ``open`` is looser, for cells an earlier scan hit: the cell and
-        its neighbours seen with more free evidence than occupied (below the prior) — the hit has
-        been contradicted — and nothing occupied within the margin."""
+        a small pose error shifts); its cell known occupied; its cell never observed. With
+        ``vacated``, ``open`` is looser, for cells an earlier scan hit: the cell and its neighbours
+        seen with more free evidence than occupied (below the prior) — the hit has been
+        contradicted — and nothing occupied within the margin."""
         open_, occupied, unseen = (np.empty(len(kinds), dtype=np.bool_) for _ in range(3))
         reach = int(math.ceil(self._objects.open_margin / self.resolution - 1e-9))
         g = self._g

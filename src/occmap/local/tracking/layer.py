@@ -7,11 +7,12 @@ occupied (something stands where the map has seen through, away from walls), whe
 confirmed track's footprint predicted to the scan (grown by ``cover_margin``), when its cell has
 never been seen and it lies within ``vacated_reach`` of a vacated cell or of the last scan's moving
 returns in such cells (an object that stood when first seen walks on inside its own shadow: the
-cells it stood on, first seen by a hit in the last ``vacated_within`` seconds, are then seen through — the
-map knows something left them), or when it belongs to a small cluster of returns mostly moving and
-its cell is not known occupied (the part of an object in cells not seen yet). Moving returns do not mark the static layer — their rays still clear it up
-to them — so a moving object leaves no trail; they are clustered into detections (:mod:`.detection`)
-that update the tracks (:mod:`.tracker`). Returns in unknown cells away from tracks are static: a
+cells it stood on, first seen by a hit in the last ``vacated_within`` seconds, are then seen
+through — the map knows something left them), or when it belongs to a small cluster of returns
+mostly moving and its cell is not known occupied (the part of an object in cells not seen yet).
+Moving returns do not mark the static layer — their rays still clear it up to them — so a moving
+object leaves no trail; they are clustered into detections (:mod:`.detection`) that update the
+tracks (:mod:`.tracker`). Returns in unknown cells away from tracks and vacated cells are static: a
 parked car stays in the map.
 
 Where objects will be (:meth:`ObjectLayer.occupancy`): every confirmed track (lost ones too, while
@@ -81,7 +82,8 @@ class ObjectLayer:
         return self._hits
 
     def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
-                     sensor, stamp: float, max_range: float | None = None, grid=None, vacated=None, unseen=None) -> None:
+                     sensor, stamp: float, max_range: float | None = None, grid=None, vacated=None,
+                     unseen=None) -> None:
         """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
         clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
         ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
@@ -117,7 +119,7 @@ class ObjectLayer:
                                  int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
                                  float(np.hypot(*self.tracker.params.max_size)), self._grid, promoted)
             moving |= promoted
-        new = pts[~moving & shadow]  # static returns on cells never seen before: watched for being vacated
+        new = pts[~moving & shadow]  # static returns on cells seen for the first time: watch them
         if len(new) and grid is not None:  # one per cell (a cloud puts many in one)
             cell = np.floor((new - grid[0]) / grid[1]).astype(np.int64)
             new = new[np.unique(cell[:, 1] * grid[2][1] + cell[:, 0], return_index=True)[1]]
