@@ -83,7 +83,7 @@ class ObjectLayer:
 
     def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
                      sensor, stamp: float, max_range: float | None = None, grid=None, vacated=None,
-                     unseen=None) -> None:
+                     unseen=None, walled=None) -> None:
         """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
         clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
         ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
@@ -98,15 +98,16 @@ class ObjectLayer:
             moving = moving | self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True)
         blocked = np.ascontiguousarray(known_occupied[hit])
         shadow = np.zeros(len(pts), bool) if unseen is None else unseen[hit]
-        seeds = self._shadowed if vacated is None else np.concatenate([np.reshape(vacated, (-1, 2)), self._shadowed])
-        if len(seeds) and len(pts):
-            # an object standing when first seen, then walking on inside its own shadow: its
-            # returns lie in cells never seen, but just past cells an earlier scan hit and later
-            # scans saw through (vacated: something moved off them), or near the last scan's
-            # moving returns in such cells (the object walks on; it marks no cells to vacate)
-            near = np.empty(len(pts), np.bool_)
-            K.near_any(pts, np.ascontiguousarray(seeds), self.vacated_reach, near)
-            moving = moving | (near & shadow)
+        clear = shadow if walled is None else shadow & ~walled[hit]
+        # an object standing when first seen, then walking on inside its own shadow: its returns
+        # lie in cells never seen, but just past cells an earlier scan hit and later scans saw
+        # through (vacated: something moved off them), or, away from occupied cells, near the last
+        # scan's moving returns in such cells (the object walks on; it marks no cells to vacate)
+        for seeds, where in ((vacated, shadow), (self._shadowed, clear)):
+            if seeds is not None and len(seeds) and len(pts):
+                near = np.empty(len(pts), np.bool_)
+                K.near_any(pts, np.ascontiguousarray(seeds, dtype=np.float64), self.vacated_reach, near)
+                moving = moving | (near & where)
         if moving.any() and grid is not None:
             # an object moving into cells the map has not seen free yet (away from the sensor,
             # out of its own shadow) is one object, not a moving part and a static one; returns
