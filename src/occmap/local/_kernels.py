@@ -357,15 +357,19 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
 
 
 @kernel
-def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, kinds, open_, occupied):
+def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, kinds, open_, occupied,
+                     unseen, walled):
     """For each return (``kinds[i] == 1``) at world point ``pts[i]``: ``occupied[i]``, its cell is
-    observed and occupied (``u ≥ thr_occ``); ``open_[i]``, its cell and its eight neighbours are
-    observed and free (``u < thr_free``) and no cell within ``reach`` cells (a square, inside the
-    window) is observed and occupied. Both false for the other points."""
+    observed and occupied (``u ≥ thr_occ``); ``unseen[i]``, its cell is inside the window and
+    never observed; ``walled[i]``, a cell within ``reach`` cells (a square, inside the window) is
+    observed and occupied; ``open_[i]``, its cell and its eight neighbours are observed and free
+    (``u < thr_free``) and it is not walled. All false for the other points."""
     H, W = cells.shape[0], cells.shape[1]
     for i in range(pts.shape[0]):
         open_[i] = False
         occupied[i] = False
+        unseen[i] = False
+        walled[i] = False
         if kinds[i] != 1:
             continue
         gx, gy = cell_of(pts[i, 0], pts[i, 1], 0.0, 0.0, inv_res)
@@ -375,20 +379,24 @@ def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ
             continue
         r = slot(wy, sr, H)
         c = slot(wx, sc, W)
-        occupied[i] = stamps[r, c, 1] != UNSEEN and cells[r, c, 0] >= thr_occ
-        ok = 1 <= wx < W - 1 and 1 <= wy < H - 1 and not occupied[i]
+        unseen[i] = stamps[r, c, 1] == UNSEEN
+        occupied[i] = not unseen[i] and cells[r, c, 0] >= thr_occ
+        free = 1 <= wx < W - 1 and 1 <= wy < H - 1
+        wall = occupied[i]
         for yy in range(max(wy - reach, 0), min(wy + reach + 1, H)):
-            if not ok:
+            if wall:
                 break
             r = slot(yy, sr, H)
             for xx in range(max(wx - reach, 0), min(wx + reach + 1, W)):
                 c = slot(xx, sc, W)
                 seen = stamps[r, c, 1] != UNSEEN
-                near = abs(xx - wx) <= 1 and abs(yy - wy) <= 1
-                if (seen and cells[r, c, 0] >= thr_occ) or (near and not (seen and cells[r, c, 0] < thr_free)):
-                    ok = False
+                if seen and cells[r, c, 0] >= thr_occ:
+                    wall = True
                     break
-        open_[i] = ok
+                if abs(xx - wx) <= 1 and abs(yy - wy) <= 1 and not (seen and cells[r, c, 0] < thr_free):
+                    free = False
+        walled[i] = wall
+        open_[i] = free and not wall
     return open_
 
 

@@ -292,9 +292,11 @@ class LocalMap(OneCallAtATime):
         moving objects clear only and go to the tracks."""
         model = self.model if model is None else model
         if self._objects is not None and model is self.model:
-            open_, occupied = self._classify_returns(ends, kinds)
+            open_, occupied, unseen, walled = self._classify_returns(ends, kinds)
+            recent = self._objects.recent_hits(self._time)
+            vacated = recent[self._classify_returns(recent, np.ones(len(recent), np.int8), vacated=True)[0]]
             self._objects.sort_returns(ends, kinds, open_, occupied, (px, py), self._time, max_range,
-                                       (self.origin, self.resolution, self.shape))
+                                       (self.origin, self.resolution, self.shape), vacated, unseen, walled)
             self.stats.update(self._objects.counts())
         g = self._g
         lp = self.l_prior
@@ -311,19 +313,22 @@ class LocalMap(OneCallAtATime):
         self._changed()
         return {**counts, "hits": int(hits), "free_updates": int(updated), "cells_visited": int(visited)}
 
-    def _classify_returns(self, ends: np.ndarray, kinds: np.ndarray):
-        """``(open, occupied)`` per ray end (bool (N,), false but for returns): the return's cell
-        known occupied; the return in open free space — its cell and neighbours known free and no
-        cell within the layer's ``open_margin`` known occupied (not the edge of a wall that grazing
-        rays have cleared or that a small pose error shifts)."""
-        open_ = np.empty(len(kinds), dtype=np.bool_)
-        occupied = np.empty(len(kinds), dtype=np.bool_)
+    def _classify_returns(self, ends: np.ndarray, kinds: np.ndarray, vacated: bool = False):
+        """``(open, occupied, unseen)`` per ray end (bool (N,), false but for returns): the return
+        in open free space — its cell and neighbours known free and no cell within the layer's
+        ``open_margin`` known occupied (not the edge of a wall that grazing rays have cleared or that
+        a small pose error shifts); its cell known occupied; its cell never observed. With
+        ``vacated``, ``open`` is looser, for cells an earlier scan hit: the cell and its neighbours
+        seen with more free evidence than occupied (below the prior) — the hit has been
+        contradicted — and nothing occupied within the margin."""
+        open_, occupied, unseen, walled = (np.empty(len(kinds), dtype=np.bool_) for _ in range(4))
         reach = int(math.ceil(self._objects.open_margin / self.resolution - 1e-9))
         g = self._g
+        free = 0.0 if vacated else (self.l_free - self.l_prior) / g
         K.classify_returns(self._cells, self._stamps, self._sr, self._sc, self._gx0, self._gy0, 1.0 / self.resolution,
-                           (self.l_free - self.l_prior) / g, (self.l_occupied - self.l_prior) / g, reach, ends, kinds,
-                           open_, occupied)
-        return open_, occupied
+                           free, (self.l_occupied - self.l_prior) / g, reach, np.ascontiguousarray(ends), kinds,
+                           open_, occupied, unseen, walled)
+        return open_, occupied, unseen, walled
 
     def _dropped_pose(self, n: int) -> dict:
         """A scan or cloud whose sensor pose is not finite: counted, nothing inserted."""

@@ -479,3 +479,48 @@ def box_owners(pts, cx, cy, heading, half_length, half_width, out):
                 best = k
                 best_d2 = d2
         out[i] = best
+
+
+@kernel
+def near_any(pts, seeds, radius, out):
+    """``out[i]``: whether a point of ``seeds`` (M, 2) lies within ``radius`` (m) of point ``i``
+    of ``pts`` (N, 2). Seeds are binned into cells of side ``radius``; each point looks at the
+    3 × 3 cells around its own."""
+    m = seeds.shape[0]
+    inv = 1.0 / radius
+    out[:] = False
+    if m == 0:
+        return out
+    cx = np.empty(m, np.int64)
+    cy = np.empty(m, np.int64)
+    for i in range(m):
+        cx[i] = np.int64(np.floor(seeds[i, 0] * inv))
+        cy[i] = np.int64(np.floor(seeds[i, 1] * inv))
+    ox = cx.min() - 1
+    oy = cy.min() - 1
+    span = cy.max() - oy + 2
+    key = (cx - ox) * span + (cy - oy)
+    order = np.argsort(key)
+    skey = key[order]
+    r2 = radius * radius
+    for i in range(pts.shape[0]):
+        px = np.int64(np.floor(pts[i, 0] * inv)) - ox
+        py = np.int64(np.floor(pts[i, 1] * inv)) - oy
+        found = False
+        for dx in range(-1, 2):
+            for dy in range(-1, 2):
+                yy = py + dy
+                if found or yy < 0 or yy >= span:
+                    continue
+                k = (px + dx) * span + yy
+                b = np.searchsorted(skey, k)
+                while b < m and skey[b] == k:
+                    j = order[b]
+                    ex = pts[i, 0] - seeds[j, 0]
+                    ey = pts[i, 1] - seeds[j, 1]
+                    if ex * ex + ey * ey <= r2:
+                        found = True
+                        break
+                    b += 1
+        out[i] = found
+    return out

@@ -4,11 +4,15 @@ where they will be.
 Per scan (:meth:`ObjectLayer.sort_returns`) a return is taken as *moving* when its cell and its
 neighbours are known free in the static layer and no cell within ``open_margin`` of it known
 occupied (something stands where the map has seen through, away from walls), when it falls on a
-confirmed track's footprint predicted to the scan (grown by ``cover_margin``), or when it belongs to
-a small cluster of returns mostly moving and its cell is not known occupied (the part of an object
-in cells not seen yet). Moving returns do not mark the static layer — their rays still clear it up
-to them — so a moving object leaves no trail; they are clustered into detections (:mod:`.detection`)
-that update the tracks (:mod:`.tracker`). Returns in unknown cells away from tracks are static: a
+confirmed track's footprint predicted to the scan (grown by ``cover_margin``), when its cell has
+never been seen and it lies within ``vacated_reach`` of a vacated cell or of the last scan's moving
+returns in such cells (an object that stood when first seen walks on inside its own shadow: the
+cells it stood on, first seen by a hit in the last ``vacated_within`` seconds, are then seen
+through — the map knows something left them), or when it belongs to a small cluster of returns
+mostly moving and its cell is not known occupied (the part of an object in cells not seen yet).
+Moving returns do not mark the static layer — their rays still clear it up to them — so a moving
+object leaves no trail; they are clustered into detections (:mod:`.detection`) that update the
+tracks (:mod:`.tracker`). Returns in unknown cells away from tracks and vacated cells are static: a
 parked car stays in the map.
 
 Where objects will be (:meth:`ObjectLayer.occupancy`): every confirmed track (lost ones too, while
@@ -48,30 +52,62 @@ class ObjectLayer:
     open_margin : float
         Metres around a return's cell in which no cell may be known occupied for the return to be
         moving (walls that grazing rays clear, or that pose errors shift, are not).
+    vacated_within : float
+        Seconds for which a static return on a cell seen for the first time is watched for being
+        vacated (0: never; objects present from the start stay static while in their shadow).
+    vacated_reach : float
+        Metres from a vacated cell within which returns in cells never seen are moving.
     """
 
     def __init__(self, params: TrackerParams | None = None, cover_margin: float = 0.2, threshold: float = 0.5,
-                 open_margin: float = 0.2):
+                 open_margin: float = 0.2, vacated_within: float = 2.0, vacated_reach: float = 1.0):
         self.tracker = Tracker(params)
         self.cover_margin = checks.non_negative("cover_margin", cover_margin, "metres")
         self.open_margin = checks.non_negative("open_margin", open_margin, "metres")
         self.threshold = checks.probability("threshold", threshold)
+        self.vacated_within = checks.non_negative("vacated_within", vacated_within, "seconds")
+        self.vacated_reach = checks.positive("vacated_reach", vacated_reach, "metres")
         self.moving = np.empty((0, 2))
+        self._hits = np.empty((0, 2))  # static returns on cells seen for the first time, and when
+        self._hit_stamps = np.empty(0)
+        self._shadowed = np.empty((0, 2))  # the last scan's moving returns in cells never seen
         self.stats = {"moving_returns": 0}
         self._grid = np.zeros((3, 0, 0), np.int32)  # promote_components' scratch, zero between scans
 
+    def recent_hits(self, stamp: float) -> np.ndarray:
+        """The static returns of the last ``vacated_within`` seconds before ``stamp`` whose cell had
+        never been seen (``(M, 2)``, world): the cells a map should watch for being vacated."""
+        keep = self._hit_stamps >= stamp - self.vacated_within
+        self._hits, self._hit_stamps = self._hits[keep], self._hit_stamps[keep]
+        return self._hits
+
     def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
-                     sensor, stamp: float, max_range: float | None = None, grid=None) -> None:
+                     sensor, stamp: float, max_range: float | None = None, grid=None, vacated=None,
+                     unseen=None, walled=None) -> None:
         """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
         clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
         ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
-        holds free (and open around) or occupied; ``grid`` ``(origin, resolution, (H, W))`` is the
-        map's window, in which the returns are joined into objects."""
+        holds free (and open around) or occupied, ``unseen`` (N,) which lie in cells never seen;
+        ``vacated`` ``(M, 2)`` are the points of :meth:`recent_hits` whose cells the map has since
+        seen through; ``grid`` ``(origin, resolution, (H, W))`` is the map's window, in which the
+        returns are joined into objects."""
         hit = np.flatnonzero(kinds == 1)
         pts = np.ascontiguousarray(ends[hit])
         moving = known_free[hit]
         if len(self.tracker) and len(pts):
             moving = moving | self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True)
+        blocked = np.ascontiguousarray(known_occupied[hit])
+        shadow = np.zeros(len(pts), bool) if unseen is None else unseen[hit]
+        clear = shadow if walled is None else shadow & ~walled[hit]
+        # an object standing when first seen, then walking on inside its own shadow: its returns
+        # lie in cells never seen, but just past cells an earlier scan hit and later scans saw
+        # through (vacated: something moved off them), or, away from occupied cells, near the last
+        # scan's moving returns in such cells (the object walks on; it marks no cells to vacate)
+        for seeds, where in ((vacated, shadow), (self._shadowed, clear)):
+            if seeds is not None and len(seeds) and len(pts):
+                near = np.empty(len(pts), np.bool_)
+                K.near_any(pts, np.ascontiguousarray(seeds, dtype=np.float64), self.vacated_reach, near)
+                moving = moving | (near & where)
         if moving.any() and grid is not None:
             # an object moving into cells the map has not seen free yet (away from the sensor,
             # out of its own shadow) is one object, not a moving part and a static one; returns
@@ -80,13 +116,19 @@ class ObjectLayer:
             if self._grid.shape != (3, H, W):
                 self._grid = np.zeros((3, H, W), np.int32)
             promoted = np.empty(len(pts), np.bool_)
-            K.promote_components(pts, moving, np.ascontiguousarray(known_occupied[hit]), float(origin[0]),
-                                 float(origin[1]), float(resolution),
+            K.promote_components(pts, moving, blocked, float(origin[0]), float(origin[1]), float(resolution),
                                  int(math.ceil(0.5 * DETECTION_GAP / resolution - 1e-9)),
                                  float(np.hypot(*self.tracker.params.max_size)), self._grid, promoted)
             moving |= promoted
+        new = pts[~moving & shadow]  # static returns on cells seen for the first time: watch them
+        if len(new) and grid is not None:  # one per cell (a cloud puts many in one)
+            cell = np.floor((new - grid[0]) / grid[1]).astype(np.int64)
+            new = new[np.unique(cell[:, 1] * grid[2][1] + cell[:, 0], return_index=True)[1]]
+        self._hits = np.concatenate([self._hits, new])
+        self._hit_stamps = np.concatenate([self._hit_stamps, np.full(len(new), float(stamp))])
         kinds[hit[moving]] = 2
         self.moving = pts[moving]
+        self._shadowed = pts[moving & shadow]
         self.stats["moving_returns"] += int(moving.sum())
         sensor = np.asarray(sensor, dtype=np.float64)[:2]
         self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range), sensor)
