@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -20,80 +19,11 @@ import urllib.request
 import numpy as np
 import pytest
 
-from occmap.octree.views import height_colors
-
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run"]
-VIEW = {"width": 800, "height": 600}
-PALETTE = height_colors(np.linspace(0.0, 1.0, 256)).astype(np.int64)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    if CHROMIUM is None:
-        pytest.skip("no chromium on this machine: install the system package (apt-get install chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed (the test extra)")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        yield b
-        b.close()
-
+from headless import VIEW, Page, image, keep
 
 @pytest.fixture(scope="module")
 def geb079(data_dir):
     return data_dir / "octomap" / "geb079.bt"
-
-
-def ramp_pixels(png: bytes) -> int:
-    """Pixels of the left half of a screenshot (the panel is on the right) that lie on the height
-    ramp: within 12 of one of its colours per channel, and coloured (not a grey of the page)."""
-    from io import BytesIO
-
-    from PIL import Image
-
-    rgb = np.asarray(Image.open(BytesIO(png)).convert("RGB"))[:, : VIEW["width"] // 2].reshape(-1, 3).astype(np.int64)
-    rgb = rgb[rgb.max(axis=1) - rgb.min(axis=1) > 35]
-    near = np.zeros(len(rgb), bool)
-    for c in PALETTE[::4]:
-        near |= np.all(np.abs(rgb - c) <= 12, axis=1)
-    return int(near.sum())
-
-
-class Page:
-    """A browser tab on a viewer that may fetch nothing but the viewer's own address."""
-
-    def __init__(self, browser, url: str):
-        self.page = browser.new_page(viewport=VIEW)
-        self.refused: list[str] = []
-        self.page.route("**/*", self._route)
-        self.origin = url.rstrip("/")
-        self.page.goto(url)
-
-    def _route(self, route):
-        url = route.request.url
-        if url.startswith(self.origin) or url.startswith(("data:", "blob:")):
-            route.continue_()
-        else:
-            self.refused.append(url)
-            route.abort()
-
-    def drawn(self, at_least: int = 2000, timeout: float = 20.0) -> tuple[bytes, int]:
-        """A screenshot once the map is drawn (ramp pixels ≥ ``at_least``), and its ramp pixels."""
-        end = time.monotonic() + timeout
-        while True:
-            png = self.page.screenshot()
-            n = ramp_pixels(png)
-            if n >= at_least or time.monotonic() > end:
-                return png, n
-            self.page.wait_for_timeout(500)
-
-    def open_in_panel(self, path) -> None:
-        """Type ``path`` into the panel's "Open path" field and press "Open", as a person would."""
-        field = self.page.locator('xpath=//label[text()="Open path"]/ancestor::div'
-                                  '[contains(@class, "mantine-Flex-root")][1]//input')
-        field.fill(str(path))
-        self.page.get_by_role("button", name="Open").click()
 
 
 def small_tile_store(path):
@@ -122,7 +52,7 @@ def test_geb079_drawn_offline_then_a_tile_store_opened_from_the_panel(browser, g
         assert (viewer.occupied.depth, viewer.occupied.voxels.count, viewer.occupied.leaves) == (16, 143_729, 143_729)
         tab = Page(browser, viewer.url)
         first, n_first = tab.drawn()
-        _keep("geb079", first)
+        keep("geb079", first)
         assert n_first >= 2000, f"the map is not drawn: {n_first} pixels of the height ramp"
         assert tab.refused == [], f"the viewer asked for other addresses: {tab.refused}"
         viewer._show_free.value = True  # as the panel's check box does: every free leaf (284,415, the README)
@@ -142,10 +72,10 @@ def test_geb079_drawn_offline_then_a_tile_store_opened_from_the_panel(browser, g
         assert np.allclose(np.sort(drawn, axis=0), np.sort(occupied, axis=0), atol=1e-4)  # the same voxels, placed
         tab.page.wait_for_timeout(1000)
         second, n_second = tab.drawn()
-        _keep("tile-store", second)
+        keep("tile-store", second)
         assert n_second >= 2000, f"the tile store is not drawn: {n_second} pixels of the height ramp"
-        a = np.asarray(_image(first), np.int64)
-        b = np.asarray(_image(second), np.int64)
+        a = np.asarray(image(first), np.int64)
+        b = np.asarray(image(second), np.int64)
         changed = np.mean(np.any(np.abs(a - b) > 40, axis=2)[:, : VIEW["width"] // 2])
         assert changed > 0.05, f"only {changed:.1%} of the picture changed after opening the second map"
         assert tab.refused == []
@@ -153,22 +83,6 @@ def test_geb079_drawn_offline_then_a_tile_store_opened_from_the_panel(browser, g
         tab.open_in_panel(tmp_path / "no-such-map.bt")  # a bad path: said in the panel, the map stays
         tab.page.get_by_text("could not open").wait_for(timeout=10_000)
         assert viewer.scene.path == store
-
-
-def _keep(name: str, png: bytes) -> None:
-    """Save a screenshot in ``$OCCMAP_SCREENSHOTS`` when set, to look at."""
-    folder = os.environ.get("OCCMAP_SCREENSHOTS")
-    if folder:
-        with open(os.path.join(folder, f"viewer-{name}.png"), "wb") as f:
-            f.write(png)
-
-
-def _image(png: bytes):
-    from io import BytesIO
-
-    from PIL import Image
-
-    return Image.open(BytesIO(png)).convert("RGB")
 
 
 def test_large_map_level_of_detail_is_conservative_and_capped(data_dir):

@@ -12,7 +12,7 @@ import pytest
 
 from occmap.errors import FormatError, InvalidArgumentError
 
-from test_viewer import Page, _image, _keep, browser  # noqa: F401  (browser: a fixture; tests/viz is on the path)
+from headless import Page, image, keep
 
 STEPS = 40
 KEEP = 150
@@ -99,11 +99,11 @@ def test_bad_recordings_are_refused_naming_file_and_entry(run, tmp_path):
 def _colour_pixels(png: bytes, colour, tol: int = 40) -> np.ndarray:
     """(row, col) of a screenshot's pixels within ``tol`` of ``colour`` in every channel, left of
     the panel and right of the axes key."""
-    rgb = np.asarray(_image(png), np.int64)[:, 80: WIDE["width"] - 360]  # not the axes key, not the panel
+    rgb = np.asarray(image(png), np.int64)[:, 80: WIDE["width"] - 360]  # not the axes key, not the panel
     return np.argwhere(np.all(np.abs(rgb - colour) <= tol, axis=2))
 
 
-def test_the_run_scrubbed_in_the_browser(browser, run):  # noqa: F811
+def test_the_run_scrubbed_in_the_browser(browser, run):
     from occmap.viz.viewer import ESTIMATE_COLOR, PARTICLE_COLOR, REFERENCE_COLOR, Viewer
 
     rec, path, _, _ = run
@@ -115,7 +115,7 @@ def test_the_run_scrubbed_in_the_browser(browser, run):  # noqa: F811
         tab.page.set_viewport_size(WIDE)
         tab.page.wait_for_timeout(1500)
         first = tab.page.screenshot()
-        _keep("replay-first", first)
+        keep("replay-first", first)
         orange0 = _colour_pixels(first, PARTICLE_COLOR)
         assert len(orange0) > 200, f"particles not drawn: {len(orange0)} orange pixels"
 
@@ -123,7 +123,7 @@ def test_the_run_scrubbed_in_the_browser(browser, run):  # noqa: F811
         tab.page.get_by_text(f"step {STEPS} of {STEPS}").wait_for(timeout=10_000)
         tab.page.wait_for_timeout(1500)
         last = tab.page.screenshot()
-        _keep("replay-last", last)
+        keep("replay-last", last)
         orange1 = _colour_pixels(last, PARTICLE_COLOR)
         blue1 = _colour_pixels(last, ESTIMATE_COLOR)
         assert len(orange1) > 20, f"particles not drawn at the last step: {len(orange1)} orange pixels"

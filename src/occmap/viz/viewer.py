@@ -29,7 +29,6 @@ import io
 import math
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 
