@@ -333,7 +333,8 @@ def test_local_and_localize_read_a_bag_as_they_read_the_same_log(tmp_path, intel
     bag = write_bag(tmp_path, "mcap", laser_bag(intel[:80]))
     log = carmen_twin(tmp_path / "twin.log", list(BagScans(bag)))
     for name, source in (("bag", bag), ("log", log)):
-        assert main(["local", str(source), "-o", str(tmp_path / f"{name}.gif"), "--max-frames", "10"]) == 0
+        assert main(["local", str(source), "-o", str(tmp_path / f"{name}.gif"), "--max-frames", "10",
+                     "--title", "the same scans"]) == 0
     assert (tmp_path / "bag.gif").read_bytes() == (tmp_path / "log.gif").read_bytes()
 
     assert main(["map2d", str(bag), "-o", str(tmp_path / "map.yaml")]) == 0

@@ -31,6 +31,7 @@ def add_parser(subparsers):
     p.add_argument("--max-frames", type=_options.count, default=300,
                    help="stop after this many frames (default: %(default)s)")
     p.add_argument("--scale", type=_options.count, default=2, help="pixels per cell (default: %(default)s)")
+    p.add_argument("--title", help="the animation's title (default: \"local costmap: \" and the log's name)")
     p.add_argument("--fps", type=_options.positive, default=10.0,
                    help="frames per second of the animation (default: %(default)s)")
     p.add_argument("--tracking", action="store_true",
@@ -65,8 +66,8 @@ def run(args) -> int:
 
         matcher = ScanMatcher()
     lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None, tracking=args.tracking)
-    frames = CostmapAnimation(lm.shape, args.resolution, args.scale, f"local costmap: {Path(args.log).name}",
-                              args.tracking)
+    title = args.title if args.title is not None else f"local costmap: {Path(args.log).name}"
+    frames = CostmapAnimation(lm.shape, args.resolution, args.scale, title, args.tracking)
     used = 0
     clamped = 0
     clock = WorkClock()
