@@ -38,6 +38,7 @@ class CostmapAnimation:
 
     def __init__(self, shape, resolution: float, scale: int = 2, title: str = "local costmap",
                  tracking: bool = False):
+        from matplotlib.patches import Patch
         from PIL import Image, ImageFont
 
         from ..local.replay import cost_palette
@@ -46,8 +47,8 @@ class CostmapAnimation:
         self.scale = int(scale)
         h, w = self.shape[0] * self.scale, self.shape[1] * self.scale
         left, bottom, right, top = _MARGIN
-        fig = figure(left + w + right, bottom + h + top)
         width, height = left + w + right, bottom + h + top
+        fig = figure(width, height)
         ax = fig.add_axes((left / width, bottom / height, w / width, h / height))
         fig.set_layout_engine("none")
         half_x, half_y = self.shape[1] * resolution / 2.0, self.shape[0] * resolution / 2.0
@@ -55,8 +56,6 @@ class CostmapAnimation:
                  "y from the window's centre [m]")
         ax.set_aspect("auto")  # the axes box is the raster's, pixel for pixel
         palette = np.array(cost_palette(), dtype=np.uint8).reshape(256, 3) / 255.0
-        from matplotlib.patches import Patch
-
         handles = [Patch(facecolor="none" if outline else palette[i], edgecolor=palette[i] if outline else "0.4",
                          lw=2 if outline else 0.8, label=label) for label, i, outline in _key(tracking)]
         fig.legend(handles=handles, loc="center left", bbox_to_anchor=((left + w + 12) / width, 0.5),
