@@ -147,6 +147,23 @@ def test_command_refuses_bad_paths_in_one_line(tmp_path, capsys):
         assert err.startswith("occmap view: error:") and says in err and err.count("\n") == 1, err
 
 
+def test_a_port_in_use_is_refused_not_moved(tmp_path, capsys):
+    """viser moves on to the next free port; the user asked for this one, so it is an error."""
+    import socket
+
+    from occmap.cli import main
+    from occmap.io.mapserver import save_map
+
+    save_map(tmp_path / "m.yaml", np.zeros((2, 2), np.int8), 0.5, (0.0, 0.0, 0.0))
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["view", str(tmp_path / "m.yaml"), "--port", str(port), "--no-browser"]) == 2
+        err = capsys.readouterr().err
+        assert f"port {port}" in err and "in use" in err and err.count("\n") == 1, err
+
+
 def test_slice_and_colour_modes_select_and_colour_the_right_boxes():
     from occmap.viz._lod import Voxels, cut, ramp
 

@@ -33,7 +33,7 @@ def new_server(host: str = "127.0.0.1", port: int = 0):
     return server
 
 
-def stop(server) -> None:
+def close_server(server) -> None:
     """Close ``server`` without its goodbye line on standard output."""
     with contextlib.redirect_stdout(io.StringIO()):
         server.stop()

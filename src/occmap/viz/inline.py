@@ -18,7 +18,7 @@ import numpy as np
 from .. import checks
 from ..errors import InvalidArgumentError
 from ._lod import Voxels, pick_level, ramp
-from ._scene3d import add_boxes, camera_view, new_server, stop
+from ._scene3d import add_boxes, camera_view, close_server, new_server
 
 #: Boxes in an inline scene at most: a notebook keeps its outputs, so a few MB each at most.
 INLINE_MAX_VOXELS = 150_000
@@ -62,7 +62,7 @@ def scene_document(voxels: Voxels, style: str = "points") -> str:
             server.initial_camera.look_at = tuple(look_at)
         return server.scene.as_html()
     finally:
-        stop(server)
+        close_server(server)
 
 
 def iframe(document: str, height: int = INLINE_HEIGHT) -> str:

@@ -35,7 +35,7 @@ from ..errors import InvalidArgumentError, OccmapError
 from ..logodds import probability
 from ._lod import COARSE_DEPTH, Level, Voxels, cut, pick_level, ramp
 from ._maps import Scene, open_scene, viewable
-from ._scene3d import STYLES, add_boxes, camera_view, new_server
+from ._scene3d import STYLES, add_boxes, camera_view, close_server, new_server
 
 #: Boxes drawn at most per class of space (occupied, free): about 20 MB to the browser, smooth on
 #: an integrated GPU. OctoMap's largest sample (fr_079.bt) has 372,904 occupied leaves.
@@ -91,6 +91,11 @@ class Viewer:
         if style not in STYLES:
             raise InvalidArgumentError(f"style must be one of {STYLES}, got {style!r}")
         self.server = new_server(host, port)  # silent: the caller prints the address
+        if port and self.server.get_port() != port:  # viser moves on to a free port: the user named this one
+            taken = self.server.get_port()
+            close_server(self.server)
+            raise InvalidArgumentError(f"port {port} on {host} is in use (the next free one is {taken}): "
+                                       "choose another, or 0 for any free one")
         self._lock = threading.RLock()
         self.scene: Scene | None = None
         self.occupied: Level | None = None
