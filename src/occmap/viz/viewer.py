@@ -33,6 +33,7 @@ import numpy as np
 from .. import checks
 from ..errors import InvalidArgumentError, OccmapError
 from ..logodds import probability
+from ..octree.keys import DEPTH
 from ._lod import COARSE_DEPTH, Level, Voxels, cut, pick_level, ramp
 from ._maps import Scene, open_scene, viewable
 from ._scene3d import STYLES, add_boxes, camera_view, close_server, new_server
@@ -173,11 +174,10 @@ class Viewer:
                 self.scene, self.occupied, self._free, self._points = scene, None, None, None
                 self._nodes_at = functools.lru_cache(maxsize=2)(scene.nodes_at) if scene.nodes_at else None
                 if self._nodes_at is not None:
-                    self.occupied = pick_level(lambda d: self._nodes_at(min(d, COARSE_DEPTH)), self._is_occupied,
-                                               self.max_voxels)
+                    self.occupied = self._level(self._is_occupied, 0, coarse=True)
                     self._draw_voxels()
                     timings["coarse"] = time.perf_counter() - start
-                    self.occupied = pick_level(self._nodes_at, self._is_occupied, self.max_voxels)
+                    self.occupied = self._level(self._is_occupied, 0)
                 if scene.points is not None:
                     pts = scene.points[::max(1, math.ceil(len(scene.points) / MAX_POINTS))]
                     self._points = Voxels(pts, np.full(len(pts), scene.resolution, np.float32),
@@ -191,6 +191,14 @@ class Viewer:
             timings["scene"] = time.perf_counter() - start
             self.timings = timings
             return scene
+
+    def _level(self, keep, column: int, coarse: bool = False) -> Level:
+        """The boxes of one class drawn (``keep``; ``column`` its entry in the scene's counts), at
+        :data:`~occmap.viz._lod.COARSE_DEPTH` at most for a first view."""
+        top = COARSE_DEPTH if coarse else DEPTH
+        counts = self.scene.counts
+        return pick_level(lambda d: self._nodes_at(min(d, top)), keep, self.max_voxels,
+                          None if counts is None else lambda d: counts(min(d, top))[column])
 
     def _is_occupied(self, v: Voxels) -> np.ndarray:
         return v.log_odds >= self.scene.occupied_log_odds
@@ -251,7 +259,7 @@ class Viewer:
             self.server.scene.remove_by_name("/map/free")
             return
         if self._free is None:
-            self._free = pick_level(self._nodes_at, self._is_free, self.max_voxels)
+            self._free = self._level(self._is_free, 1)
         v = self._slice(self._free.voxels)
         self._boxes("/map/free", v, self._colors(v, free=True), see_through=True)
 
