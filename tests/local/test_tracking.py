@@ -172,6 +172,28 @@ def test_a_track_not_seen_for_longer_than_max_coast_is_dropped():
     assert len(tracker) == 0 and tracker.stats["tracks_dropped"] == 1
 
 
+def test_doppler_narrows_a_tentative_person_s_speed_and_leaves_a_tentative_car_to_the_lidar():
+    person = _walker(Tracker(), until=0.4)  # its velocity from 0.2 s of displacement: not confirmed yet
+    car = Tracker()
+    for k in range(5):
+        t = 0.1 * k
+        car.update(t, Detections(np.array([10.0 * t]), np.array([0.0]), np.array([0.0]), np.array([4.4]),
+                                 np.array([1.8]), np.array([40]), np.array([False]), np.array([True])),
+                   sensor=(10.0 * t, -10.0))
+    for tracker, speed in ((person, 1.2), (car, 10.0)):
+        assert tracker.updates[0] >= 1 and not tracker.tracks().confirmed[0]
+        x, y = tracker.state[0, :2]
+        sensor = np.array([x - 8.0, y])  # behind it: radial speed = speed
+        pts = np.array([[x - 0.05, y], [x + 0.05, y]])
+        before = tracker.cov[0, 3, 3]
+        updated = tracker.update_radar(tracker.time, pts, np.zeros(2), [speed, speed])
+        if tracker is person:
+            assert updated == 1 and tracker.cov[0, 3, 3] < 0.2 * before
+            assert tracker.state[0, 3] == pytest.approx(1.2, abs=0.1)
+        else:
+            assert updated == 0 and tracker.cov[0, 3, 3] == before
+
+
 def test_time_must_not_go_backwards():
     tracker = Tracker()
     tracker.update(1.0, Detections.empty(), sensor=(0, 0))

@@ -265,13 +265,16 @@ class Tracker:
         """Doppler updates from one radar sweep at ``stamp`` (s, not before the last update):
         detections at world ``points`` (M, 2) whose reflectors move at ``radial_speeds`` (M,)
         (m/s, ego motion removed, positive away from the sensor) along world ``bearings`` (M,)
-        (rad). A confirmed track takes the detections on its footprint (predicted, grown by
+        (rad). A confirmed track, or a tentative person (a round track) that has its velocity from
+        its displacement, takes the detections on its footprint (predicted, grown by
         ``footprint_margin``; a detection on several goes to the nearest centre) as one
         measurement ``h(s) = v·cos(θ − φ)`` at their mean bearing and speed, noise
         ``doppler_sigma² / n``, when its squared innovation is within ``doppler_gate`` (a ghost
-        or clutter on the footprint is not). Tentative tracks are left to the lidar: a Doppler
-        that narrows their speed before their motion is known would confirm them with a wrong
-        one. Returns the number of tracks updated."""
+        or clutter on the footprint is not): its speed known sooner, the person is confirmed
+        sooner. Other tentative tracks are left to the lidar: a Doppler that narrows their speed
+        before their motion is known would confirm them with a wrong one (a young vehicle's heading
+        may still be the wrong axis of its box; on the simulated street such cars were confirmed up
+        to 5 m/s off). Returns the number of tracks updated."""
         p = self.params
         self._advance(stamp)
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
@@ -284,7 +287,8 @@ class Tracker:
             return 0
         owner = self._owners(pts, self.time, p.footprint_margin, confirmed_only=False)
         mine = owner >= 0
-        mine[mine] = self.status[owner[mine]] == CONFIRMED
+        k = owner[mine]
+        mine[mine] = (self.status[k] == CONFIRMED) | ((self.updates[k] >= 1) & (self.size[k, 0] < MIN_VEHICLE_LENGTH))
         if not mine.any():
             return 0
         tracks, n = np.unique(owner[mine], return_counts=True)
