@@ -66,6 +66,7 @@ class _BagSource:
         bag = self._bag = open_bag(path)  # kept for the first iteration: opening a ROS 2 bag costs 0.1 s
         try:
             self.topic = _pick_topic(bag, topic, self.MSGTYPE)
+            bag.require_standard(self.topic)
             self.count = bag.topics[self.topic].count
             self.sensor_frame = _first_frame(bag, self.topic)
             self.fixed_frame = fixed_frame or ""

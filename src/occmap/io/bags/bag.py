@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Iterable, Iterator, NamedTuple
 
 from ...errors import FormatError, InvalidArgumentError, MissingFileError
+from .definitions import check_definition
 from .ros1_chunks import Ros1Chunks
 
 __all__ = ["Bag", "Message", "Topic", "Where", "is_bag", "open_bag"]
@@ -37,6 +38,7 @@ __all__ = ["Bag", "Message", "Topic", "Where", "is_bag", "open_bag"]
 _ROS1_MAGIC = b"#ROSBAG V"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 _SQLITE_MAGIC = b"SQLite format 3\x00"
+_FORMS = {"MSG": "msg", "IDL": "idl"}  # rosbags' MessageDefinitionFormat names; NONE: no definition
 
 
 class Topic(NamedTuple):
@@ -152,6 +154,15 @@ class Bag:
                 raise InvalidArgumentError(f"{self.path}: topic {name!r} holds {topic.msgtype}, not {msgtype}")
         return self._stream(set(names))
 
+    def require_standard(self, topics: str | Iterable[str]) -> None:
+        """Raise :class:`FormatError` (naming the bag, the topic, the type and what differs) when
+        a connection of ``topics`` defines its type otherwise than ROS does: occmap's decoders
+        read the standard layout from the bytes (see :mod:`.definitions`). Types ``rosbags``
+        does not ship pass."""
+        names = {topics} if isinstance(topics, str) else set(topics)
+        for topic, msgtype, digest, form, text in self._source.definitions(names):
+            check_definition(self.path, topic, msgtype, self._source.encoding, digest, form, text)
+
     def _stream(self, names: set[str]) -> Iterator[Message]:
         encoding = self._source.encoding
         for topic, kind, time_ns, raw in self._source.raw(names):
@@ -246,6 +257,12 @@ class _Rosbags:
             connection, time_ns, raw = item
             yield connection.topic, connection.msgtype, time_ns, raw
 
+    def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
+        """``(topic, type, digest, "msg" | "idl" | "", definition)`` of each connection of ``topics``."""
+        for c in self._reader.connections:
+            if c.topic in topics:
+                yield c.topic, c.msgtype, c.digest, _FORMS.get(c.msgdef.format.name, ""), c.msgdef.data
+
     def decode(self, raw: bytes, msgtype: str) -> object:
         if self._typestore is None:
             self._typestore = self._types()
@@ -322,6 +339,11 @@ class _Ros1FromChunks:
         conns = {c.id: c for c in self._bag.connections.values() if c.topic in topics}
         for conn, time_ns, raw in self._bag.messages(set(conns)):
             yield conns[conn].topic, self._types[conn], time_ns, raw
+
+    def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
+        for c in self._bag.connections.values():
+            if c.topic in topics:
+                yield c.topic, self._types[c.id], c.md5sum, "msg", c.definition
 
     def decode(self, raw: bytes, msgtype: str) -> object:
         return self._typestore.deserialize_ros1(raw, msgtype)

@@ -115,7 +115,9 @@ def read_odometry(bag, topic: str) -> Odometry:
     """Every message of an odometry topic of ``bag`` (an open :class:`~occmap.io.bags.Bag`), in the
     order recorded. Raises :class:`FormatError` when the frames change between messages."""
     stamps, poses, frames = [], [], None
-    for k, m in enumerate(bag.messages(topic, msgtype=ODOMETRY)):
+    messages = bag.messages(topic, msgtype=ODOMETRY)
+    bag.require_standard(topic)
+    for k, m in enumerate(messages):
         stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(bag.path, topic, k, m.time))
         stamps.append(stamp)
         poses.append(pose)
@@ -146,6 +148,7 @@ def read_frame_tree(bag, topics=None) -> FrameTree:
     for t in topics:
         if t in bag.topics and bag.topics[t].msgtype not in TF_TYPES:
             raise FormatError(bag.path, f"topic {t!r} holds {bag.topics[t].msgtype}, not {TF_TYPES[0]}")
+    bag.require_standard(t for t in topics if t in bag.topics)
     links: dict[tuple[str, str, bool], tuple[list, list]] = {}
     counts: dict[str, int] = {}
     for m in bag.messages(topics):
