@@ -20,7 +20,7 @@ from functools import cache, lru_cache
 
 from ...errors import FormatError
 
-__all__ = ["check_definition", "differences", "standard_digest"]
+__all__ = ["check_definition", "differences", "standard_digest", "standard_store"]
 
 TFMESSAGE = "tf2_msgs/msg/TFMessage"
 #: ROS 1's older tf/tfMessage, with tf2's fields
@@ -32,7 +32,7 @@ _TFMESSAGE_MSG = "geometry_msgs/TransformStamped[] transforms"
 
 
 @cache
-def _standard_store(encoding: str):
+def standard_store(encoding: str):
     """``rosbags``' type store of the standard definitions for bags of ``encoding``, with ROS 1's
     tf messages (loading a store costs 0.1-0.3 s, once per process)."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -48,7 +48,7 @@ def _standard_store(encoding: str):
 def standard_digest(encoding: str, msgtype: str) -> str:
     """The digest a standard ``msgtype`` carries: ROS 1's md5sum (``"ros1"``), ROS 2's RIHS01
     type hash (``"cdr"``)."""
-    store = _standard_store(encoding)
+    store = standard_store(encoding)
     return store.generate_msgdef(msgtype, ros_version=1)[1] if encoding == "ros1" else store.hash_rihs01(msgtype)
 
 
@@ -96,7 +96,7 @@ def differences(declared: list[tuple[str, str]], standard: list[tuple[str, str]]
 @lru_cache(maxsize=64)
 def _verdict(encoding: str, msgtype: str, digest: str, form: str, text: str) -> str:
     """Empty when the definition is standard (see the module's docstring), else what differs."""
-    store = _standard_store(encoding)
+    store = standard_store(encoding)
     if msgtype not in store.fielddefs or digest == standard_digest(encoding, msgtype):
         return ""
     if not text.strip():
