@@ -10,7 +10,7 @@ import pytest
 
 from occmap.errors import FormatError
 from occmap.io.bags import open_bag, read_frame_tree, read_odometry
-from occmap.io.bags.definitions import _verdict, standard_digest
+from occmap.io.bags.definitions import difference, standard_digest
 from occmap.sources import BagScans
 
 rosbags = pytest.importorskip("rosbags")
@@ -36,8 +36,8 @@ def test_standard_definitions_pass_when_parsed(kind):
     store, encoding = standard_store(kind), "ros1" if kind == "ros1" else "cdr"
     for msgtype in (SCAN, TF, ODOM, CLOUD):
         text = store.generate_msgdef(msgtype, ros_version=1 if kind == "ros1" else 2)[0]
-        assert _verdict(encoding, msgtype, "", "msg", text) == ""
-        assert _verdict(encoding, msgtype, "", "", "") == ("" if encoding == "cdr" else
+        assert difference(encoding, msgtype, "", "msg", text) == ""
+        assert difference(encoding, msgtype, "", "", "") == ("" if encoding == "cdr" else
                                                            f"md5sum '', not the standard {ROS1_MD5[msgtype]!r}")
 
 
@@ -60,7 +60,8 @@ def custom_scan(m):
 
 
 CHANGES = {  # a changed LaserScan: the edit of its definition, and what the error must say
-    "inserted": (lambda t: t.replace("header\n", "header\nuint32 scan_id\n", 1), r"has an extra field scan_id \(uint32\)"),
+    "inserted": (lambda t: t.replace("header\n", "header\nuint32 scan_id\n", 1),
+                 r"has an extra field scan_id \(uint32\)"),
     "renamed": (lambda t: t.replace("float32[] ranges", "float32[] distances"),
                 r"lacks field ranges \(float32\[\]\); has an extra field distances \(float32\[\]\)"),
 }

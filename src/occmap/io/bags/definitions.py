@@ -20,12 +20,11 @@ from functools import cache, lru_cache
 
 from ...errors import FormatError
 
-__all__ = ["check_definition", "differences", "standard_digest", "standard_store"]
+__all__ = ["TF_TYPES", "check_definition", "difference", "standard_digest", "standard_store"]
 
-TFMESSAGE = "tf2_msgs/msg/TFMessage"
-#: ROS 1's older tf/tfMessage, with tf2's fields
-TF1MESSAGE = "tf/msg/tfMessage"
-
+TFMESSAGE, TF1MESSAGE = "tf2_msgs/msg/TFMessage", "tf/msg/tfMessage"
+#: tf2's message, and ROS 1's older tf/tfMessage with the same fields
+TF_TYPES = (TFMESSAGE, TF1MESSAGE)
 
 #: tf2_msgs/msg/TFMessage.msg, the same file in ROS 1 and ROS 2 (Noetic's store lacks tf2_msgs)
 _TFMESSAGE_MSG = "geometry_msgs/TransformStamped[] transforms"
@@ -79,7 +78,7 @@ def _layout(fielddefs: dict, msgtype: str, prefix: str = "") -> list[tuple[str, 
     return out
 
 
-def differences(declared: list[tuple[str, str]], standard: list[tuple[str, str]], limit: int = 4) -> str:
+def _differences(declared: list[tuple[str, str]], standard: list[tuple[str, str]], limit: int = 4) -> str:
     """What ``declared`` (a layout, see :func:`_layout`) does differently from ``standard``, in
     words; empty when they are the same."""
     if declared == standard:
@@ -94,13 +93,18 @@ def differences(declared: list[tuple[str, str]], standard: list[tuple[str, str]]
 
 
 @lru_cache(maxsize=64)
-def _verdict(encoding: str, msgtype: str, digest: str, form: str, text: str) -> str:
-    """Empty when the definition is standard (see the module's docstring), else what differs."""
+def difference(encoding: str, msgtype: str, digest: str, form: str, text: str) -> str:
+    """How a connection's definition of ``msgtype`` (``digest``; ``text`` in ``form`` ``"msg"``,
+    ``"idl"`` or ``""`` for none) differs from the standard layout for ``encoding``, in words;
+    empty when it is standard (see the module's docstring) or the type is not one ``rosbags``
+    ships."""
     store = standard_store(encoding)
     if msgtype not in store.fielddefs or digest == standard_digest(encoding, msgtype):
         return ""
     if not text.strip():
-        return "" if encoding == "cdr" else f"md5sum {digest!r}, not the standard {standard_digest(encoding, msgtype)!r}"
+        if encoding == "cdr":
+            return ""
+        return f"md5sum {digest!r}, not the standard {standard_digest(encoding, msgtype)!r}"
     from rosbags.typesys import get_types_from_idl, get_types_from_msg
 
     try:
@@ -108,20 +112,21 @@ def _verdict(encoding: str, msgtype: str, digest: str, form: str, text: str) -> 
     except Exception as e:  # rosbags' parser raises its own errors and others on text it cannot read
         return f"its definition does not parse ({type(e).__name__}: {e})"
     fielddefs = {**store.fielddefs, **{k: v[:2] for k, v in declared.items()}}
-    if "roslib/msg/Header" in declared:  # before ROS C Turtle (2010): "Header" meant roslib/Header
-        fielddefs.setdefault("std_msgs/msg/Header", declared["roslib/msg/Header"][:2])
+    if "roslib/msg/Header" in declared and "std_msgs/msg/Header" not in declared:
+        # before ROS C Turtle (2010) "Header" meant roslib/Header; rosbags reads it as std_msgs'
+        fielddefs["std_msgs/msg/Header"] = declared["roslib/msg/Header"][:2]
     try:
         layout = _layout(fielddefs, msgtype)
     except KeyError as e:
         return f"its definition uses type {e.args[0]}, which it does not define"
-    return differences(layout, _layout(store.fielddefs, msgtype))
+    return _differences(layout, _layout(store.fielddefs, msgtype))
 
 
 def check_definition(path, topic: str, msgtype: str, encoding: str, digest: str, form: str, text: str) -> None:
     """Raise :class:`FormatError` naming the bag at ``path``, ``topic``, ``msgtype`` and what
     differs when a connection's definition (``digest``, ``text`` in ``form`` ``"msg"``,
     ``"idl"`` or ``""``) is not the standard layout of ``msgtype`` for ``encoding``."""
-    verdict = _verdict(encoding, msgtype, digest or "", form, text or "")
-    if verdict:
+    said = difference(encoding, msgtype, digest or "", form, text or "")
+    if said:
         raise FormatError(path, f"topic {topic!r} declares its own {msgtype}, not the standard one occmap decodes: "
-                          f"{verdict}")
+                          f"{said}")

@@ -20,13 +20,12 @@ from ...geometry.frames import FrameTree
 from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
 from .bag import Where
+from .definitions import TF_TYPES
 from .wire import Wire, frame_name
 
 __all__ = ["Odometry", "TF_TYPES", "TransformsMessage", "decode_odometry", "decode_tf_message", "read_frame_tree",
            "read_odometry", "ros_poses"]
 
-# tf2's message, and ROS 1's older tf/tfMessage with the same fields
-TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 ODOMETRY = "nav_msgs/msg/Odometry"
 # The fewest bytes a TransformStamped takes (stamp, two empty strings, seven float64), so that a
 # corrupt count is caught before anything is allocated for it.
