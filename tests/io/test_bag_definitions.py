@@ -120,3 +120,30 @@ def test_standard_bag_passes(tmp_path, kind):
         *custom_scan(m)])
     (scan,) = BagScans(path)
     assert np.allclose(scan.angles, [0.25, 0.35, 0.45]) and np.array_equal(scan.ranges, [1.0, 2.0, 3.0])
+
+
+LASER_SCAN_IDL = """module sensor_msgs {
+  module msg {
+    struct LaserScan {
+      std_msgs::msg::Header header;
+      float angle_min;
+      float angle_max;
+      float angle_increment;
+      float time_increment;
+      float scan_time;
+      float range_min;
+      float range_max;
+      sequence<float> ranges;
+      sequence<float> intensities;
+    };
+  };
+};
+"""
+
+
+def test_idl_definitions_are_compared_too():
+    """MCAP schemas may hold ``.idl`` text (ros2idl): parsed and compared the same way."""
+    assert difference("cdr", SCAN, "", "idl", LASER_SCAN_IDL) == ""
+    assert difference("cdr", SCAN, "", "idl", LASER_SCAN_IDL.replace("float scan_time", "double scan_time")) \
+        == "field scan_time is float64, not float32"
+    assert difference("cdr", SCAN, "", "idl", "module broken {").startswith("its definition does not parse")
