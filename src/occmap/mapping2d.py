@@ -65,20 +65,29 @@ def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: fl
                     max_extent: float | None = DEFAULT_MAX_EXTENT) -> MappingSummary:
     """:func:`map_scans` for scans that arrive one by one (a bag, a log read as it goes): they are
     stacked ``chunk`` at a time, the next chunk read on a thread of its own while the grid takes
-    the last (:func:`occmap._threads.read_ahead`), so memory holds two or three chunks. Without ``max_range``, no-return
+    the last (:func:`occmap._threads.read_ahead`), so memory holds two or three chunks. The first
+    chunks are smaller (:data:`FIRST_CHUNK` scans, doubling up to ``chunk``): nothing overlaps the
+    reading of the first, so the grid starts as soon as a few scans are in. Without ``max_range``, no-return
     readings clear up to the largest maximum range of their chunk (one sensor has one; for scans
     of one maximum range the grid is :func:`map_scans`'s to the bit). ``progress`` is told the
     scans done."""
-    chunks = read_ahead(stack_scans(batch) for batch in _batches(scans, chunk))
+    chunks = read_ahead(stack_scans(batch) for batch in _batches(scans, chunk, FIRST_CHUNK))
     return _integrate(chunks, resolution, lambda c: float(max_range) if max_range is not None
                       else float(c.max_ranges.max()), model, max_extent, progress)
 
 
-def _batches(items, size: int):
-    """Lists of ``size`` items in order (the last one shorter)."""
+#: Scans in the first chunk of :func:`map_scan_stream` (a bag's take 1-2 ms to read)
+FIRST_CHUNK = 25
+
+
+def _batches(items, size: int, first: int):
+    """Lists of the items in order: ``first`` items, then twice as many each time up to ``size``
+    (the last list shorter)."""
     it = iter(items)
-    while batch := list(itertools.islice(it, size)):
+    n = max(1, min(first, size))
+    while batch := list(itertools.islice(it, n)):
         yield batch
+        n = min(2 * n, size)
 
 
 def _integrate(chunks, resolution, limit_of, model, max_extent, progress) -> MappingSummary:

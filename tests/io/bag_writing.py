@@ -70,16 +70,23 @@ class Msgs:
                              data=np.frombuffer(data, dtype=np.uint8), is_dense=dense)
 
 
-def write_bag(tmp_path, kind, build, name="test"):
-    """Write a bag of ``kind`` whose messages ``build(Msgs)`` returns as (topic, type, time s, msg)."""
+def standard_store(kind):
+    """The type store of the standard messages for a bag of ``kind``."""
     if kind.startswith("ros1"):
         ts = get_typestore(Stores.ROS1_NOETIC)  # holds no tf2_msgs: add TFMessage as ROS defines it
         ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", TF))
-        msgs = Msgs(ts)
+        return ts
+    return get_typestore(Stores.LATEST)
+
+
+def write_bag(tmp_path, kind, build, name="test", typestore=None):
+    """Write a bag of ``kind`` whose messages ``build(Msgs)`` returns as (topic, type, time s, msg),
+    their types defined by ``typestore`` (default: the standard ones)."""
+    msgs = Msgs(typestore or standard_store(kind))
+    if kind.startswith("ros1"):
         path = tmp_path / f"{name}.bag"
         writer, serialize = Writer1(path), msgs.ts.serialize_ros1
     else:
-        msgs = Msgs(get_typestore(Stores.LATEST))
         path = tmp_path / name
         plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
         writer, serialize = Writer2(path, version=9, storage_plugin=plugin), msgs.ts.serialize_cdr

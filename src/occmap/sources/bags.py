@@ -16,8 +16,10 @@ A message whose stamp lies outside the tf samples (or beyond the pose file's tol
 guessed at: it is dropped and counted in ``dropped`` under its reason, as are scans with no beams
 and clouds with no finite points. A sensor frame that tf does not join to the fixed frame at all
 stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming both frames and the
-time. Memory holds the frame tree and one message (a batch of 50 for laser scans, whose poses are
-looked up together).
+time. A topic (the scans', tf, odometry) whose connection defines its type otherwise than ROS does
+is refused with a :class:`~occmap.errors.FormatError` saying what differs
+(:mod:`occmap.io.bags.definitions`). Memory holds the frame tree and one message (a batch of 50 for
+laser scans, whose poses are looked up together).
 
 The fixed frame defaults to the root of the sensor frame's tf tree (``odom`` or ``map`` in a
 usual robot's), and to ``fallback_frame`` when tf does not know the sensor frame.
@@ -66,6 +68,7 @@ class _BagSource:
         bag = self._bag = open_bag(path)  # kept for the first iteration: opening a ROS 2 bag costs 0.1 s
         try:
             self.topic = _pick_topic(bag, topic, self.MSGTYPE)
+            bag.require_standard(self.topic)
             self.count = bag.topics[self.topic].count
             self.sensor_frame = _first_frame(bag, self.topic)
             self.fixed_frame = fixed_frame or ""
@@ -104,6 +107,7 @@ class _BagSource:
 
     def __iter__(self) -> Iterator:
         bag, self._bag = self._bag or open_bag(self.path), None
+        bag.require_standard(self.topic)  # a bag opened anew: its messages then decode by the standard types
         self.dropped.clear()
         self.tilted = 0
         with bag:

@@ -2,7 +2,8 @@
 messages (:mod:`.bag`; ROS 1 bags with an index ``rosbags`` rejects through :mod:`.ros1_chunks`),
 and their messages decoded into occmap's arrays and records: point clouds (:mod:`.pointcloud2`),
 planar scans (:mod:`.laserscan`, from the bytes, :mod:`.wire`), tf and odometry
-(:mod:`.transforms`, likewise).
+(:mod:`.transforms`, likewise), after checking that the bag defines those types as ROS does
+(:mod:`.definitions`).
 
 Example::
 

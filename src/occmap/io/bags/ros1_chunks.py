@@ -40,12 +40,14 @@ _MAGIC = b"#ROSBAG V2.0\n"
 
 
 class Connection(NamedTuple):
-    """One ROS 1 connection: a topic with its message type (``pkg/Name``) and definition."""
+    """One ROS 1 connection: a topic with its message type (``pkg/Name``), definition and the
+    definition's md5sum."""
 
     id: int
     topic: str
     msgtype: str
     definition: str
+    md5sum: str
 
 
 class ChunkInfo(NamedTuple):
@@ -92,6 +94,7 @@ class Ros1Chunks:
                 fields.get(b"topic", b"").decode(errors="replace"),
                 info.get(b"type", b"").decode(errors="replace"),
                 info.get(b"message_definition", b"").decode(errors="replace"),
+                info.get(b"md5sum", b"").decode(errors="replace"),
             )
         for _ in range(chunk_count):
             start = pos

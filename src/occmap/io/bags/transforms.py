@@ -20,13 +20,12 @@ from ...geometry.frames import FrameTree
 from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
 from .bag import Where
+from .definitions import TF_TYPES
 from .wire import Wire, frame_name
 
 __all__ = ["Odometry", "TF_TYPES", "TransformsMessage", "decode_odometry", "decode_tf_message", "read_frame_tree",
            "read_odometry", "ros_poses"]
 
-# tf2's message, and ROS 1's older tf/tfMessage with the same fields
-TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 ODOMETRY = "nav_msgs/msg/Odometry"
 # The fewest bytes a TransformStamped takes (stamp, two empty strings, seven float64), so that a
 # corrupt count is caught before anything is allocated for it.
@@ -115,7 +114,9 @@ def read_odometry(bag, topic: str) -> Odometry:
     """Every message of an odometry topic of ``bag`` (an open :class:`~occmap.io.bags.Bag`), in the
     order recorded. Raises :class:`FormatError` when the frames change between messages."""
     stamps, poses, frames = [], [], None
-    for k, m in enumerate(bag.messages(topic, msgtype=ODOMETRY)):
+    messages = bag.messages(topic, msgtype=ODOMETRY)
+    bag.require_standard(topic)
+    for k, m in enumerate(messages):
         stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(bag.path, topic, k, m.time))
         stamps.append(stamp)
         poses.append(pose)
@@ -146,6 +147,7 @@ def read_frame_tree(bag, topics=None) -> FrameTree:
     for t in topics:
         if t in bag.topics and bag.topics[t].msgtype not in TF_TYPES:
             raise FormatError(bag.path, f"topic {t!r} holds {bag.topics[t].msgtype}, not {TF_TYPES[0]}")
+    bag.require_standard(t for t in topics if t in bag.topics)
     links: dict[tuple[str, str, bool], tuple[list, list]] = {}
     counts: dict[str, int] = {}
     for m in bag.messages(topics):
