@@ -218,13 +218,14 @@ def _mapping_run(entries) -> Scene:
 
 
 def _local_map_run(entries) -> Scene:
-    """The window's plane is drawn step by step, where the window is at that step."""
+    """The window's plane is drawn step by step, where the window is at that step; the scene spans
+    the ground it swept and half a window around (room for the camera's view)."""
     from ..local.recording import LocalMapRecording
 
     rec = LocalMapRecording.of_entries(entries)
     h, w = rec.costs.shape[1:]
     size = np.array([w, h]) * rec.resolution
-    lo, hi = rec.origins.min(axis=0), rec.origins.max(axis=0) + size
+    lo, hi = rec.origins.min(axis=0) - size / 2, rec.origins.max(axis=0) + 1.5 * size
     summary = (f"{len(rec):,} steps over {rec.stamps[-1] - rec.stamps[0]:.1f} s, a {w} × {h} window at "
                f"{rec.resolution:g} m, {len(rec.track_id):,} track boxes")
     return Scene(entries.path, "local map run", summary, rec.resolution, (np.append(lo, 0.0), np.append(hi, 0.0)),
