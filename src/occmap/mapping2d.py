@@ -94,15 +94,16 @@ def _integrate(chunks, resolution, limit_of, model, max_extent, progress, record
     done = 0
     for c in chunks:
         ranges = np.where(c.ranges >= c.max_ranges[:, None], np.inf, c.ranges)
+        limit = limit_of(c)
         with clock.running():
             try:
-                grid.insert_scans(c.poses, ranges, c.angles, max_range=limit_of(c), model=model)
+                grid.insert_scans(c.poses, ranges, c.angles, max_range=limit, model=model)
             except InvalidArgumentError as e:
                 raise InvalidArgumentError(f"scans {done}–{done + len(c.poses) - 1} of the log (indices below count "
                                            f"from {done}): {e}") from None
         done += len(c.poses)
         if recorder is not None:
-            recorder.add(grid, c.poses, c.stamps)
+            recorder.add(grid, c.poses, ranges, c.angles, limit, c.stamps)
         if progress is not None:
             progress.update(done)
     if progress is not None:

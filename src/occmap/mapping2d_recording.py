@@ -20,6 +20,8 @@ import numpy as np
 
 from . import _recordings, checks
 from .errors import FormatError, InvalidArgumentError
+from .grid2d.grid import _beam_points, scan_arrays
+from .logodds import occupancy_values
 
 #: The ``format`` entry of a mapping recording file, and its version.
 FORMAT = "occmap mapping recording"
@@ -145,27 +147,38 @@ class MappingRecorder:
         self._state = None  # the last recorded map, and its corner's lattice cell relative to _ref's
         self._corner = np.zeros(2, np.int64)
 
-    def add(self, grid, poses: np.ndarray, stamps: np.ndarray) -> None:
-        """The batch of scans (sensor poses (n, 3), stamps (n,)) just inserted in ``grid`` (an
-        :class:`~occmap.grid2d.OccupancyGrid2D` that grows)."""
+    def add(self, grid, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range: float,
+            stamps: np.ndarray) -> None:
+        """The batch of scans just inserted in ``grid`` (an :class:`~occmap.grid2d.OccupancyGrid2D`
+        that grows) as it was given to :meth:`~occmap.grid2d.OccupancyGrid2D.insert_scans`: sensor
+        poses (n, 3), ranges (n, m), angles, ``max_range``; and their stamps (n,). Only the box the
+        batch's beams reach is compared with the last state: a batch costs its box, not the map."""
         self._stamps.append(np.asarray(stamps, np.float64))
         self._poses.append(np.asarray(poses, np.float64))
         if grid.origin is None:  # nothing in the map yet
             return
         if self._ref is None:
             self._ref = grid.cell_to_world(np.zeros(2, np.int64))
-        occ = grid.occupancy()
         corner = -grid.world_to_cell(self._ref).astype(np.int64)  # (row, col) of cell (0, 0), lattice
-        before = np.full(occ.shape, -1, np.int8)
-        if self._state is not None:
-            r, c = self._corner - corner
-            h, w = self._state.shape
-            before[r:r + h, c:c + w] = self._state
-        rows, cols = np.nonzero(occ != before)
-        self._cells.append(np.stack([rows + corner[0], cols + corner[1]], axis=1))
-        self._values.append(occ[rows, cols])
+        if self._state is None or self._state.shape != grid.shape or (corner != self._corner).any():
+            state = np.full(grid.shape, -1, np.int8)  # the map grew: the last state in its new frame
+            if self._state is not None:
+                r, c = self._corner - corner
+                h, w = self._state.shape
+                state[r:r + h, c:c + w] = self._state
+            self._state, self._corner = state, corner
+        P, R, A, limit = scan_arrays(poses, ranges, angles, max_range)
+        x, y = _beam_points(P, R, A, limit)
+        res = grid.resolution
+        window, at = grid.log_odds_in((np.nanmin(x) - res, np.nanmin(y) - res), (np.nanmax(x) + res, np.nanmax(y) + res))
+        r0, c0 = np.rint((at - grid.origin) / res).astype(np.int64)[::-1]
+        now = occupancy_values(window)
+        before = self._state[r0:r0 + now.shape[0], c0:c0 + now.shape[1]]
+        rows, cols = np.nonzero(now != before)
+        self._cells.append(np.stack([rows + r0 + corner[0], cols + c0 + corner[1]], axis=1))
+        self._values.append(now[rows, cols])
         self._steps.append(sum(len(s) for s in self._stamps) - 1)
-        self._state, self._corner = occ, corner
+        before[...] = now
 
     def finish(self, grid) -> MappingRecording:
         """The recording, in the frame of ``grid`` (the same one, done)."""

@@ -48,6 +48,9 @@ from ._maps import Plane, Scene, occupancy_plane, open_scene, viewable
 DEFAULT_MAX_VOXELS = 500_000
 #: Points of a cloud drawn at most (every k-th point beyond it).
 MAX_POINTS = 2_000_000
+#: Cells a side of a map drawn step by step, at most (beyond it, blocks of k × k cells drawn as
+#: one: sending a step stays a fraction of a second).
+MAX_PLANE_CELLS = 2048
 #: Maps listed beside the one shown, at most.
 MAX_LISTED = 500
 
@@ -368,9 +371,9 @@ class Viewer:
     def _draw_mapping(self, rec, i: int, z: float) -> str:
         """The map as it was after scan ``i`` (:meth:`~occmap.mapping2d_recording.MappingRecording.occupancy_at`),
         the sensor's path so far and a frame at its pose."""
-        occ = rec.occupancy_at(i)
+        occ, k = _pooled(rec.occupancy_at(i), MAX_PLANE_CELLS)
         if occ.size:
-            self._draw_image(occupancy_plane(occ, rec.resolution, rec.origin, 0.0))
+            self._draw_image(occupancy_plane(occ, k * rec.resolution, rec.origin, 0.0))
         poses = rec.poses[: i + 1]
         poses = poses[np.isfinite(poses).all(axis=1)]
         self._draw_track("/map/run/path", poses, PATH_COLOR, z)
@@ -401,7 +404,7 @@ class Viewer:
                 segments = np.concatenate([ends, np.full((len(ends), 2, 1), z)], axis=2).astype(np.float32)
                 self.server.scene.add_line_segments(f"/map/run/tracks_{name}", segments,
                                                     TRACK_COLOR if name == "confirmed" else TENTATIVE_COLOR,
-                                                    line_width=3.0)
+                                                    thickness=3.0, thickness_units="screen")
         return f", {int(t['confirmed'].sum())} confirmed tracks of {len(t['id'])}"
 
     def _draw_track(self, name: str, poses: np.ndarray, colour, z: float) -> None:
@@ -543,3 +546,17 @@ def _at_height(poses: np.ndarray, z: float) -> np.ndarray:
     out[:, :2] = poses[:, :2]
     out[:, 2] = z
     return out
+
+
+def _pooled(occupancy: np.ndarray, max_side: int) -> tuple[np.ndarray, int]:
+    """nav_msgs values (H, W) in blocks of k × k cells, the smallest k that brings both sides to
+    ``max_side`` at most, each block its largest value (an occupied cell shows through free ones,
+    a known one through unknown ones); and k. The blocks cover k·⌈H/k⌉ × k·⌈W/k⌉ cells from the
+    map's corner (the last ones padded with unknown)."""
+    h, w = occupancy.shape
+    k = max(1, -(-max(h, w) // max_side))
+    if k == 1:
+        return occupancy, 1
+    padded = np.full((-(-h // k) * k, -(-w // k) * k), -1, np.int8)
+    padded[:h, :w] = occupancy
+    return padded.reshape(padded.shape[0] // k, k, padded.shape[1] // k, k).max(axis=(1, 3)), k
