@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _recordings, checks
+from ._recording_kernels import changed_log_odds
 from .errors import FormatError, InvalidArgumentError
 from .grid2d.grid import _beam_points, scan_arrays
 from .logodds import occupancy_values
@@ -138,13 +139,15 @@ class MappingRecorder:
     """Records a mapping run as it goes: :meth:`add` after each batch of scans is in the grid
     (``every`` scans a batch, the last one shorter; :func:`occmap.mapping2d.map_scans` batches
     so), :meth:`finish` once the run is done. Holds the map's last recorded state and the deltas:
-    its memory is the changed cells, 17 bytes each."""
+    its memory is the changed cells, 17 bytes each, and the map's last state, 5 bytes a cell."""
 
     def __init__(self, every: int = EVERY):
         self.every = checks.count("every", every, minimum=1)
         self._stamps, self._poses, self._steps, self._cells, self._values = [], [], [], [], []
         self._ref = None  # the world centre of the first map's cell (0, 0): it keeps its lattice cell
-        self._state = None  # the last recorded map, and its corner's lattice cell relative to _ref's
+        # the last recorded map (nav_msgs values and log-odds), and its corner's lattice cell
+        # relative to _ref's
+        self._state = self._log_odds = None
         self._corner = np.zeros(2, np.int64)
 
     def add(self, grid, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range: float,
@@ -161,24 +164,32 @@ class MappingRecorder:
             self._ref = grid.cell_to_world(np.zeros(2, np.int64))
         corner = -grid.world_to_cell(self._ref).astype(np.int64)  # (row, col) of cell (0, 0), lattice
         if self._state is None or self._state.shape != grid.shape or (corner != self._corner).any():
-            state = np.full(grid.shape, -1, np.int8)  # the map grew: the last state in its new frame
+            # the map grew: the last state in its new frame
+            state, log_odds = np.full(grid.shape, -1, np.int8), np.full(grid.shape, np.nan, np.float32)
             if self._state is not None:
                 r, c = self._corner - corner
                 h, w = self._state.shape
-                state[r:r + h, c:c + w] = self._state
-            self._state, self._corner = state, corner
+                state[r:r + h, c:c + w], log_odds[r:r + h, c:c + w] = self._state, self._log_odds
+            self._state, self._log_odds, self._corner = state, log_odds, corner
         P, R, A, limit = scan_arrays(poses, ranges, angles, max_range)
         x, y = _beam_points(P, R, A, limit)
         res = grid.resolution
         window, at = grid.log_odds_in((np.nanmin(x) - res, np.nanmin(y) - res), (np.nanmax(x) + res, np.nanmax(y) + res))
         r0, c0 = np.rint((at - grid.origin) / res).astype(np.int64)[::-1]
-        now = occupancy_values(window)
-        before = self._state[r0:r0 + now.shape[0], c0:c0 + now.shape[1]]
-        rows, cols = np.nonzero(now != before)
+        box = slice(r0, r0 + window.shape[0]), slice(c0, c0 + window.shape[1])
+        # a cell's value can change only where its log-odds did: the nav_msgs values, dearer, are
+        # worked out for those cells alone
+        flat = np.empty(window.size, np.int64)
+        flat = flat[:changed_log_odds(window, self._log_odds[box], flat)]
+        now = occupancy_values(window.reshape(-1)[flat])
+        rows, cols = np.divmod(flat, window.shape[1])
+        before = self._state[box]
+        changed = now != before[rows, cols]
+        rows, cols, now = rows[changed], cols[changed], now[changed]
         self._cells.append(np.stack([rows + r0 + corner[0], cols + c0 + corner[1]], axis=1))
-        self._values.append(now[rows, cols])
+        self._values.append(now)
         self._steps.append(sum(len(s) for s in self._stamps) - 1)
-        before[...] = now
+        before[rows, cols] = now
 
     def finish(self, grid) -> MappingRecording:
         """The recording, in the frame of ``grid`` (the same one, done)."""
