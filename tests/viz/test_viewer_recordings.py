@@ -197,7 +197,7 @@ def test_the_costmap_moves_in_the_browser(browser, local):
 
 
 @pytest.mark.parametrize("kind", ["mapping", "local"])
-def test_broken_recordings_are_refused_naming_file_and_entry(kind, request, tmp_path):
+def test_broken_recordings_are_refused_naming_file_and_entry(kind, request, tmp_path, capsys):
     from occmap.viz._maps import open_scene
 
     source = (request.getfixturevalue("mapping")[1] / "intel.npz" if kind == "mapping"
@@ -222,6 +222,9 @@ def test_broken_recordings_are_refused_naming_file_and_entry(kind, request, tmp_
     with pytest.raises(FormatError, match=r"foreign\.npz: not an occmap recording \(format entry "
                                           r"array\('occmap octree recording'"):
         open_scene(broken("foreign", format=np.array("occmap octree recording")))
+    capsys.readouterr()
+    assert main(["view", str(tmp_path / "foreign.npz"), "--port", "0", "--no-browser"]) == 2  # one line, no server
+    assert "foreign.npz: not an occmap recording" in capsys.readouterr().err
     with pytest.raises(FormatError, match=r"version\.npz: recording version array\(2\)"):
         open_scene(broken("version", version=np.array(2)))
     with pytest.raises(FormatError, match=r"offsets\.npz: entry '(delta|track)_offsets' must rise from 0"):
