@@ -45,7 +45,7 @@ class MappingRecording:
     poses: np.ndarray  # (N, 3) float64, the sensor's
     delta_steps: np.ndarray  # (M,) int64, non-decreasing, < N
     delta_offsets: np.ndarray  # (M + 1,) int64
-    delta_cells: np.ndarray  # (K,) int64
+    delta_cells: np.ndarray  # (K,) int32 (int64 for maps of 2³¹ cells or more)
     delta_values: np.ndarray  # (K,) int8
     shape: tuple[int, int]  # (H, W) of the final map
     resolution: float
@@ -118,7 +118,7 @@ class MappingRecording:
         steps = e.get("delta_steps", 1, kinds="iu").astype(np.int64)
         if len(steps) and (steps[0] < 0 or steps[-1] >= n or (np.diff(steps) < 0).any()):
             raise FormatError(e.path, f"entry 'delta_steps' must rise within 0 .. {n - 1} (the steps)")
-        cells = e.get("delta_cells", 1, kinds="iu").astype(np.int64)
+        cells = e.get("delta_cells", 1, kinds="iu")
         values = e.get("delta_values", 1, dtype=np.int8)
         e.same_length(len(cells), "delta_cells", delta_values=values)
         offsets = e.offsets("delta_offsets", len(steps), len(cells), "delta_cells")
@@ -139,11 +139,14 @@ class MappingRecorder:
     """Records a mapping run as it goes: :meth:`add` after each batch of scans is in the grid
     (``every`` scans a batch, the last one shorter; :func:`occmap.mapping2d.map_scans` batches
     so), :meth:`finish` once the run is done. Holds the map's last recorded state and the deltas:
-    its memory is the changed cells, 17 bytes each, and the map's last state, 5 bytes a cell."""
+    its memory is the changed cells, 5 bytes each (a map of up to 2³² cells), and the map's last
+    state, 5 bytes a cell."""
 
     def __init__(self, every: int = EVERY):
         self.every = checks.count("every", every, minimum=1)
-        self._stamps, self._poses, self._steps, self._cells, self._values = [], [], [], [], []
+        # per batch: stamps, poses, its last scan, the changed cells (flat indices into the map as
+        # it was then, whose corner and width are the batch's frame) and their values
+        self._stamps, self._poses, self._steps, self._cells, self._frames, self._values = [], [], [], [], [], []
         self._ref = None  # the world centre of the first map's cell (0, 0): it keeps its lattice cell
         # the last recorded map (nav_msgs values and log-odds), and its corner's lattice cell
         # relative to _ref's
@@ -186,7 +189,9 @@ class MappingRecorder:
         before = self._state[box]
         changed = now != before[rows, cols]
         rows, cols, now = rows[changed], cols[changed], now[changed]
-        self._cells.append(np.stack([rows + r0 + corner[0], cols + c0 + corner[1]], axis=1))
+        index = np.uint32 if self._state.size <= 2**32 else np.int64
+        self._cells.append(((rows + r0) * self._state.shape[1] + cols + c0).astype(index))
+        self._frames.append((*corner, self._state.shape[1]))
         self._values.append(now)
         self._steps.append(sum(len(s) for s in self._stamps) - 1)
         before[rows, cols] = now
@@ -200,9 +205,11 @@ class MappingRecorder:
             shape, origin, corner = (0, 0), np.zeros(2), np.zeros(2, np.int64)
         else:
             shape, origin, corner = grid.shape, np.asarray(grid.origin, np.float64), self._corner
-        cells = np.concatenate(self._cells) if self._cells else np.zeros((0, 2), np.int64)
-        flat = (cells[:, 0] - corner[0]) * shape[1] + (cells[:, 1] - corner[1])
-        values = np.concatenate(self._values) if self._values else np.zeros(0, np.int8)
         offsets = np.concatenate([[0], np.cumsum([len(c) for c in self._cells], dtype=np.int64)]).astype(np.int64)
-        return MappingRecording(stamps, poses, np.array(self._steps, np.int64), offsets, flat.astype(np.int64),
-                                values.astype(np.int8), shape, float(grid.resolution), origin)
+        flat = np.empty(offsets[-1], np.int32 if shape[0] * shape[1] < 2**31 else np.int64)
+        for j, (cells, (row, col, width)) in enumerate(zip(self._cells, self._frames)):
+            r, c = np.divmod(cells.astype(np.int64), width)
+            flat[offsets[j]:offsets[j + 1]] = (r + row - corner[0]) * shape[1] + c + col - corner[1]
+        values = np.concatenate(self._values) if self._values else np.zeros(0, np.int8)
+        return MappingRecording(stamps, poses, np.array(self._steps, np.int64), offsets, flat, values, shape,
+                                float(grid.resolution), origin)
