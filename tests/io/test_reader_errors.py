@@ -33,7 +33,7 @@ def test_flaser_beam_count_that_is_not_a_count(tmp_path, count):
 def test_robotlaser_max_range_must_be_positive_and_finite(tmp_path, max_range):
     path = tmp_path / "r.log"
     path.write_text(_robotlaser(max_range) + "\n")
-    with pytest.raises(FormatError, match=rf"r\.log, line 1: ROBOTLASER1: max_range .* positive finite"):
+    with pytest.raises(FormatError, match=r"r\.log, line 1: ROBOTLASER1: max_range .* positive finite"):
         read_carmen(path)
     assert len(read_carmen(path, lenient=True)) == 0
     # the caller's max range replaces the line's, so the line is usable

@@ -269,7 +269,7 @@ def test_insert_point_cloud_height_band(data_dir):
     # every band point's cell is an obstacle (one scan: hit → l_hit ≥ occupied? 0.7 ≥ 0.65)
     assert (lm.cost_at(pts[band & inside][:, :2]) == LETHAL).all()
     # ground points mark nothing: a cell is hit exactly when a band point ends in it
-    occ, origin = lm.occupancy(), lm.origin
+    occ = lm.occupancy()
     assert occ.dtype == np.int8 and set(np.unique(occ)) <= {-1, 40, 50, 70}
     hit = np.zeros(lm.shape, bool)
     c = lm.world_to_cell(pts[band & inside][:, :2])

@@ -34,14 +34,18 @@ def ramp_pixels(png: bytes) -> int:
 
 
 class Page:
-    """A browser tab on a viewer that may fetch nothing but the viewer's own address."""
+    """A browser tab on a viewer at ``url``, or on a page of its own ``content`` (HTML), that may
+    fetch nothing but the viewer's own address."""
 
-    def __init__(self, browser, url: str):
+    def __init__(self, browser, url: str | None = None, content: str | None = None):
         self.page = browser.new_page(viewport=VIEW)
         self.refused: list[str] = []
         self.page.route("**/*", self._route)
-        self.origin = url.rstrip("/")
-        self.page.goto(url)
+        self.origin = url.rstrip("/") if url else "about:"
+        if url:
+            self.page.goto(url)
+        else:
+            self.page.set_content(content)
 
     def _route(self, route):
         url = route.request.url

@@ -147,6 +147,44 @@ def test_command_refuses_bad_paths_in_one_line(tmp_path, capsys):
         assert err.startswith("occmap view: error:") and says in err and err.count("\n") == 1, err
 
 
+def test_a_tile_store_is_counted_tile_by_tile_and_drawn_at_the_level_that_fits(tmp_path):
+    """A tile store's nodes per depth counted one tile at a time equal the whole map's; with a
+    small cap the viewer builds only the coarser level, which hides no occupied voxel."""
+    from occmap.viz.viewer import Viewer
+
+    tiled = small_tile_store(tmp_path / "room-tiles")
+    lv = tiled.leaves()
+    occupied = lv.centers[lv.log_odds >= 0]
+    with Viewer(tmp_path / "room-tiles", port=0, max_voxels=len(occupied) // 3) as viewer:
+        counts = viewer.scene.counts
+        assert counts(16) == (len(occupied), int(np.count_nonzero(lv.log_odds < 0)))
+        assert counts(15)[0] < counts(16)[0] and counts(14)[0] < counts(15)[0]
+        level = viewer.occupied
+        assert level.depth < 16 and level.voxels.count == counts(level.depth)[0] <= len(occupied) // 3
+        assert level.leaves == len(occupied)
+        v = level.voxels
+        half = v.sizes[:, None] / 2
+        inside = np.all(np.abs(occupied[:, None, :] - v.centers[None]) <= half[None] + 1e-4, axis=2).any(axis=1)
+        assert inside.all(), f"{np.count_nonzero(~inside)} occupied voxels outside every drawn box"
+
+
+def test_a_port_in_use_is_refused_not_moved(tmp_path, capsys):
+    """viser moves on to the next free port; the user asked for this one, so it is an error."""
+    import socket
+
+    from occmap.cli import main
+    from occmap.io.mapserver import save_map
+
+    save_map(tmp_path / "m.yaml", np.zeros((2, 2), np.int8), 0.5, (0.0, 0.0, 0.0))
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["view", str(tmp_path / "m.yaml"), "--port", str(port), "--no-browser"]) == 2
+        err = capsys.readouterr().err
+        assert f"port {port}" in err and "in use" in err and err.count("\n") == 1, err
+
+
 def test_slice_and_colour_modes_select_and_colour_the_right_boxes():
     from occmap.viz._lod import Voxels, cut, ramp
 
@@ -200,3 +238,33 @@ def test_a_2d_tile_store_is_a_plane_around_its_scans(tmp_path):
     h, w = grey.shape
     assert grey[h // 2, w // 2] > 128 and grey[0, 0] == 205  # free at the robot, unknown in the corners
     assert (grey < 128).sum() > 100  # the wall
+
+
+def test_a_wide_2d_tile_store_is_drawn_coarser_with_every_wall_kept(tmp_path, monkeypatch):
+    """A store wider than the picture's pixels: 4-cell pixels, each the most occupied of its cells,
+    read tile by tile; the same store at full size agrees cell block by cell block."""
+    from occmap.logodds import occupancy_values
+    from occmap.viz import _maps
+    from occmap.world import TiledGrid2D
+
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    with TiledGrid2D.create(tmp_path / "grid", 0.1, tile_size=16) as grid:  # a room 8 × 8 m around (-1.3, 0.7)
+        ranges = 4.0 / np.maximum(np.abs(np.cos(angles)), np.abs(np.sin(angles)))
+        grid.insert_scans(np.array([[-1.3, 0.7, 0.0]]), ranges[None], angles, max_range=10.0)
+        x0, y0, x1, y1 = grid.extent
+        full = occupancy_values(grid.log_odds(((x0 + 0.5) * 0.1, (y0 + 0.5) * 0.1, (x1 - 0.5) * 0.1,
+                                               (y1 - 0.5) * 0.1)))
+    monkeypatch.setattr(_maps, "MAX_PLANE_PIXELS", (x1 - x0) // 4 + 1)
+    plane = _maps.open_scene(tmp_path / "grid").plane
+    k = 4
+    assert plane.width == pytest.approx(plane.rgb.shape[1] * k * 0.1)
+    # the full raster on the lattice of 4-cell pixels, reduced by the same rule
+    px0, py0 = x0 // k, y0 // k
+    padded = np.full(((y1 - 1) // k - py0 + 1, (x1 - 1) // k - px0 + 1), -1, np.int16)
+    big = np.full((padded.shape[0] * k, padded.shape[1] * k), -1, np.int16)
+    big[y0 - py0 * k:y1 - py0 * k, x0 - px0 * k:x1 - px0 * k] = full
+    expected = big.reshape(padded.shape[0], k, padded.shape[1], k).max(axis=(1, 3))
+    grey = plane.rgb[..., 0].astype(np.int16)
+    expected_grey = np.where(expected < 0, 205, np.rint(255 * (1 - np.clip(expected, 0, 100) / 100.0)))
+    np.testing.assert_array_equal(grey, expected_grey)
+    assert (expected >= 65).sum() >= 4 * (8 / 0.4) - 4  # the four walls, unbroken at 0.4 m pixels

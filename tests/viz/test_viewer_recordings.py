@@ -13,7 +13,7 @@ import pytest
 from occmap.cli import main
 from occmap.errors import FormatError
 
-from occmap.viz.viewer import BACKGROUND
+from occmap.viz._scene3d import BACKGROUND
 
 from headless import Page, image, keep
 

@@ -11,7 +11,7 @@ def add_parser(subparsers):
                               "2D maps) until interrupted")
     p.add_argument("file", help="a .bt / .ot file, a tile store folder, a point cloud, a scan graph (.graph), a "
                    "map_server .yaml or a recorded run (.npz from localize, map2d or local --record)")
-    p.add_argument("--port", type=_options.port, default=8080, help="TCP port (default 8080; 0: any free one)")
+    p.add_argument("--port", type=_options.port, default=8080, help="TCP port (default 8080; 0: any free one; one in use is an error)")
     p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser tab")
     p.add_argument("--max-voxels", type=_options.count, default=None,
                    help="boxes drawn at most per class of space (default 500,000; coarser octree levels beyond it)")

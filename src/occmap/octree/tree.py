@@ -501,6 +501,25 @@ class OcTree(OneCallAtATime):
 
         return figure.png_bytes(maps.height_figure(self))
 
+    def save_html(self, path, max_voxels: int | None = None, z_max: float | str | None = "ceiling"):
+        """The occupied voxels as a 3D scene in one HTML file that any browser opens offline (turn,
+        pan, zoom; :mod:`occmap.viz.inline`): at most ``max_voxels`` boxes (default
+        :data:`~occmap.viz.inline.INLINE_MAX_VOXELS`, coarser nodes beyond), cut under
+        ``z_max`` metres (``"ceiling"``: an indoor map's ceiling; None: nothing cut). Written
+        atomically; returns the path."""
+        from .._files import write_atomic
+        from ..viz import inline
+
+        voxels = inline.octree_voxels(self, max_voxels or inline.INLINE_MAX_VOXELS, z_max)
+        return write_atomic(path, inline.scene_document(voxels).encode())
+
+    def _repr_html_(self) -> str:
+        """Jupyter shows an octree as a 3D scene one turns in the page (:mod:`occmap.viz.inline`);
+        front ends without HTML take the height map (:meth:`_repr_png_`)."""
+        from ..viz import inline
+
+        return inline.iframe(inline.scene_document(inline.octree_voxels(self)))
+
     def export_ply(self, path, binary: bool = True) -> int:
         """Occupied leaf centres as a PLY point cloud coloured by height; returns the point count."""
         return views.export_ply(self, path, binary)

@@ -59,13 +59,20 @@ class Level(NamedTuple):
     leaves: int
 
 
-def pick_level(nodes_at: Callable[[int], Voxels], keep: Callable[[Voxels], np.ndarray], cap: int) -> Level:
+def pick_level(nodes_at: Callable[[int], Voxels], keep: Callable[[Voxels], np.ndarray], cap: int,
+               count: Callable[[int], int] | None = None) -> Level:
     """The deepest level whose boxes of one class number at most ``cap``.
 
     ``nodes_at(d)`` gives the known nodes down to depth ``d`` (leaves above it included);
     ``keep(voxels)`` the mask of the class drawn (occupied, or free). Tries depth 16, then
     coarser, each step costing a fraction of the one before (a depth holds about a quarter of the
-    nodes of the next on surfaces)."""
+    nodes of the next on surfaces). ``count(d)``, where given, tells how many boxes of the class
+    depth ``d`` holds without building them: only the level chosen is then built (a tile store's
+    full depth need not fit in memory)."""
+    if count is not None:
+        depth = next((d for d in range(DEPTH, -1, -1) if count(d) <= cap), 0)
+        v = nodes_at(depth)
+        return Level(depth, v.subset(keep(v)), count(DEPTH))
     leaves = None
     for depth in range(DEPTH, -1, -1):
         v = nodes_at(depth)

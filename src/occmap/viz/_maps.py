@@ -29,6 +29,9 @@ OCTREE_SUFFIXES = (".bt", ".ot")
 MAP2D_SUFFIXES = (".yaml", ".yml")
 GRAPH_SUFFIXES = (".graph",)
 RECORDING_SUFFIXES = (".npz",)
+#: Pixels a 2D map's picture spans at most per side (a browser's texture); wider maps are drawn
+#: with coarser pixels.
+MAX_PLANE_PIXELS = 4096
 
 
 @dataclass
@@ -47,8 +50,9 @@ class Plane:
 @dataclass
 class Scene:
     """A map ready to draw. ``nodes_at(depth)`` gives an octree's known nodes down to ``depth``
-    (None for maps without voxels); ``occupied_log_odds`` is its threshold; ``recording`` a run to
-    replay over the map."""
+    (None for maps without voxels); ``counts(depth)``, where a map can tell without building them
+    (a tile store, read tile by tile), how many of them are occupied and free; ``occupied_log_odds``
+    is its threshold; ``recording`` a run to replay over the map."""
 
     path: Path
     kind: str
@@ -56,6 +60,7 @@ class Scene:
     resolution: float
     bounds: tuple[np.ndarray, np.ndarray]
     nodes_at: Callable[[int], Voxels] | None = None
+    counts: Callable[[int], tuple[int, int]] | None = None
     occupied_log_odds: float = 0.0
     points: np.ndarray | None = None
     plane: Plane | None = None
@@ -123,6 +128,9 @@ def _bounds(leaves) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _tile_store(path: Path) -> Scene:
+    """An octree tile store, read one tile at a time: once at opening to count its nodes per depth
+    (:attr:`Scene.counts`), then once per level drawn. Memory holds a tile and the boxes drawn,
+    whatever the store's size."""
     from ..world.store import TileStore
 
     store = TileStore.open(path)
@@ -132,36 +140,70 @@ def _tile_store(path: Path) -> Scene:
     from ..octree.keys import DEPTH
 
     params = {k: tuple(v) if k == "clamp" else v for k, v in store.params.items()}
+    l_occ = float(logit32(params.get("occupied_threshold", 0.5)))
     side = store.tile_size * store.resolution
-    tiles = [(np.array(index, np.float64) * side, read_ot(store.path / entry["file"], **params))
-             for index, entry in sorted(store.tiles.items())]
+    entries = sorted(store.tiles.items())
     top = DEPTH - (store.tile_size.bit_length() - 1)  # a tile is one node of this depth: no coarser node is its own
+
+    def trees():
+        for index, entry in entries:
+            yield np.array(index, np.float64) * side, read_ot(store.path / entry["file"], **params)
+
+    counts = np.zeros((DEPTH + 1, 2), np.int64)  # per depth: occupied nodes, free nodes
+    nodes = 0
+    for _, tree in trees():
+        nodes += tree.num_nodes()
+        for d in range(top, DEPTH + 1):
+            log_odds = tree.leaves(depth=d).log_odds
+            occupied = np.count_nonzero(log_odds >= l_occ)
+            counts[d] += occupied, len(log_odds) - occupied
+    counts[:top] = counts[top]
 
     def nodes_at(depth: int) -> Voxels:
         d = max(depth, top)
-        return Voxels.concatenate(Voxels.of_leaves(tree.leaves(depth=d), shift) for shift, tree in tiles)
+        return Voxels.concatenate(Voxels.of_leaves(tree.leaves(depth=d), shift) for shift, tree in trees())
 
-    if tiles:
-        lo = np.min([t for t, _ in tiles], axis=0)
-        hi = np.max([t for t, _ in tiles], axis=0) + side
+    if entries:
+        corners = np.array([index for index, _ in entries], np.float64) * side
+        lo, hi = corners.min(axis=0), corners.max(axis=0) + side
     else:
         lo = hi = np.zeros(3)
-    nodes = sum(tree.num_nodes() for _, tree in tiles)
-    l_occ = logit32(params.get("occupied_threshold", 0.5))
-    summary = f"{len(tiles):,} tiles of {store.tile_size} voxels, {nodes:,} nodes, {store.resolution:g} m"
+    summary = f"{len(entries):,} tiles of {store.tile_size} voxels, {nodes:,} nodes, {store.resolution:g} m"
     return Scene(path, "octree tile store", summary, store.resolution, (lo, hi), nodes_at=nodes_at,
-                 occupied_log_odds=float(l_occ))
+                 occupied_log_odds=l_occ, counts=lambda d: tuple(int(c) for c in counts[d]))
 
 
 def _grid_store(path: Path) -> Scene:
+    """A 2D tile store as a plane, read one tile at a time: memory holds a tile and the picture,
+    whatever the store's size. A store wider than :data:`MAX_PLANE_PIXELS` cells is drawn with
+    pixels 2, 4, 8 … cells wide, each the most occupied of its known cells (unknown only where all
+    are), so that no obstacle drops out of the picture."""
+    from ..logodds import occupancy_values
     from ..world import TiledGrid2D
 
     with TiledGrid2D.open(path) as grid:
-        res = grid.resolution
-        x0, y0, x1, y1 = grid.extent or (0, 0, 1, 1)
-        occ = grid.occupancy(((x0 + 0.5) * res, (y0 + 0.5) * res, (x1 - 0.5) * res, (y1 - 0.5) * res))
-    plane = occupancy_plane(occ, res, np.array([x0 * res, y0 * res]), 0.0)
-    summary = f"2D tile store, {occ.shape[1]} × {occ.shape[0]} cells, {res:g} m"
+        res, T = grid.resolution, grid.tile_size
+        tiles = list(grid.tiles())
+        x0, y0, x1, y1 = grid.extent or (0, 0, 1, 1)  # the cells the scans reached
+        k = 1
+        while max(x1 - x0, y1 - y0) > MAX_PLANE_PIXELS * k:
+            k *= 2
+        px0, py0 = x0 // k, y0 // k  # the picture's first pixel, on the lattice of k-cell pixels
+        raster = np.full(((y1 - 1) // k - py0 + 1, (x1 - 1) // k - px0 + 1), -1, np.int8)
+        for index in tiles:
+            lo, hi = grid.tile_bounds(index)
+            occ = occupancy_values(grid.log_odds((lo[0], lo[1], hi[0], hi[1])))
+            kk = min(k, T)  # tiles and pixels share the lattice's power-of-two alignment
+            block = occ.reshape(T // kk, kk, T // kk, kk).max(axis=(1, 3))
+            cx, cy = index[0] * T // k - px0, index[1] * T // k - py0  # the tile's first pixel
+            r0, c0 = max(cy, 0), max(cx, 0)
+            r1, c1 = min(cy + len(block), raster.shape[0]), min(cx + len(block), raster.shape[1])
+            if r0 < r1 and c0 < c1:
+                view = raster[r0:r1, c0:c1]
+                np.maximum(view, block[r0 - cy:r1 - cy, c0 - cx:c1 - cx], out=view)
+    plane = occupancy_plane(raster, res * k, np.array([px0 * k * res, py0 * k * res]), 0.0)
+    pixels = "" if k == 1 else f", drawn in {res * k:g} m pixels"
+    summary = f"2D tile store, {x1 - x0} × {y1 - y0} cells, {res:g} m{pixels}"
     return Scene(path, "grid tile store", summary, res, _plane_bounds(plane), plane=plane)
 
 

@@ -28,9 +28,7 @@ file next to the first one, or any path); :meth:`Viewer.load` does the same from
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import io
 import math
 import threading
 import time
@@ -40,8 +38,10 @@ import numpy as np
 from .. import checks
 from ..errors import InvalidArgumentError, OccmapError
 from ..logodds import probability
+from ..octree.keys import DEPTH
 from ._lod import COARSE_DEPTH, Level, Voxels, cut, pick_level, ramp
 from ._maps import Plane, Scene, occupancy_plane, open_scene, viewable
+from ._scene3d import STYLES, add_boxes, camera_view, close_server, new_server
 
 #: Boxes drawn at most per class of space (occupied, free): about 20 MB to the browser, smooth on
 #: an integrated GPU. OctoMap's largest sample (fr_079.bt) has 372,904 occupied leaves.
@@ -55,7 +55,6 @@ MAX_PLANE_CELLS = 2048
 MAX_LISTED = 500
 
 FREE_COLOR = (120, 200, 140)
-BACKGROUND = (232, 234, 238)
 PATH_COLOR = (230, 40, 40)
 PARTICLE_COLOR = (255, 140, 0)
 ESTIMATE_COLOR = (30, 90, 230)
@@ -66,12 +65,6 @@ TENTATIVE_COLOR = (120, 220, 140)
 PLAY_RATE = 10.0
 SLICES = {"off": "off", "cut above z": "below", "only at z": "at"}
 COLOURS = ("height", "probability")
-STYLES = ("points", "boxes")
-
-# a unit cube centred on the origin: 8 corners, 12 triangles wound outwards
-_CUBE_VERTICES = np.array([[x, y, z] for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)], np.float32)
-_CUBE_FACES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                        [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.uint32)
 
 
 class Viewer:
@@ -102,20 +95,18 @@ class Viewer:
 
     def __init__(self, path, port: int = 8080, host: str = "127.0.0.1", max_voxels: int = DEFAULT_MAX_VOXELS,
                  style: str = "points"):
-        import viser
-
         self.max_voxels = checks.count("max_voxels", max_voxels, minimum=1)
         port = checks.count("port", port, minimum=0)
         if port > 65535:
             raise InvalidArgumentError(f"port must be 0 .. 65535, got {port}")
         if style not in STYLES:
             raise InvalidArgumentError(f"style must be one of {STYLES}, got {style!r}")
-        with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the caller prints the address
-            self.server = viser.ViserServer(host=host, port=port, label="occmap", verbose=False)
-        self.server.scene.set_up_direction("+z")
-        self.server.scene.configure_environment_map(hdri=None)  # its light washes the colours out
-        # a light grey page, so that the white of free space on a 2D map stands out
-        self.server.scene.set_background_image(np.full((8, 8, 3), BACKGROUND, np.uint8), format="png")
+        self.server = new_server(host, port)  # silent: the caller prints the address
+        if port and self.server.get_port() != port:  # viser moves on to a free port: the user named this one
+            taken = self.server.get_port()
+            close_server(self.server)
+            raise InvalidArgumentError(f"port {port} on {host} is in use (the next free one is {taken}): "
+                                       "choose another, or 0 for any free one")
         self._lock = threading.RLock()
         self.scene: Scene | None = None
         self.occupied: Level | None = None
@@ -193,11 +184,10 @@ class Viewer:
                 self.scene, self.occupied, self._free, self._points = scene, None, None, None
                 self._nodes_at = functools.lru_cache(maxsize=2)(scene.nodes_at) if scene.nodes_at else None
                 if self._nodes_at is not None:
-                    self.occupied = pick_level(lambda d: self._nodes_at(min(d, COARSE_DEPTH)), self._is_occupied,
-                                               self.max_voxels)
+                    self.occupied = self._level(self._is_occupied, 0, coarse=True)
                     self._draw_voxels()
                     timings["coarse"] = time.perf_counter() - start
-                    self.occupied = pick_level(self._nodes_at, self._is_occupied, self.max_voxels)
+                    self.occupied = self._level(self._is_occupied, 0)
                 if scene.points is not None:
                     pts = scene.points[::max(1, math.ceil(len(scene.points) / MAX_POINTS))]
                     self._points = Voxels(pts, np.full(len(pts), scene.resolution, np.float32),
@@ -211,6 +201,14 @@ class Viewer:
             timings["scene"] = time.perf_counter() - start
             self.timings = timings
             return scene
+
+    def _level(self, keep, column: int, coarse: bool = False) -> Level:
+        """The boxes of one class drawn (``keep``; ``column`` its entry in the scene's counts), at
+        :data:`~occmap.viz._lod.COARSE_DEPTH` at most for a first view."""
+        top = COARSE_DEPTH if coarse else DEPTH
+        counts = self.scene.counts
+        return pick_level(lambda d: self._nodes_at(min(d, top)), keep, self.max_voxels,
+                          None if counts is None else lambda d: counts(min(d, top))[column])
 
     def _is_occupied(self, v: Voxels) -> np.ndarray:
         return v.log_odds >= self.scene.occupied_log_odds
@@ -255,27 +253,7 @@ class Viewer:
         return ramp(v.centers[:, 2], (lo, hi))
 
     def _boxes(self, name: str, v: Voxels, colors, see_through: bool = False) -> None:
-        """Boxes as instances of one cube, or as square points (one per box, as wide as it; far
-        cheaper to draw), by the panel's choice. ``see_through`` boxes (free space) are drawn
-        translucent, or as points a third as wide, so that the occupied ones show through them."""
-        self.server.scene.remove_by_name(name)
-        if not v.count:
-            return
-        if self._style.value == "points":
-            colors = np.broadcast_to(colors, (v.count, 3))
-            for size in np.unique(v.sizes):
-                sel = v.sizes == size
-                self.server.scene.add_point_cloud(f"{name}/{size:g}", v.centers[sel], colors[sel],
-                                                  point_size=float(size) / (3 if see_through else 1),
-                                                  point_shape="square",
-                                                  precision="float32", point_shading="flat")
-            return
-        self.server.scene.add_batched_meshes_simple(
-            name, _CUBE_VERTICES, _CUBE_FACES,
-            batched_wxyzs=np.broadcast_to(np.array([1, 0, 0, 0], np.float32), (v.count, 4)),
-            batched_positions=v.centers, batched_scales=v.sizes, batched_colors=colors,
-            opacity=0.25 if see_through else None,
-            lod="off", material="toon3", cast_shadow=False, receive_shadow=False)
+        add_boxes(self.server.scene, name, v, colors, self._style.value, see_through)
 
     def _draw_voxels(self) -> None:
         if self.occupied is None:
@@ -291,7 +269,7 @@ class Viewer:
             self.server.scene.remove_by_name("/map/free")
             return
         if self._free is None:
-            self._free = pick_level(self._nodes_at, self._is_free, self.max_voxels)
+            self._free = self._level(self._is_free, 1)
         v = self._slice(self._free.voxels)
         self._boxes("/map/free", v, self._colors(v, free=True), see_through=True)
 
@@ -455,12 +433,7 @@ class Viewer:
         return self.scene.bounds
 
     def _aim_cameras(self) -> None:
-        lo, hi = self._bounds
-        center = (lo + hi) / 2
-        reach = max(float(np.linalg.norm(hi - lo)), 1.0)
-        # a run on a 2D map from nearly above (the robot's moves read as on paper), a map from aside
-        position = center + reach * np.array([0.0, -0.2, 0.5] if self.scene.recording is not None
-                                             else [-0.25, -0.45, 0.4])
+        position, center = camera_view(*self._bounds, from_above=self.scene.recording is not None)
         self.server.initial_camera.position = tuple(position)
         self.server.initial_camera.look_at = tuple(center)
         for client in self.server.get_clients().values():
