@@ -6,7 +6,9 @@ A recording holds, per scan: its stamp and the sensor pose ``(x, y, theta)`` it 
 the last one), the cells whose nav_msgs value (int8: −1 unknown, 0 free … 100 occupied) changed
 since the previous delta, as flat indices into the final map (row-major, row 0 along the lowest
 y) with their new values. Applying every delta to an all-unknown final map gives the map
-``occmap map2d`` writes, value for value. INTEL_FIGURE
+``occmap map2d`` writes, value for value. Its size is the changes, 5 bytes each
+in memory: the Freiburg 079 log (4,791 scans, 5 cm, 3863 × 3485 cells, 480 states) makes 31.6 M
+changes and a 55.5 MB file; Intel (910 scans) 6.5 M and 11.0 MB (docs/viewer.md).
 
 On disk it is a recording file (:mod:`occmap._recordings`).
 """

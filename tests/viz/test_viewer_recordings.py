@@ -238,3 +238,20 @@ def test_broken_recordings_are_refused_naming_file_and_entry(kind, request, tmp_
     else:
         with pytest.raises(FormatError, match=r"costs\.npz: entry 'costs' holds float64, expected uint8"):
             open_scene(broken("costs", costs=entries["costs"].astype(np.float64)))
+
+
+def test_a_wide_map_is_drawn_in_blocks_keeping_its_obstacles():
+    from occmap.viz.viewer import _pooled
+
+    occ = np.full((2500, 3001), -1, np.int8)
+    occ[:1000, :1500] = 0  # free space, a wall across it, one occupied cell alone
+    occ[500, :1500] = 100
+    occ[2499, 3000] = 100
+    blocks, k = _pooled(occ, 1024)
+    assert k == 3 and blocks.shape == (834, 1001)
+    padded = np.full((834 * 3, 1001 * 3), -1, np.int8)
+    padded[:2500, :3001] = occ
+    np.testing.assert_array_equal(blocks, padded.reshape(834, 3, 1001, 3).max(axis=(1, 3)))
+    assert (blocks[166, :500] == 100).all() and blocks[833, 1000] == 100 and (blocks[:166, :500] == 0).all()
+    small = occ[:1000, :1000]
+    assert _pooled(small, 1024)[0] is small
