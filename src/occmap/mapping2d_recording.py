@@ -179,7 +179,8 @@ class MappingRecorder:
         P, R, A, limit = scan_arrays(poses, ranges, angles, max_range)
         x, y = _beam_points(P, R, A, limit)
         res = grid.resolution
-        window, at = grid.log_odds_in((np.nanmin(x) - res, np.nanmin(y) - res), (np.nanmax(x) + res, np.nanmax(y) + res))
+        lo, hi = (np.nanmin(x) - res, np.nanmin(y) - res), (np.nanmax(x) + res, np.nanmax(y) + res)
+        window, at = grid.log_odds_in(lo, hi)
         r0, c0 = np.rint((at - grid.origin) / res).astype(np.int64)[::-1]
         box = slice(r0, r0 + window.shape[0]), slice(c0, c0 + window.shape[1])
         # a cell's value can change only where its log-odds did: the nav_msgs values, dearer, are
