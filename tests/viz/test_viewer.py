@@ -185,6 +185,21 @@ def test_a_port_in_use_is_refused_not_moved(tmp_path, capsys):
         assert f"port {port}" in err and "in use" in err and err.count("\n") == 1, err
 
 
+def test_play_keeps_the_run_s_pace():
+    from occmap.viz.viewer import PLAY_RATE, played_to
+
+    stamps = np.concatenate([np.arange(10) * 0.1, 5.0 + np.arange(10) * 0.1])  # a 4.1 s gap after step 9
+    assert played_to(stamps, 0, 0.35, 1.0) == 3  # stamps 0.0 … 0.3 reached
+    assert played_to(stamps, 0, 0.36, 2.0) == 7
+    assert played_to(stamps, 2, 0.05, 1.0) == 2  # nothing new yet
+    assert played_to(stamps, 9, 4.0, 1.0) == 9  # the gap is waited through, as recorded
+    assert played_to(stamps, 9, 4.15, 1.0) == 10
+    assert played_to(stamps, 5, 1e6, 50.0) == 19  # stops at the last step
+    flat = np.zeros(20)  # no pace of its own: PLAY_RATE steps a second
+    assert played_to(flat, 4, 1.0, 1.0) == 4 + int(PLAY_RATE)
+    assert played_to(flat, 4, 1.0, 2.0) == min(4 + int(2 * PLAY_RATE), 19)
+
+
 def test_slice_and_colour_modes_select_and_colour_the_right_boxes():
     from occmap.viz._lod import Voxels, cut, ramp
 

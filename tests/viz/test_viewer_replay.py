@@ -139,7 +139,7 @@ def test_the_run_scrubbed_in_the_browser(browser, run):
         with pytest.raises(InvalidArgumentError, match=f"step must be 0 .. {STEPS - 1}"):
             viewer.step = STEPS
         viewer.step = 0
-        viewer._play.value = True  # the panel's "Play": ten steps a second, then it stops at the end
+        viewer._play.value = True  # the panel's "Play" at 1×: the run's pace, 10 scans a second, to the end
         tab.page.wait_for_timeout(1000)
         assert 3 <= viewer.step < STEPS
         deadline = tab.page.wait_for_timeout

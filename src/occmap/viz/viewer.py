@@ -12,8 +12,8 @@ What it draws (coordinates are the map's, metres, z up):
 - **point clouds** and **scan graphs**: points coloured by height, and the sensor's path;
 - **2D maps** (map_server ``.yaml``, 2D tile stores): the map's picture as a plane at z = 0;
 - **recorded localization runs** (``.npz``, :mod:`occmap.localize.recording`): the map as a plane
-  and, at the step the panel's time slider picks (or "Play" advances, :data:`PLAY_RATE` steps a
-  second), the particles, the estimated pose as a frame, the estimate's track so far and the
+  and, at the step the panel's time slider picks (or "Play" advances, at the run's pace times a
+  speed), the particles, the estimated pose as a frame, the estimate's track so far and the
   reference poses so far (where the run had them);
 - **recorded mapping runs** (:mod:`occmap.mapping2d_recording`): the map as it was at the step,
   the sensor's path so far and a frame at its pose;
@@ -61,8 +61,10 @@ ESTIMATE_COLOR = (30, 90, 230)
 REFERENCE_COLOR = (20, 170, 60)
 TRACK_COLOR = (0, 170, 60)
 TENTATIVE_COLOR = (120, 220, 140)
-#: Steps a second a recorded run advances by while "Play" is on.
+#: Redraws a second at most while "Play" is on; steps a second of a run with no pace of its own.
 PLAY_RATE = 10.0
+#: "Play"'s speeds: times the run's recorded pace.
+PLAY_SPEEDS = {"1×": 1.0, "2×": 2.0, "5×": 5.0, "10×": 10.0, "50×": 50.0}
 SLICES = {"off": "off", "cut above z": "below", "only at z": "at"}
 COLOURS = ("height", "probability")
 
@@ -400,16 +402,25 @@ class Viewer:
                                     position=(x, y, z), axes_length=4 * self._marker, axes_radius=self._marker / 5)
 
     def _play_loop(self) -> None:
-        """Advance a recorded run while "Play" is on, to its last step."""
+        """Advance a recorded run while "Play" is on, at its recorded pace times the panel's speed
+        (:func:`played_to`), to its last step. Moving the slider or the speed while playing plays
+        on from there."""
+        start = None  # (wall clock, step, speed) the run plays from
         while not self._closing.wait(1.0 / PLAY_RATE):
             with self._lock:
                 rec = self.scene.recording if self.scene is not None else None
                 if rec is None or not self._play.value or self._loading:
+                    start = None
                     continue
-                if self._step.value >= len(rec) - 1:
-                    self._play.value = False
-                else:
-                    self._step.value += 1
+                step, speed, now = int(self._step.value), PLAY_SPEEDS[self._speed.value], time.monotonic()
+                if step >= len(rec) - 1:
+                    self._play.value, start = False, None
+                    continue
+                if start is None or start[2] != speed or step != self._played:
+                    start = (now, step, speed)
+                self._played = played_to(rec.stamps, start[1], now - start[0], speed)
+                if self._played != step:
+                    self._step.value = self._played
 
     def _draw_slice_plane(self) -> None:
         if SLICES[self._slice_mode.value] == "off":
@@ -455,6 +466,8 @@ class Viewer:
         self._open = gui.add_button("Open")
         self._step = gui.add_slider("Step", min=0, max=1, step=1, initial_value=0, visible=False)
         self._play = gui.add_checkbox("Play", False, visible=False)
+        self._speed = gui.add_dropdown("Speed", tuple(PLAY_SPEEDS), initial_value="1×", visible=False)
+        self._played = 0
 
         def redraw(_event) -> None:
             with self._lock:
@@ -501,7 +514,7 @@ class Viewer:
         self._play.value = False
         self._step.max = max(len(rec) - 1, 1) if rec is not None else 1
         self._step.value = 0
-        self._step.visible = self._play.visible = rec is not None
+        self._step.visible = self._play.visible = self._speed.visible = rec is not None
 
     def _describe(self) -> str:
         s = self.scene
@@ -511,6 +524,18 @@ class Viewer:
             text += (f"\n\n{o.voxels.count:,} occupied boxes drawn at depth {o.depth} "
                      f"({o.leaves:,} occupied leaves)")
         return text
+
+
+def played_to(stamps: np.ndarray, start: int, elapsed: float, speed: float) -> int:
+    """The step a run played from step ``start`` for ``elapsed`` seconds at ``speed`` times its
+    recorded pace has reached: the last whose stamp is at most ``stamps[start] + speed · elapsed``
+    (a gap in the recording is waited through, as it happened). A run whose stamps do not increase
+    has no pace of its own: it plays :data:`PLAY_RATE` steps a second times ``speed``."""
+    last = len(stamps) - 1
+    if not (np.all(np.diff(stamps) >= 0) and stamps[-1] > stamps[0]):
+        return min(start + int(elapsed * PLAY_RATE * speed), last)
+    reached = int(np.searchsorted(stamps, stamps[start] + speed * elapsed, side="right")) - 1
+    return min(max(reached, start), last)
 
 
 def _at_height(poses: np.ndarray, z: float) -> np.ndarray:
