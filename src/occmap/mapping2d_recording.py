@@ -6,9 +6,9 @@ A recording holds, per scan: its stamp and the sensor pose ``(x, y, theta)`` it 
 the last one), the cells whose nav_msgs value (int8: −1 unknown, 0 free … 100 occupied) changed
 since the previous delta, as flat indices into the final map (row-major, row 0 along the lowest
 y) with their new values. Applying every delta to an all-unknown final map gives the map
-``occmap map2d`` writes, value for value. Its size is the changes, 5 bytes each
-in memory: the Freiburg 079 log (4,791 scans, 5 cm, 3863 × 3485 cells, 480 states) makes 31.6 M
-changes and a 55.5 MB file; Intel (910 scans) 6.5 M and 11.0 MB (docs/viewer.md).
+``occmap map2d`` writes, value for value. Its size is the changes (5 bytes each while recording):
+the Freiburg 079 log (4,791 scans, 5 cm, 3863 × 3485 cells, 480 states) makes 31.6 M changes and
+a 55.5 MB file; Intel (910 scans) 6.5 M and 11.0 MB (docs/viewer.md).
 
 On disk it is a recording file (:mod:`occmap._recordings`).
 """
@@ -32,7 +32,8 @@ VERSION = 1
 #: Scans between two deltas by default.
 EVERY = 10
 #: Deltas between two states :meth:`MappingRecording.occupancy_at` keeps (scrubbing to any step
-#: applies at most this many deltas to a kept state).
+#: applies at most this many deltas to a kept state; each kept state is a byte a cell: 200 MB for
+#: Freiburg 079's 480 deltas).
 KEY_EVERY = 32
 
 

@@ -255,3 +255,13 @@ def test_a_wide_map_is_drawn_in_blocks_keeping_its_obstacles():
     assert (blocks[166, :500] == 100).all() and blocks[833, 1000] == 100 and (blocks[:166, :500] == 0).all()
     small = occ[:1000, :1000]
     assert _pooled(small, 1024)[0] is small
+
+
+def test_record_options_are_checked(data_dir, tmp_path, capsys):
+    log = str(data_dir / "carmen" / "intel-corrected.log.gz")
+    assert main(["map2d", log, "--tiles", str(tmp_path / "t"), "--record", str(tmp_path / "r.npz")]) == 2
+    assert "--record keeps the map in memory as it grows: leave out --tiles" in capsys.readouterr().err
+    assert main(["map2d", log, "-o", str(tmp_path / "m.yaml"), "--record-every", "5"]) == 2
+    assert "--record-every sets how --record records" in capsys.readouterr().err
+    assert main(["map2d", log, "-o", str(tmp_path / "m.yaml"), "--record", log]) == 2  # never over an input
+    assert not (tmp_path / "m.yaml").exists() and not (tmp_path / "t").exists()
