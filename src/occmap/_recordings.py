@@ -19,9 +19,15 @@ from .errors import FormatError, MissingFileError
 
 def save(path, format: str, version: int, **arrays) -> Path:
     """Write ``arrays`` with the ``format`` and ``version`` entries as a compressed ``.npz``,
-    atomically (:func:`occmap._files.write_atomic`); returns the path."""
+    atomically (:func:`occmap._files.write_atomic`); returns the path. Deflate at level 1, not
+    :func:`numpy.savez_compressed`'s 6: the Freiburg 079 mapping recording compresses in 4.0 s
+    instead of 13.7 s, to 57.0 MB instead of 55.5 MB."""
     buf = io.BytesIO()
-    np.savez_compressed(buf, format=np.array(format), version=np.array(version), **arrays)
+    entries = {"format": np.array(format), "version": np.array(version), **arrays}
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+        for name, a in entries.items():
+            with z.open(f"{name}.npy", "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.asanyarray(a), allow_pickle=False)
     return write_atomic(path, buf.getvalue())
 
 

@@ -8,7 +8,7 @@ since the previous delta, as flat indices into the final map (row-major, row 0 a
 y) with their new values. Applying every delta to an all-unknown final map gives the map
 ``occmap map2d`` writes, value for value. Its size is the changes (5 bytes each while recording):
 the Freiburg 079 log (4,791 scans, 5 cm, 3863 × 3485 cells, 480 states) makes 31.6 M changes and
-a 55.5 MB file; Intel (910 scans) 6.5 M and 11.0 MB (docs/viewer.md).
+a 57.0 MB file; Intel (910 scans) 6.5 M and 11.3 MB (docs/viewer.md).
 
 On disk it is a recording file (:mod:`occmap._recordings`).
 """
