@@ -42,7 +42,7 @@ class MappingSummary:
 
 def map_scans(stack: ScanStack, resolution: float, max_range: float | None = None, chunk: int = 200,
               progress: bool = False, model: LidarModel | None = None,
-              max_extent: float | None = DEFAULT_MAX_EXTENT) -> MappingSummary:
+              max_extent: float | None = DEFAULT_MAX_EXTENT, recorder=None) -> MappingSummary:
     """Integrate a stacked log into a new growing grid.
 
     A reading at or beyond its own scan's maximum range means "no return"; it frees the cells up
@@ -51,18 +51,22 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
     A scan that would grow the map beyond ``max_extent`` metres per side (see
     :class:`OccupancyGrid2D`) stops it with an :class:`~occmap.errors.InvalidArgumentError` that
     names the scan's number in the log.
+    A ``recorder`` (:class:`~occmap.mapping2d_recording.MappingRecorder`) is told each batch of
+    ``recorder.every`` scans once they are in the grid (then the chunks are that long).
     """
     poses, ranges, angles, max_ranges, stamps = stack
     n = len(poses)
+    chunk = recorder.every if recorder is not None else chunk
     limit = float(max_range) if max_range is not None else (float(max_ranges.max()) if n else 1.0)
     chunks = (ScanStack(poses[s:s + chunk], ranges[s:s + chunk], angles if angles.ndim == 1 else angles[s:s + chunk],
                         max_ranges[s:s + chunk], stamps[s:s + chunk]) for s in range(0, n, chunk))
-    return _integrate(chunks, resolution, lambda _: limit, model, max_extent, Progress(n, "scans", progress))
+    return _integrate(chunks, resolution, lambda _: limit, model, max_extent, Progress(n, "scans", progress),
+                      recorder)
 
 
 def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: float | None = None,
                     chunk: int = 200, progress: Progress | None = None, model: LidarModel | None = None,
-                    max_extent: float | None = DEFAULT_MAX_EXTENT) -> MappingSummary:
+                    max_extent: float | None = DEFAULT_MAX_EXTENT, recorder=None) -> MappingSummary:
     """:func:`map_scans` for scans that arrive one by one (a bag, a log read as it goes): they are
     stacked ``chunk`` at a time, the next chunk read on a thread of its own while the grid takes
     the last (:func:`occmap._threads.read_ahead`), so memory holds two or three chunks. The first
@@ -70,10 +74,14 @@ def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: fl
     reading of the first, so the grid starts as soon as a few scans are in. Without ``max_range``, no-return
     readings clear up to the largest maximum range of their chunk (one sensor has one; for scans
     of one maximum range the grid is :func:`map_scans`'s to the bit). ``progress`` is told the
-    scans done."""
-    chunks = read_ahead(stack_scans(batch) for batch in _batches(scans, chunk, FIRST_CHUNK))
+    scans done; a ``recorder`` each batch, as by :func:`map_scans` (batches of its ``every`` scans
+    then, from the first)."""
+    first = FIRST_CHUNK
+    if recorder is not None:
+        chunk = first = recorder.every
+    chunks = read_ahead(stack_scans(batch) for batch in _batches(scans, chunk, first))
     return _integrate(chunks, resolution, lambda c: float(max_range) if max_range is not None
-                      else float(c.max_ranges.max()), model, max_extent, progress)
+                      else float(c.max_ranges.max()), model, max_extent, progress, recorder)
 
 
 #: Scans in the first chunk of :func:`map_scan_stream` (a bag's take 1-2 ms to read)
@@ -90,7 +98,7 @@ def _batches(items, size: int, first: int):
         n = min(2 * n, size)
 
 
-def _integrate(chunks, resolution, limit_of, model, max_extent, progress) -> MappingSummary:
+def _integrate(chunks, resolution, limit_of, model, max_extent, progress, recorder) -> MappingSummary:
     """Insert stacked chunks of scans in order into a new grid; ``limit_of(chunk)`` is the range
     up to which its no-return readings clear."""
     grid = OccupancyGrid2D(resolution, max_extent=max_extent)
@@ -98,13 +106,16 @@ def _integrate(chunks, resolution, limit_of, model, max_extent, progress) -> Map
     done = 0
     for c in chunks:
         ranges = np.where(c.ranges >= c.max_ranges[:, None], np.inf, c.ranges)
+        limit = limit_of(c)
         with clock.running():
             try:
-                grid.insert_scans(c.poses, ranges, c.angles, max_range=limit_of(c), model=model)
+                grid.insert_scans(c.poses, ranges, c.angles, max_range=limit, model=model)
             except InvalidArgumentError as e:
                 raise InvalidArgumentError(f"scans {done}–{done + len(c.poses) - 1} of the log (indices below count "
                                            f"from {done}): {e}") from None
         done += len(c.poses)
+        if recorder is not None:
+            recorder.add(grid, c.poses, ranges, c.angles, limit, c.stamps)
         if progress is not None:
             progress.update(done)
     if progress is not None:

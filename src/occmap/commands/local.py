@@ -37,6 +37,8 @@ def add_parser(subparsers):
     p.add_argument("--tracking", action="store_true",
                    help="track moving objects: they stay out of the static layer, and the frames show the confirmed "
                    "tracks and where they will be in one second")
+    p.add_argument("--record", metavar="RUN.npz",
+                   help="also record each frame's costmap, pose and tracks to scrub through with occmap view RUN.npz")
     _scan_match.add_option(p)
     _sources.add_bag_options(p, "sensor_msgs/LaserScan", "odom")
     return p
@@ -52,10 +54,11 @@ def run(args) -> int:
     from .._clock import WorkClock
     from ..errors import InvalidArgumentError
     from ..local import LocalMap
+    from ..local.recording import LocalMapRecorder
     from ..local.replay import tracked_objects
     from ..viz.animation import CostmapAnimation
 
-    check_outputs({"-o": args.output}, {"LOG": args.log})
+    check_outputs({"-o": args.output, "--record": args.record}, {"LOG": args.log})
     source = _sources.laser_source(args, args.log, every=args.every)
     matcher = None
     if args.scan_match:  # poses matched scan by scan, as a robot would
@@ -68,6 +71,7 @@ def run(args) -> int:
     lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None, tracking=args.tracking)
     title = args.title if args.title is not None else f"local costmap: {Path(args.log).name}"
     frames = CostmapAnimation(lm.shape, args.resolution, args.scale, title, args.tracking)
+    recorder = LocalMapRecorder() if args.record is not None else None
     used = 0
     clamped = 0
     clock = WorkClock()
@@ -94,6 +98,8 @@ def run(args) -> int:
             robot = lm.world_to_cell(np.array([x, y]))
             frames.add(cost, (int(robot[0]), int(robot[1])), tracked_objects(lm, 1.0) if args.tracking else None,
                        f"t = {stamp - first:.1f} s")
+            if recorder is not None:
+                recorder.add(lm, stamp, scan.pose, cost)
         used += 1
         if len(frames) >= args.max_frames:
             break
@@ -107,6 +113,11 @@ def run(args) -> int:
     print(f"{used} scans through a {W}×{H} local map at {args.resolution:g} m "
           f"(half-life {args.half_life:g} s): {1e3 * clock.seconds / max(used, 1):.2f} ms per scan for move + "
           f"integrate (+ costmap on frames); {len(frames)} frames → {path} in {time.perf_counter() - t0:.1f} s")
+    if recorder is not None:
+        rec = recorder.finish()
+        saved = rec.save(args.record)
+        print(f"wrote {saved} ({len(rec):,} steps, {rec.costs[0].nbytes:,} bytes of costmap a step in memory, "
+              f"{Path(saved).stat().st_size / 1e6:.2f} MB on disk)")
     if args.tracking:
         print(f"tracking: {lm.stats['tracks_confirmed']} tracks confirmed of {lm.stats['tracks_started']} started, "
               f"{lm.stats['moving_returns']:,} returns taken as moving")

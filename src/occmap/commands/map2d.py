@@ -35,6 +35,11 @@ def add_parser(subparsers):
     p.add_argument("--prob-miss", type=_options.probability, default=0.4,
                    help="P(occupied) for cells a beam passes (default: %(default)s, OctoMap's; 0.45 keeps walls "
                    "that many grazing beams cross more continuous)")
+    p.add_argument("--record", metavar="RUN.npz",
+                   help="also record the run scan by scan (poses, the map growing) to scrub through with "
+                        "occmap view RUN.npz")
+    p.add_argument("--record-every", type=_options.count, default=None, metavar="K",
+                   help="scans between two recorded states of the map (default 10)")
     _scan_match.add_option(p)
     _tiles.add_tile_options(p, 256, "cells")
     _sources.add_bag_options(p, "sensor_msgs/LaserScan", "odom")
@@ -75,11 +80,16 @@ def run(args) -> int:
     _tiles.check_tile_options(args)
     if args.tiles is None and args.output is None:
         raise InvalidArgumentError("give -o MAP.yaml or --tiles DIR")
+    if args.tiles is not None and args.record is not None:
+        raise InvalidArgumentError("--record keeps the map in memory as it grows: leave out --tiles")
+    if args.record_every is not None and args.record is None:
+        raise InvalidArgumentError("--record-every sets how --record records: give --record RUN.npz")
     image = None
     if args.output is not None:
         check_suffix("-o", args.output, (".yaml", ".yml"))
         image = Path(args.output).with_suffix(".pgm")
-    check_outputs({"-o": args.output, "the map's image": image, "--png": args.png}, {"LOG": args.log})
+    check_outputs({"-o": args.output, "the map's image": image, "--png": args.png, "--record": args.record},
+                  {"LOG": args.log})
     model = LidarModel(args.prob_hit, args.prob_miss)  # checks the pair before the log is read
     if is_bag(args.log):
         return _run_bag(args, model)
@@ -97,9 +107,10 @@ def run(args) -> int:
         raise InvalidArgumentError(f"{args.log}: no laser scans found")
     _notes.carmen_assumptions("map2d", log.stats)
     stack = stack_scans(_scan_match.scan_matched(log.scans)) if args.scan_match else log.stack()
+    recorder = _recorder(args)
     summary = map_scans(stack, args.resolution, args.max_range, progress=sys.stderr.isatty(), model=model,
-                         max_extent=args.max_extent)
-    return _write(args, summary, t0)
+                        max_extent=args.max_extent, recorder=recorder)
+    return _write(args, summary, t0, recorder)
 
 
 def _run_bag(args, model) -> int:
@@ -113,29 +124,42 @@ def _run_bag(args, model) -> int:
     if args.lenient:
         raise InvalidArgumentError("--lenient skips malformed CARMEN lines; a bag has none")
     t0 = time.perf_counter()
+    recorder = _recorder(args)
     source = BagScans(args.log, every=args.every, max_range=args.max_range, unposed=args.scan_match,
                       **_sources.bag_options(args))
     if args.scan_match:
         # poses from tf, odometry or a pose file, where the bag has them, are the matcher's prior
         scans = [_scan_match.with_prior(source, s) for s in source]
         summary = map_scan_stream(_scan_match.scan_matched(scans), args.resolution, args.max_range, model=model,
-                                  max_extent=args.max_extent, progress=Progress(len(scans), "scans"))
+                                  max_extent=args.max_extent, progress=Progress(len(scans), "scans"),
+                                  recorder=recorder)
     else:
         summary = map_scan_stream(source, args.resolution, args.max_range, model=model, max_extent=args.max_extent,
-                                  progress=Progress(len(source), "messages"))
+                                  progress=Progress(len(source), "messages"), recorder=recorder)
     _sources.report("map2d", source)
     if not summary.scans:
         raise InvalidArgumentError(f"{args.log}: none of the {len(source):,} scans on {source.topic} could be placed "
                                    "in the map (see the notes above)")
     _sources.print_use(source, summary.scans, "scans")
-    return _write(args, summary, t0)
+    return _write(args, summary, t0, recorder)
 
 
-def _write(args, summary, t0: float) -> int:
+def _recorder(args):
+    from ..mapping2d_recording import EVERY, MappingRecorder
+
+    return MappingRecorder(args.record_every or EVERY) if args.record is not None else None
+
+
+def _write(args, summary, t0: float, recorder) -> int:
     image = summary.grid.save(args.output)
     for line in summary.lines():
         print(line)
     print(f"wrote {args.output} and {image}")
+    if recorder is not None:
+        rec = recorder.finish(summary.grid)
+        path = rec.save(args.record)
+        print(f"wrote {path} ({len(rec):,} scans, {len(rec.delta_steps):,} map states every {recorder.every} scans, "
+              f"{len(rec.delta_cells):,} cell changes; {Path(path).stat().st_size / 1e6:.1f} MB)")
     if args.png:
         print(f"wrote {summary.grid.save_png(args.png, f'occupancy grid of {Path(args.log).name}')}")
     print(f"total {time.perf_counter() - t0:.2f} s")

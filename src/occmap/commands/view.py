@@ -9,8 +9,8 @@ from . import _options
 def add_parser(subparsers):
     p = subparsers.add_parser("view", help="show a map in 3D in the browser (octrees, tile stores, point clouds, "
                               "2D maps) until interrupted")
-    p.add_argument("file", help="a .bt / .ot file, a tile store folder, a point cloud, a scan graph (.graph) or a "
-                   "map_server .yaml")
+    p.add_argument("file", help="a .bt / .ot file, a tile store folder, a point cloud, a scan graph (.graph), a "
+                   "map_server .yaml or a recorded run (.npz from localize, map2d or local --record)")
     p.add_argument("--port", type=_options.port, default=8080, help="TCP port (default 8080; 0: any free one; one in use is an error)")
     p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser tab")
     p.add_argument("--max-voxels", type=_options.count, default=None,

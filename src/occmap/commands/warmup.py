@@ -117,6 +117,7 @@ def grids(folder: Path) -> None:
     from ..grid2d import LidarModel, OccupancyGrid2D, SonarModel
     from ..io.carmen import read_carmen
     from ..mapping2d import map_scans
+    from ..mapping2d_recording import MappingRecorder
     from ..sim import World2D, simulate_scans, simulate_sonar
     from .demo import map_simulated_office
 
@@ -142,7 +143,7 @@ def grids(folder: Path) -> None:
     world.clearance(P[:, :2])
     for n in (10, 100_000):  # one thread and many
         world.cast(P[0, :2], np.linspace(-np.pi, np.pi, n))
-    map_scans(read_carmen(_office_log(folder)).stack(), 0.1, 10.0)
+    map_scans(read_carmen(_office_log(folder)).stack(), 0.1, 10.0, recorder=MappingRecorder())  # map2d --record
 
 
 def local_map(folder: Path) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cost_palette", "frame_image", "save_gif", "tracked_objects"]
+__all__ = ["cost_indices", "cost_palette", "cost_rgb", "frame_image", "save_gif", "tracked_objects"]
 
 _ROBOT = 130  # palette index of the robot marker (graded costs use indices 1 … 126)
 _TRACK = 131  # palette index of tracked objects
@@ -38,6 +38,20 @@ def cost_palette() -> list[int]:
     return pal.reshape(-1).tolist()
 
 
+def cost_indices(cost: np.ndarray) -> np.ndarray:
+    """The palette index (:func:`cost_palette`) of each Nav2 cost: graded costs 1 … 252 two to an
+    index, the others their own."""
+    idx = cost.copy()
+    graded = (cost >= 1) & (cost <= 252)
+    idx[graded] = 1 + (cost[graded].astype(np.int32) - 1) // 2
+    return idx
+
+
+def cost_rgb(cost: np.ndarray) -> np.ndarray:
+    """Nav2 costs (H, W) as the animation's colours, RGB (H, W, 3) uint8."""
+    return np.asarray(cost_palette(), np.uint8).reshape(256, 3)[cost_indices(cost)]
+
+
 def frame_image(cost: np.ndarray, robot_cell=None, scale: int = 1, objects=None):
     """A palette ``PIL.Image`` of a costmap (row 0 at the bottom, as the map's y grows up).
 
@@ -46,9 +60,7 @@ def frame_image(cost: np.ndarray, robot_cell=None, scale: int = 1, objects=None)
     drawn as outlines, with a line between their centres."""
     from PIL import Image, ImageDraw
 
-    idx = cost.copy()
-    graded = (cost >= 1) & (cost <= 252)
-    idx[graded] = 1 + (cost[graded].astype(np.int32) - 1) // 2
+    idx = cost_indices(cost)
     if robot_cell is not None:
         r, c = robot_cell
         idx[max(r - 1, 0):r + 2, max(c - 1, 0):c + 2] = _ROBOT

@@ -7,21 +7,20 @@ fewer) and the reference pose where one is known (NaN rows elsewhere); and once,
 was localized in (nav_msgs values, int8). Memory is bounded: 12 bytes a kept particle a step, so
 13,631 Intel scans with 100 particles each take 16 MB.
 
-On disk it is a NumPy ``.npz`` (compressed, no pickled objects) with a ``format`` entry naming it
-and a ``version``; :meth:`LocalizationRecording.load` checks both and every array's shape.
+On disk it is a recording file (:mod:`occmap._recordings`: a compressed ``.npz`` with a ``format``
+entry naming it and a ``version``); :meth:`LocalizationRecording.load` checks both and every
+array's shape.
 """
 
 from __future__ import annotations
 
-import io
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .._files import write_atomic
-from ..errors import FormatError, InvalidArgumentError, MissingFileError
+from .. import _recordings
+from ..errors import FormatError, InvalidArgumentError
 
 #: The ``format`` entry of a recording file, and its version.
 FORMAT = "occmap localization recording"
@@ -70,58 +69,27 @@ class LocalizationRecording:
 
     def save(self, path) -> Path:
         """Write the recording (atomically); returns the path."""
-        buf = io.BytesIO()
-        np.savez_compressed(buf, format=np.array(FORMAT), version=np.array(VERSION), stamps=self.stamps,
-                            estimates=self.estimates, particles=self.particles, reference=self.reference,
-                            occupancy=self.occupancy, resolution=np.array(self.resolution), origin=self.origin)
-        return write_atomic(path, buf.getvalue())
+        return _recordings.save(path, FORMAT, VERSION, stamps=self.stamps, estimates=self.estimates,
+                                particles=self.particles, reference=self.reference, occupancy=self.occupancy,
+                                resolution=np.array(self.resolution), origin=self.origin)
 
     @classmethod
     def load(cls, path) -> LocalizationRecording:
         """Read a recording; :class:`~occmap.errors.FormatError` names the file and the entry that
         is missing or of the wrong shape."""
-        path = Path(path)
-        if not path.is_file():
-            raise MissingFileError(path, "no such file")
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                entries = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:  # not a zip, a cut one, a pickle
-            raise FormatError(path, f"not a NumPy .npz file ({e})") from None
-        fmt = entries.get("format")
-        if fmt is None or str(fmt) != FORMAT:
-            raise FormatError(path, f"not an occmap localization recording (format entry {fmt!r})")
-        version = entries.get("version")
-        if version is None or version.shape != () or version.dtype.kind not in "iu" or int(version) != VERSION:
-            raise FormatError(path, f"recording version {version!r}, this occmap reads {VERSION}")
+        return cls.of_entries(_recordings.read(path))
 
-        def entry(name, ndim, trailing=()):
-            a = entries.get(name)
-            if a is None:
-                raise FormatError(path, f"entry {name!r} missing")
-            if a.dtype.kind not in "iuf":
-                raise FormatError(path, f"entry {name!r} holds {a.dtype}, expected numbers")
-            if a.ndim != ndim or a.shape[ndim - len(trailing):] != trailing:
-                raise FormatError(path, f"entry {name!r} has shape {a.shape}, expected {ndim} axes ending in "
-                                        f"{trailing}")
-            return a
-
-        stamps = entry("stamps", 1)
-        n = len(stamps)
-        out = cls(stamps.astype(np.float64), entry("estimates", 2, (3,)).astype(np.float64),
-                  entry("particles", 3, (3,)).astype(np.float32), entry("reference", 2, (3,)).astype(np.float64),
-                  entry("occupancy", 2), float(entry("resolution", 0)),
-                  entry("origin", 1, (2,)).astype(np.float64))
-        for name in ("estimates", "particles", "reference"):
-            if len(getattr(out, name)) != n:
-                raise FormatError(path, f"entry {name!r} has {len(getattr(out, name))} steps, 'stamps' {n}")
-        if not n:
-            raise FormatError(path, "the recording has no step")
-        if not (np.isfinite(out.resolution) and out.resolution > 0):
-            raise FormatError(path, f"entry 'resolution' is {out.resolution}, expected a positive number of metres")
-        if out.occupancy.dtype != np.int8:
-            raise FormatError(path, f"entry 'occupancy' is {out.occupancy.dtype}, expected int8 (nav_msgs values)")
-        for name in ("estimates", "origin"):
-            if not np.isfinite(getattr(out, name)).all():
-                raise FormatError(path, f"entry {name!r} holds NaN or infinite values")
+    @classmethod
+    def of_entries(cls, e: _recordings.Entries) -> LocalizationRecording:
+        """The recording in a file's entries (:func:`occmap._recordings.read`), checked."""
+        e.check(FORMAT, VERSION, "localization")
+        stamps = e.get("stamps", 1, dtype=np.float64)
+        out = cls(stamps, e.get("estimates", 2, (3,), np.float64), e.get("particles", 3, (3,), np.float32),
+                  e.get("reference", 2, (3,), np.float64), e.get("occupancy", 2, dtype=np.int8),
+                  e.resolution(), e.get("origin", 1, (2,), np.float64))
+        e.same_length(len(stamps), "stamps", estimates=out.estimates, particles=out.particles,
+                      reference=out.reference)
+        if not len(stamps):
+            raise FormatError(e.path, "the recording has no step")
+        e.finite(estimates=out.estimates, origin=out.origin)
         return out

@@ -19,7 +19,9 @@ from ..logodds import logit32
 from ._lod import Voxels
 
 if TYPE_CHECKING:
+    from ..local.recording import LocalMapRecording
     from ..localize.recording import LocalizationRecording
+    from ..mapping2d_recording import MappingRecording
 
 #: Extensions read as OctoMap files, map_server maps and scan graphs; point clouds are those of
 #: :func:`occmap.io.pointclouds.read_cloud`.
@@ -63,7 +65,7 @@ class Scene:
     points: np.ndarray | None = None
     plane: Plane | None = None
     sensor_path: np.ndarray | None = field(default=None)
-    recording: LocalizationRecording | None = None
+    recording: LocalizationRecording | MappingRecording | LocalMapRecording | None = None
 
 
 def viewable(path: Path) -> bool:
@@ -82,7 +84,8 @@ def viewable(path: Path) -> bool:
 
 def open_scene(path) -> Scene:
     """Read ``path``: an OctoMap file, a tile store folder, a map_server ``.yaml``, a scan graph, a
-    recorded localization run (``.npz``, :mod:`occmap.localize.recording`) or a point cloud.
+    recorded run (``.npz``: localization, mapping or local map, by its ``format`` entry) or a point
+    cloud.
     Raises :class:`~occmap.errors.OccmapError` (a missing file, a bad format, a kind of file it
     cannot show) naming the path."""
     path = Path(path)
@@ -190,15 +193,14 @@ def _grid_store(path: Path) -> Scene:
         for index in tiles:
             lo, hi = grid.tile_bounds(index)
             occ = occupancy_values(grid.log_odds((lo[0], lo[1], hi[0], hi[1])))
-            kk = min(k, T)  # tiles and pixels share the lattice's power-of-two alignment
-            block = occ.reshape(T // kk, kk, T // kk, kk).max(axis=(1, 3))
+            block = block_max(occ, min(k, T))  # tiles and pixels share the lattice's power-of-two alignment
             cx, cy = index[0] * T // k - px0, index[1] * T // k - py0  # the tile's first pixel
             r0, c0 = max(cy, 0), max(cx, 0)
             r1, c1 = min(cy + len(block), raster.shape[0]), min(cx + len(block), raster.shape[1])
             if r0 < r1 and c0 < c1:
                 view = raster[r0:r1, c0:c1]
                 np.maximum(view, block[r0 - cy:r1 - cy, c0 - cx:c1 - cx], out=view)
-    plane = _occupancy_plane(raster, res * k, np.array([px0 * k * res, py0 * k * res]), 0.0)
+    plane = occupancy_plane(raster, res * k, np.array([px0 * k * res, py0 * k * res]), 0.0)
     pixels = "" if k == 1 else f", drawn in {res * k:g} m pixels"
     summary = f"2D tile store, {x1 - x0} × {y1 - y0} cells, {res:g} m{pixels}"
     return Scene(path, "grid tile store", summary, res, _plane_bounds(plane), plane=plane)
@@ -208,26 +210,83 @@ def _map2d(path: Path) -> Scene:
     from ..io.mapserver import load_map
 
     m = load_map(path)
-    plane = _occupancy_plane(m.occupancy, m.resolution, np.array(m.origin[:2]), m.origin[2])
+    plane = occupancy_plane(m.occupancy, m.resolution, np.array(m.origin[:2]), m.origin[2])
     summary = f"2D map, {m.occupancy.shape[1]} × {m.occupancy.shape[0]} cells, {m.resolution:g} m"
     return Scene(path, "2D map", summary, m.resolution, _plane_bounds(plane), plane=plane)
 
 
 def _recording(path: Path) -> Scene:
+    from .. import _recordings
+    from ..errors import FormatError
+    from ..local import recording as local
+    from ..localize import recording as localize
+    from .. import mapping2d_recording as mapping
+
+    entries = _recordings.read(path)
+    kinds = {localize.FORMAT: _localization_run, mapping.FORMAT: _mapping_run, local.FORMAT: _local_map_run}
+    scene = kinds.get(entries.format)
+    if scene is None:
+        raise FormatError(path, f"not an occmap recording (format entry {entries.arrays.get('format')!r}; expected "
+                                f"one of {', '.join(map(repr, kinds))})")
+    return scene(entries)
+
+
+def _localization_run(entries) -> Scene:
     from ..localize.recording import LocalizationRecording
 
-    rec = LocalizationRecording.load(path)
-    plane = _occupancy_plane(rec.occupancy, rec.resolution, rec.origin, 0.0)
+    rec = LocalizationRecording.of_entries(entries)
+    plane = occupancy_plane(rec.occupancy, rec.resolution, rec.origin, 0.0)
     h, w = rec.occupancy.shape
     has_ref = int(np.isfinite(rec.reference[:, 0]).sum())
     summary = (f"{len(rec):,} steps over {rec.stamps[-1] - rec.stamps[0]:.1f} s, up to "
                f"{rec.particles.shape[1]} particles a step, {has_ref:,} reference poses; map {w} × {h} cells, "
                f"{rec.resolution:g} m")
-    return Scene(path, "localization run", summary, rec.resolution, _plane_bounds(plane), plane=plane,
+    return Scene(entries.path, "localization run", summary, rec.resolution, _plane_bounds(plane), plane=plane,
                  recording=rec)
 
 
-def _occupancy_plane(occupancy: np.ndarray, resolution: float, corner: np.ndarray, yaw: float) -> Plane:
+def _mapping_run(entries) -> Scene:
+    """The plane is drawn step by step (the viewer asks the recording for the map at its step)."""
+    from ..mapping2d_recording import MappingRecording
+
+    rec = MappingRecording.of_entries(entries)
+    h, w = rec.shape
+    summary = (f"{len(rec):,} scans over {rec.stamps[-1] - rec.stamps[0]:.1f} s, {len(rec.delta_steps):,} map "
+               f"states; map {w} × {h} cells, {rec.resolution:g} m")
+    corner = np.append(rec.origin, 0.0)
+    return Scene(entries.path, "mapping run", summary, rec.resolution,
+                 (corner, corner + [w * rec.resolution, h * rec.resolution, 0.0]), recording=rec)
+
+
+def _local_map_run(entries) -> Scene:
+    """The window's plane is drawn step by step, where the window is at that step; the scene spans
+    the ground it swept and half a window around (room for the camera's view)."""
+    from ..local.recording import LocalMapRecording
+
+    rec = LocalMapRecording.of_entries(entries)
+    h, w = rec.costs.shape[1:]
+    size = np.array([w, h]) * rec.resolution
+    lo, hi = rec.origins.min(axis=0) - size / 2, rec.origins.max(axis=0) + 1.5 * size
+    summary = (f"{len(rec):,} steps over {rec.stamps[-1] - rec.stamps[0]:.1f} s, a {w} × {h} window at "
+               f"{rec.resolution:g} m, {len(rec.track_id):,} track boxes")
+    return Scene(entries.path, "local map run", summary, rec.resolution, (np.append(lo, 0.0), np.append(hi, 0.0)),
+                 recording=rec)
+
+
+def block_max(occupancy: np.ndarray, k: int) -> np.ndarray:
+    """nav_msgs values (H, W) in blocks of k × k cells from the corner, each block its largest value
+    (an occupied cell shows through free ones, a known one through unknown ones; no wall drops out
+    of a coarser picture); the last blocks padded with unknown."""
+    h, w = occupancy.shape
+    rows, cols = -(-h // k), -(-w // k)
+    if (rows * k, cols * k) != (h, w):
+        padded = np.full((rows * k, cols * k), -1, np.int8)
+        padded[:h, :w] = occupancy
+        occupancy = padded
+    return occupancy.reshape(rows, k, cols, k).max(axis=(1, 3))
+
+
+def occupancy_plane(occupancy: np.ndarray, resolution: float, corner: np.ndarray, yaw: float) -> Plane:
     """nav_msgs values (row 0 at the lowest y) as map_server's picture: unknown grey, free white,
     occupied black, grey levels between; its centre from the outer corner of cell (0, 0)."""
     occ = np.asarray(occupancy)

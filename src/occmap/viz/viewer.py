@@ -14,7 +14,12 @@ What it draws (coordinates are the map's, metres, z up):
 - **recorded localization runs** (``.npz``, :mod:`occmap.localize.recording`): the map as a plane
   and, at the step the panel's time slider picks (or "Play" advances, at the run's pace times a
   speed), the particles, the estimated pose as a frame, the estimate's track so far and the
-  reference poses so far (where the run had them).
+  reference poses so far (where the run had them);
+- **recorded mapping runs** (:mod:`occmap.mapping2d_recording`): the map as it was at the step,
+  the sensor's path so far and a frame at its pose;
+- **recorded local-map runs** (:mod:`occmap.local.recording`): the costmap at the step as a plane
+  where the window was, the robot's path and pose, the tracks as their footprints' outlines.
+  A recorded run's kind is its file's ``format`` entry (:mod:`occmap._recordings`).
 
 The panel holds the colour mode, the free-space switch, a slice (cut the map above a height, or
 keep the one layer a height crosses) and a way to open another map in the running server (a
@@ -35,7 +40,7 @@ from ..errors import InvalidArgumentError, OccmapError
 from ..logodds import probability
 from ..octree.keys import DEPTH
 from ._lod import COARSE_DEPTH, Level, Voxels, cut, pick_level, ramp
-from ._maps import Scene, open_scene, viewable
+from ._maps import Plane, Scene, block_max, occupancy_plane, open_scene, viewable
 from ._scene3d import STYLES, add_boxes, camera_view, close_server, new_server
 
 #: Boxes drawn at most per class of space (occupied, free): about 20 MB to the browser, smooth on
@@ -43,6 +48,9 @@ from ._scene3d import STYLES, add_boxes, camera_view, close_server, new_server
 DEFAULT_MAX_VOXELS = 500_000
 #: Points of a cloud drawn at most (every k-th point beyond it).
 MAX_POINTS = 2_000_000
+#: Cells a side of a map drawn step by step, at most (beyond it, blocks of k × k cells drawn as
+#: one): a step's picture is encoded anew, about 0.25 s for a million pixels.
+MAX_PLANE_CELLS = 1024
 #: Maps listed beside the one shown, at most.
 MAX_LISTED = 500
 
@@ -51,6 +59,8 @@ PATH_COLOR = (230, 40, 40)
 PARTICLE_COLOR = (255, 140, 0)
 ESTIMATE_COLOR = (30, 90, 230)
 REFERENCE_COLOR = (20, 170, 60)
+TRACK_COLOR = (0, 170, 60)
+TENTATIVE_COLOR = (120, 220, 140)
 #: Redraws a second at most while "Play" is on; steps a second of a run with no pace of its own.
 PLAY_RATE = 10.0
 #: "Play"'s speeds: times the run's recorded pace.
@@ -277,9 +287,10 @@ class Viewer:
                                           precision="float32", point_shading="flat")
 
     def _draw_plane(self) -> None:
-        plane = self.scene.plane
-        if plane is None:
-            return
+        if self.scene.plane is not None:
+            self._draw_image(self.scene.plane)
+
+    def _draw_image(self, plane: Plane) -> None:
         half = plane.yaw / 2
         self.server.scene.add_image("/map/plane", plane.rgb, plane.width, plane.height, format="png",
                                     position=plane.center, wxyz=(np.cos(half), 0.0, 0.0, np.sin(half)),
@@ -297,24 +308,25 @@ class Viewer:
             self.server.scene.add_line_segments("/map/sensor_path", segments, PATH_COLOR, line_width=3.0)
 
     def _draw_step(self) -> None:
-        """A recorded run at the slider's step: particles, the estimate (a frame, x ahead) and the
-        reference, with the estimate's track (a line) and the reference poses (dots) up to that step,
-        all a little above the map plane."""
+        """A recorded run at the slider's step, drawn by its kind, a little above the map plane."""
         rec = self.scene.recording
         if rec is None:
             return
         i = min(int(self._step.value), len(rec) - 1)  # a slider spans two steps at least
-        z = self._marker / 4
+        draw = {"localization run": self._draw_localization, "mapping run": self._draw_mapping,
+                "local map run": self._draw_local_map}[self.scene.kind]
+        self._info.content = (f"{self._describe()}\n\nstep {i + 1:,} of {len(rec):,}, "
+                              f"t = {rec.stamps[i] - rec.stamps[0]:.2f} s{draw(rec, i, self._marker / 4)}")
+
+    def _draw_localization(self, rec, i: int, z: float) -> str:
+        """Particles, the estimate (a frame, x ahead) and the reference, with the estimate's track
+        (a line) and the reference poses (dots) up to step ``i``."""
         particles = rec.particles[i]
         particles = particles[np.isfinite(particles[:, 0])]
         self.server.scene.add_point_cloud("/map/run/particles", _at_height(particles, z), PARTICLE_COLOR,
                                           point_size=self._marker / 2, point_shape="circle",
                                           precision="float32", point_shading="flat")
-        track = _at_height(rec.estimates[: i + 1], z)
-        self.server.scene.remove_by_name("/map/run/estimate_track")
-        if i:
-            self.server.scene.add_line_segments("/map/run/estimate_track", np.stack([track[:-1], track[1:]], 1),
-                                                ESTIMATE_COLOR, thickness=2.0, thickness_units="screen")
+        self._draw_track("/map/run/estimate_track", rec.estimates[: i + 1], ESTIMATE_COLOR, z)
         # the reference as dots: a corrected log pairs with one scan in ~15 (Intel), too few for a line
         known = rec.reference[: i + 1]
         known = known[np.isfinite(known[:, 0])]
@@ -323,10 +335,9 @@ class Viewer:
             self.server.scene.add_point_cloud("/map/run/reference_track", _at_height(known, z), REFERENCE_COLOR,
                                               point_size=self._marker / 4, point_shape="circle",
                                               precision="float32", point_shading="flat")
-        x, y, theta = rec.estimates[i]
-        self.server.scene.add_frame("/map/run/estimate", wxyz=(np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)),
-                                    position=(x, y, z), axes_length=4 * self._marker, axes_radius=self._marker / 5)
+        self._draw_pose("/map/run/estimate", rec.estimates[i], z)
         ref = rec.reference[i]
+        x, y, _ = rec.estimates[i]
         if np.isfinite(ref).all():
             self.server.scene.add_point_cloud("/map/run/reference", _at_height(ref[None], z), REFERENCE_COLOR,
                                               point_size=1.5 * self._marker, point_shape="circle",
@@ -335,8 +346,60 @@ class Viewer:
         else:
             self.server.scene.remove_by_name("/map/run/reference")
             error = ""
-        self._info.content = (f"{self._describe()}\n\nstep {i + 1:,} of {len(rec):,}, "
-                              f"t = {rec.stamps[i] - rec.stamps[0]:.2f} s, {len(particles)} particles shown{error}")
+        return f", {len(particles)} particles shown{error}"
+
+    def _draw_mapping(self, rec, i: int, z: float) -> str:
+        """The map as it was after scan ``i`` (:meth:`~occmap.mapping2d_recording.MappingRecording.occupancy_at`),
+        the sensor's path so far and a frame at its pose."""
+        occ, k = _pooled(rec.occupancy_at(i), MAX_PLANE_CELLS)
+        if occ.size:
+            self._draw_image(occupancy_plane(occ, k * rec.resolution, rec.origin, 0.0))
+        poses = rec.poses[: i + 1]
+        poses = poses[np.isfinite(poses).all(axis=1)]
+        self._draw_track("/map/run/path", poses, PATH_COLOR, z)
+        if len(poses):
+            self._draw_pose("/map/run/pose", poses[-1], z)
+        return f", map state {rec.deltas_at(i):,} of {len(rec.delta_steps):,}"
+
+    def _draw_local_map(self, rec, i: int, z: float) -> str:
+        """The costmap at step ``i`` as a plane where the window was (the animation's colours), the
+        robot's path so far and a frame at its pose, and the tracks as their footprints' outlines
+        (confirmed ones darker)."""
+        from ..local.replay import cost_rgb
+        from ..local.tracking.detection import box_corners
+
+        h, w = rec.costs.shape[1:]
+        size = np.array([w, h]) * rec.resolution
+        centre = rec.origins[i] + size / 2
+        self._draw_image(Plane(cost_rgb(rec.costs[i]), float(size[0]), float(size[1]),
+                               np.array([centre[0], centre[1], 0.0])))
+        self._draw_track("/map/run/path", rec.poses[: i + 1], ESTIMATE_COLOR, z)
+        self._draw_pose("/map/run/pose", rec.poses[i], z)
+        t = rec.tracks_at(i)
+        for name, sel in (("confirmed", t["confirmed"]), ("tentative", ~t["confirmed"])):
+            self.server.scene.remove_by_name(f"/map/run/tracks_{name}")
+            if sel.any():
+                corners = box_corners(t["x"][sel], t["y"][sel], t["heading"][sel], t["length"][sel], t["width"][sel])
+                ends = np.stack([corners, np.roll(corners, -1, axis=1)], axis=2).reshape(-1, 2, 2)
+                segments = np.concatenate([ends, np.full((len(ends), 2, 1), z)], axis=2).astype(np.float32)
+                self.server.scene.add_line_segments(f"/map/run/tracks_{name}", segments,
+                                                    TRACK_COLOR if name == "confirmed" else TENTATIVE_COLOR,
+                                                    thickness=3.0, thickness_units="screen")
+        return f", {int(t['confirmed'].sum())} confirmed tracks of {len(t['id'])}"
+
+    def _draw_track(self, name: str, poses: np.ndarray, colour, z: float) -> None:
+        """The positions of ``poses`` (N, 3) as a line, a little above the map."""
+        self.server.scene.remove_by_name(name)
+        if len(poses) > 1:
+            track = _at_height(poses, z)
+            self.server.scene.add_line_segments(name, np.stack([track[:-1], track[1:]], 1), colour,
+                                                thickness=2.0, thickness_units="screen")
+
+    def _draw_pose(self, name: str, pose, z: float) -> None:
+        """A frame at ``pose`` ``(x, y, theta)``, x ahead."""
+        x, y, theta = pose
+        self.server.scene.add_frame(name, wxyz=(np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)),
+                                    position=(x, y, z), axes_length=4 * self._marker, axes_radius=self._marker / 5)
 
     def _play_loop(self) -> None:
         """Advance a recorded run while "Play" is on, at its recorded pace times the panel's speed
@@ -481,3 +544,10 @@ def _at_height(poses: np.ndarray, z: float) -> np.ndarray:
     out[:, :2] = poses[:, :2]
     out[:, 2] = z
     return out
+
+
+def _pooled(occupancy: np.ndarray, max_side: int) -> tuple[np.ndarray, int]:
+    """nav_msgs values (H, W) in blocks of k × k cells (:func:`~occmap.viz._maps.block_max`), the
+    smallest k that brings both sides to ``max_side`` at most; and k."""
+    k = max(1, -(-max(occupancy.shape) // max_side))
+    return (occupancy, 1) if k == 1 else (block_max(occupancy, k), k)
