@@ -68,6 +68,13 @@ class Entries:
                                          f"{trailing}")
         return a.astype(dtype, copy=False) if dtype is not None else a
 
+    def stamps(self) -> np.ndarray:
+        """The ``stamps`` entry, one per step (float64 seconds): a recording has a step at least."""
+        stamps = self.get("stamps", 1, dtype=np.float64)
+        if not len(stamps):
+            raise FormatError(self.path, "the recording has no step")
+        return stamps
+
     def same_length(self, n: int, of: str, /, **arrays: np.ndarray) -> None:
         """Refuse arrays whose first axis is not ``n`` long, the length of entry ``of``."""
         for name, a in arrays.items():

@@ -112,10 +112,8 @@ class MappingRecording:
     def of_entries(cls, e: _recordings.Entries) -> MappingRecording:
         """The recording in a file's entries (:func:`occmap._recordings.read`), checked."""
         e.check(FORMAT, VERSION, "mapping")
-        stamps = e.get("stamps", 1, dtype=np.float64)
+        stamps = e.stamps()
         n = len(stamps)
-        if not n:
-            raise FormatError(e.path, "the recording has no step")
         poses = e.get("poses", 2, (3,), np.float64)
         e.same_length(n, "stamps", poses=poses)
         steps = e.get("delta_steps", 1, kinds="iu").astype(np.int64)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _recordings
-from ..errors import FormatError, InvalidArgumentError
+from ..errors import InvalidArgumentError
 
 #: The ``format`` entry of a local-map recording file, and its version.
 FORMAT = "occmap local map recording"
@@ -74,10 +74,8 @@ class LocalMapRecording:
     def of_entries(cls, e: _recordings.Entries) -> LocalMapRecording:
         """The recording in a file's entries (:func:`occmap._recordings.read`), checked."""
         e.check(FORMAT, VERSION, "local map")
-        stamps = e.get("stamps", 1, dtype=np.float64)
+        stamps = e.stamps()
         n = len(stamps)
-        if not n:
-            raise FormatError(e.path, "the recording has no step")
         poses, origins = e.get("poses", 2, (3,), np.float64), e.get("origins", 2, (2,), np.float64)
         costs = e.get("costs", 3, dtype=np.uint8)
         e.same_length(n, "stamps", poses=poses, origins=origins, costs=costs)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _recordings
-from ..errors import FormatError, InvalidArgumentError
+from ..errors import InvalidArgumentError
 
 #: The ``format`` entry of a recording file, and its version.
 FORMAT = "occmap localization recording"
@@ -83,13 +83,11 @@ class LocalizationRecording:
     def of_entries(cls, e: _recordings.Entries) -> LocalizationRecording:
         """The recording in a file's entries (:func:`occmap._recordings.read`), checked."""
         e.check(FORMAT, VERSION, "localization")
-        stamps = e.get("stamps", 1, dtype=np.float64)
+        stamps = e.stamps()
         out = cls(stamps, e.get("estimates", 2, (3,), np.float64), e.get("particles", 3, (3,), np.float32),
                   e.get("reference", 2, (3,), np.float64), e.get("occupancy", 2, dtype=np.int8),
                   e.resolution(), e.get("origin", 1, (2,), np.float64))
         e.same_length(len(stamps), "stamps", estimates=out.estimates, particles=out.particles,
                       reference=out.reference)
-        if not len(stamps):
-            raise FormatError(e.path, "the recording has no step")
         e.finite(estimates=out.estimates, origin=out.origin)
         return out
