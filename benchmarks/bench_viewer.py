@@ -29,18 +29,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import ROOT, shared_data, write_section  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "tests" / "viz"))
+from headless import ARGS, CHROMIUM, VIEW, ramp_pixels  # noqa: E402  (the tests' browser settings)
+
 BIN = Path(sys.executable).parent
-CHROMIUM = shutil.which("chromium")
-ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run"]
 
 
 def drawn_seconds(browser, url: str, timeout: float = 60.0) -> float:
     """Seconds from opening ``url`` in a new tab until 2,000 pixels of the height ramp show."""
-    sys.path.insert(0, str(ROOT / "tests" / "viz"))
-    from test_viewer import ramp_pixels
-
-    page = browser.new_page(viewport={"width": 800, "height": 600})
+    page = browser.new_page(viewport=VIEW)
     t0 = time.perf_counter()
     page.goto(url)
     while ramp_pixels(page.screenshot()) < 2000:
