@@ -157,6 +157,7 @@ def test_a_tile_store_is_counted_tile_by_tile_and_drawn_at_the_level_that_fits(t
     occupied = lv.centers[lv.log_odds >= 0]
     with Viewer(tmp_path / "room-tiles", port=0, max_voxels=len(occupied) // 3) as viewer:
         counts = viewer.scene.counts
+        assert viewer._colour.visible and viewer._show_free.visible and not viewer._step.visible
         assert counts(16) == (len(occupied), int(np.count_nonzero(lv.log_odds < 0)))
         assert counts(15)[0] < counts(16)[0] and counts(14)[0] < counts(15)[0]
         level = viewer.occupied

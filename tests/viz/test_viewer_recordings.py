@@ -169,6 +169,9 @@ def test_the_map_grows_in_the_browser(browser, mapping):
     _, tmp = mapping
     with Viewer(tmp / "intel.npz", port=0) as viewer:
         assert viewer.scene.kind == "mapping run"
+        # the panel shows the run's controls, not those of voxels (colour, boxes, free space, slices)
+        assert viewer._step.visible and viewer._speed.visible
+        assert not any(c.visible for c in (viewer._colour, viewer._style, viewer._show_free, viewer._slice_mode))
         tab = _open(browser, viewer, 91)
         early = _mapped(_at_step(tab, viewer, 9, 91, "mapping-early"))
         late = _mapped(_at_step(tab, viewer, 90, 91, "mapping-late"))

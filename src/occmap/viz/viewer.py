@@ -515,6 +515,11 @@ class Viewer:
         self._step.max = max(len(rec) - 1, 1) if rec is not None else 1
         self._step.value = 0
         self._step.visible = self._play.visible = self._speed.visible = rec is not None
+        # colours, boxes and slices are for voxels and points; a plane (a 2D map, a run) has none
+        solid = self.scene.nodes_at is not None or self.scene.points is not None
+        for control in (self._colour, self._slice_mode, self._z):
+            control.visible = solid
+        self._style.visible = self._show_free.visible = self.scene.nodes_at is not None
 
     def _describe(self) -> str:
         s = self.scene
