@@ -115,15 +115,15 @@ def write_section(name: str, body: str) -> None:
     tmp.replace(BENCHMARKS_MD)
 
 
-def grids_side_by_side(path: Path, grids, gap: int = 20) -> None:
-    """The labelled figures of 2D grids (``grid.save_png(title=...)``) for ``(title, grid)`` pairs,
-    side by side on white into ``path``."""
+def grids_side_by_side(path: Path, grids, gap: int = 20, crop=True) -> None:
+    """The labelled figures of 2D grids (``grid.save_png(title=..., crop=crop)``) for ``(title,
+    grid)`` pairs, side by side on white into ``path``."""
     import tempfile
 
     from PIL import Image
 
     with tempfile.TemporaryDirectory() as tmp:
-        pictures = [Image.open(grid.save_png(Path(tmp) / f"{k}.png", title)).convert("RGB")
+        pictures = [Image.open(grid.save_png(Path(tmp) / f"{k}.png", title, crop)).convert("RGB")
                     for k, (title, grid) in enumerate(grids)]
     canvas = Image.new("RGB", (sum(p.width for p in pictures) + gap * (len(pictures) - 1),
                                max(p.height for p in pictures)), (255, 255, 255))

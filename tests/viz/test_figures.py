@@ -72,6 +72,14 @@ def test_grid_figure_draws_free_white_occupied_black_unknown_blue_where_they_are
     assert hi[0] >= lo[0] and hi[1] < lo[1]
     path = g.save_png(tmp_path / "g.png")
     assert Image.open(path).format == "PNG" and g._repr_png_()[:8] == b"\x89PNG\r\n\x1a\n"
+    # a box in metres: the cells it touches, the same picture there (two maps of one place drawn alike)
+    boxed = g.figure("box", crop=(0.52, -0.31, 2.33, 1.0))
+    assert boxed.axes[0].get_xlim() == pytest.approx((0.5, 2.4)) and boxed.axes[0].get_ylim() == pytest.approx((-0.4, 1.0))
+    _, at_box = drawn(boxed)
+    assert at_box(2.05, 0.05).max() < 60 and at_box(1.0, 0.05).min() > 225
+    for bad in ((0, 0, 0, 1), (np.nan, 0, 1, 1), (10.0, 10.0, 11.0, 11.0), (1, 2)):
+        with pytest.raises(InvalidArgumentError, match="crop"):
+            g.figure(crop=bad)
 
 
 def test_grid_figure_refuses_bad_input():

@@ -464,15 +464,16 @@ class OccupancyGrid2D(OneCallAtATime):
             raise InvalidArgumentError("an empty growing map has no extent to save yet")
         return save_map(path_yaml, self.occupancy(), self.resolution, self.origin, **kwargs)
 
-    def figure(self, title: str = "occupancy grid", crop: bool = True):
+    def figure(self, title: str = "occupancy grid", crop=True):
         """A labelled figure of the occupancy probability (free white, occupied black, never
-        observed light blue; axes in metres, scale bar, colour bar), cropped to the observed cells
+        observed light blue; axes in metres, scale bar, colour bar), cropped to the mapped part, or
+        to ``crop = (xmin, ymin, xmax, ymax)`` metres, or not (False)
         (:func:`occmap.viz.maps.grid_figure`)."""
         from ..viz import maps
 
         return maps.grid_figure(self.probability(), self.observed, self.origin, self.resolution, title, crop)
 
-    def save_png(self, path, title: str = "occupancy grid", crop: bool = True):
+    def save_png(self, path, title: str = "occupancy grid", crop=True):
         """Write :meth:`figure` as a PNG file; returns the path. (The map_server image a ROS node
         loads is :meth:`save`'s, cell for pixel.)"""
         from ..viz import figure

@@ -37,7 +37,7 @@ def _legend(ax, entries) -> None:
     legend(ax, [Patch(facecolor=c, edgecolor="0.4", label=t) for t, c in entries])
 
 
-def grid_figure(probability, known, origin, resolution: float, title: str = "occupancy grid", crop: bool = True):
+def grid_figure(probability, known, origin, resolution: float, title: str = "occupancy grid", crop=True):
     """An occupancy grid: probability from white (free, 0) to black (occupied, 1) with its colour
     bar, never-observed cells light blue.
 
@@ -47,8 +47,10 @@ def grid_figure(probability, known, origin, resolution: float, title: str = "occ
         origin: world (x, y) of cell (0, 0)'s outer corner, metres.
         resolution: cell side, metres.
         title: the figure's title.
-        crop: draw only the mapped part: the box of the occupied cells (p ≥ 0.65, map_server's
-            threshold) grown by 20 cells, within the observed ones (:func:`~occmap.viz.figure.known_box`).
+        crop: True: draw only the mapped part, the box of the occupied cells (p ≥ 0.65,
+            map_server's threshold) grown by 20 cells, within the observed ones
+            (:func:`~occmap.viz.figure.known_box`); False: every cell; ``(xmin, ymin, xmax, ymax)``
+            metres: the cells of that box (two maps of one place drawn alike).
     """
     from matplotlib.colors import PowerNorm
 
@@ -61,7 +63,10 @@ def grid_figure(probability, known, origin, resolution: float, title: str = "occ
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise InvalidArgumentError(f"probability[{r}, {c}] = {float(p[r, c])!r} is not in [0, 1]")
-    rows, cols = known_box(seen, seen & (p >= 0.65)) if crop else (slice(0, p.shape[0]), slice(0, p.shape[1]))
+    if isinstance(crop, (bool, np.bool_)):
+        rows, cols = known_box(seen, seen & (p >= 0.65)) if crop else (slice(0, p.shape[0]), slice(0, p.shape[1]))
+    else:
+        rows, cols = _box_cells(crop, np.asarray(origin, np.float64), resolution, p.shape)
     p, seen = p[rows, cols], seen[rows, cols]
     corner = (origin[0] + cols.start * resolution, origin[1] + rows.start * resolution)
     extent = _extent(corner, resolution, p.shape)
@@ -74,6 +79,33 @@ def grid_figure(probability, known, origin, resolution: float, title: str = "occ
     map_axes(ax, extent, f"{title}\n{resolution:g} m cells")
     _legend(ax, [("never observed", UNKNOWN)])
     return fig
+
+
+def mapped_box(probability, known, origin, resolution: float) -> tuple[float, float, float, float]:
+    """The world box ``(xmin, ymin, xmax, ymax)`` metres :func:`grid_figure` draws by default (the
+    mapped part): to draw another map of the same place alike, give it as that map's ``crop``."""
+    p, seen = np.asarray(probability, np.float64), np.asarray(known, bool)
+    seen = seen & ~np.isnan(p)
+    rows, cols = known_box(seen, seen & (p >= 0.65))
+    x0, y0 = float(origin[0]), float(origin[1])
+    return (x0 + cols.start * resolution, y0 + rows.start * resolution,
+            x0 + cols.stop * resolution, y0 + rows.stop * resolution)
+
+
+def _box_cells(box, origin, resolution: float, shape) -> tuple[slice, slice]:
+    """Row and column slices of the cells a world box ``(xmin, ymin, xmax, ymax)`` metres touches,
+    within the map."""
+    b = np.asarray(box, dtype=np.float64)
+    if b.shape != (4,) or not np.isfinite(b).all() or not (b[0] < b[2] and b[1] < b[3]):
+        raise InvalidArgumentError(f"crop must be True, False or (xmin, ymin, xmax, ymax) in metres with min < max, "
+                                   f"got {box!r}")
+    (c0, r0), (c1, r1) = (np.floor((b[:2] - origin) / resolution).astype(int),
+                          np.ceil((b[2:] - origin) / resolution).astype(int))
+    rows = slice(int(np.clip(r0, 0, shape[0])), int(np.clip(r1, 0, shape[0])))
+    cols = slice(int(np.clip(c0, 0, shape[1])), int(np.clip(c1, 0, shape[1])))
+    if rows.start == rows.stop or cols.start == cols.stop:
+        raise InvalidArgumentError(f"crop {b.tolist()} holds no cell of the map")
+    return rows, cols
 
 
 def _cmap(name: str):
