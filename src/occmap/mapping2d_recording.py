@@ -23,7 +23,7 @@ import numpy as np
 from . import _recordings, checks
 from ._recording_kernels import changed_log_odds
 from .errors import FormatError, InvalidArgumentError
-from .grid2d.grid import _beam_points, scan_arrays
+from .grid2d.grid import beam_points, scan_arrays
 from .logodds import occupancy_values
 
 #: The ``format`` entry of a mapping recording file, and its version.
@@ -176,7 +176,7 @@ class MappingRecorder:
                 state[r:r + h, c:c + w], log_odds[r:r + h, c:c + w] = self._state, self._log_odds
             self._state, self._log_odds, self._corner = state, log_odds, corner
         P, R, A, limit = scan_arrays(poses, ranges, angles, max_range)
-        x, y = _beam_points(P, R, A, limit)
+        x, y = beam_points(P, R, A, limit)
         res = grid.resolution
         lo, hi = (np.nanmin(x) - res, np.nanmin(y) - res), (np.nanmax(x) + res, np.nanmax(y) + res)
         window, at = grid.log_odds_in(lo, hi)

@@ -36,7 +36,7 @@ def _new_cells(shape, l_prior: float) -> tuple[np.ndarray, np.ndarray]:
     return L, np.zeros(shape, dtype=np.uint16)
 
 
-def _beam_points(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
+def beam_points(P: np.ndarray, R: np.ndarray, A: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
     """World x and y (N, 1 + n) of each scan's sensor position (column 0) and of the beam ends
     that will be used (columns 1..n: ranges capped at ``max_range``; NaN for dropped readings)."""
     r = np.where(R > 0, np.minimum(R, max_range), np.nan)  # NaN stays NaN: dropped beams
@@ -284,7 +284,7 @@ class OccupancyGrid2D(OneCallAtATime):
         P, R, A, max_range = scan_arrays(poses, ranges, angles, max_range)
         if self.growing and len(P):
             def culprit(centre):
-                x, y = _beam_points(P, R, A, max_range)
+                x, y = beam_points(P, R, A, max_range)
                 i, j = _farthest(x, y, centre)
                 if j == 0:
                     return f"poses[{i}] = {P[i].tolist()}"
