@@ -31,6 +31,17 @@ def save(path, format: str, version: int, **arrays) -> Path:
     return write_atomic(path, buf.getvalue())
 
 
+class Recording:
+    """What the three kinds of recording share: :meth:`load`, which reads a file and hands its
+    entries to the kind's own ``of_entries(entries)`` (checking them)."""
+
+    @classmethod
+    def load(cls, path):
+        """Read a recording; :class:`~occmap.errors.FormatError` names the file and the entry that
+        is missing, of the wrong type or shape, or out of range."""
+        return cls.of_entries(read(path))
+
+
 class Entries:
     """The arrays of a recording file, read all at once; :meth:`get` hands each out checked."""
 

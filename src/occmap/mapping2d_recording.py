@@ -38,7 +38,7 @@ KEY_EVERY = 32
 
 
 @dataclass
-class MappingRecording:
+class MappingRecording(_recordings.Recording):
     """A mapping run (see the module docstring). ``delta_steps[j]`` is the scan after which delta
     ``j`` holds; its cells are ``delta_cells[delta_offsets[j]:delta_offsets[j + 1]]`` (flat
     indices into the final ``shape``) and their values the same slice of ``delta_values``.
@@ -101,12 +101,6 @@ class MappingRecording:
                                 delta_cells=self.delta_cells, delta_values=self.delta_values,
                                 shape=np.array(self.shape, np.int64), resolution=np.array(self.resolution),
                                 origin=self.origin)
-
-    @classmethod
-    def load(cls, path) -> MappingRecording:
-        """Read a recording; :class:`~occmap.errors.FormatError` names the file and the entry that
-        is missing, of the wrong type or shape, or out of range."""
-        return cls.of_entries(_recordings.read(path))
 
     @classmethod
     def of_entries(cls, e: _recordings.Entries) -> MappingRecording:

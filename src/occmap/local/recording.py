@@ -31,7 +31,7 @@ TRACK_FIELDS = {"id": np.int64, "x": np.float64, "y": np.float64, "heading": np.
 
 
 @dataclass
-class LocalMapRecording:
+class LocalMapRecording(_recordings.Recording):
     """A local-map replay (see the module docstring): step ``i``'s tracks are rows
     ``track_offsets[i]:track_offsets[i + 1]`` of the ``track_*`` arrays (metres, radians)."""
 
@@ -63,12 +63,6 @@ class LocalMapRecording:
                                 costs=self.costs, resolution=np.array(self.resolution),
                                 track_offsets=self.track_offsets,
                                 **{f"track_{name}": getattr(self, f"track_{name}") for name in TRACK_FIELDS})
-
-    @classmethod
-    def load(cls, path) -> LocalMapRecording:
-        """Read a recording; :class:`~occmap.errors.FormatError` names the file and the entry that
-        is missing, of the wrong type or shape."""
-        return cls.of_entries(_recordings.read(path))
 
     @classmethod
     def of_entries(cls, e: _recordings.Entries) -> LocalMapRecording:

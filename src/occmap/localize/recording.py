@@ -39,7 +39,7 @@ def subsample(particles: np.ndarray, k: int) -> np.ndarray:
 
 
 @dataclass
-class LocalizationRecording:
+class LocalizationRecording(_recordings.Recording):
     """A localization run, one row per scan (see the module docstring). Poses are ``(x, y,
     theta)`` of the sensor in the map frame, metres and radians; ``origin`` is the world position
     of the outer corner of map cell (0, 0), whose row 0 lies along the lowest y."""
@@ -72,12 +72,6 @@ class LocalizationRecording:
         return _recordings.save(path, FORMAT, VERSION, stamps=self.stamps, estimates=self.estimates,
                                 particles=self.particles, reference=self.reference, occupancy=self.occupancy,
                                 resolution=np.array(self.resolution), origin=self.origin)
-
-    @classmethod
-    def load(cls, path) -> LocalizationRecording:
-        """Read a recording; :class:`~occmap.errors.FormatError` names the file and the entry that
-        is missing or of the wrong shape."""
-        return cls.of_entries(_recordings.read(path))
 
     @classmethod
     def of_entries(cls, e: _recordings.Entries) -> LocalizationRecording:
