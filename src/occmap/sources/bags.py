@@ -106,8 +106,10 @@ class _BagSource:
         return -(-self.count // self.every)
 
     def __iter__(self) -> Iterator:
-        bag, self._bag = self._bag or open_bag(self.path), None
-        bag.require_standard(self.topic)  # a bag opened anew: its messages then decode by the standard types
+        bag, self._bag = self._bag, None
+        if bag is None:  # a bag opened anew: checked again, its messages then decode by the standard types
+            bag = open_bag(self.path)
+            bag.require_standard(self.topic)
         self.dropped.clear()
         self.tilted = 0
         with bag:
