@@ -403,7 +403,7 @@ class OccupancyGrid2D(OneCallAtATime):
         totals = np.zeros(3, dtype=np.int64)
         i = 0
         while i < n:
-            code, k = self._codes.take(n - i, self._stamp)
+            code, k = self._codes.take(n - i, self._cells()[1])  # cells outside the window are all UNSEEN
             totals += integrate(i, i + k, code)
             i += k
         return tuple(totals)
@@ -442,15 +442,19 @@ class OccupancyGrid2D(OneCallAtATime):
         (gx0, gy0), (H, W) = self._offset, self._L.shape
         if H and gx0 <= x0 and gy0 <= y0 and x1 <= gx0 + W and y1 <= gy0 + H:
             return
-        margin_x = min(max(_GROW_MARGIN_CELLS, W // 2), min(limit - need_w, 2**62) // 2)
-        margin_y = min(max(_GROW_MARGIN_CELLS, H // 2), min(limit - need_h, 2**62) // 2)
+        # the first storage too gets margins of half its size: a robot's first scans show most of
+        # the place, so the map then rarely grows again (each growth copies the map)
+        margin_x = min(max(_GROW_MARGIN_CELLS, max(W, need_w) // 2), min(limit - need_w, 2**62) // 2)
+        margin_y = min(max(_GROW_MARGIN_CELLS, max(H, need_h) // 2), min(limit - need_h, 2**62) // 2)
         sx0 = x0 - margin_x if not H or x0 < gx0 else gx0
         sy0 = y0 - margin_y if not H or y0 < gy0 else gy0
         sx1 = x1 + margin_x if not H or x1 > gx0 + W else gx0 + W
         sy1 = y1 + margin_y if not H or y1 > gy0 + H else gy0 + H
         L, stamp = _new_cells((sy1 - sy0, sx1 - sx0), self.l_prior)
-        L[gy0 - sy0:gy0 - sy0 + H, gx0 - sx0:gx0 - sx0 + W] = self._L
-        stamp[gy0 - sy0:gy0 - sy0 + H, gx0 - sx0:gx0 - sx0 + W] = self._stamp
+        if box is not None:  # only the old window: the margins around it were never written
+            rows, cols = slice(box[1] - gy0, box[3] - gy0), slice(box[0] - gx0, box[2] - gx0)
+            L[box[1] - sy0:box[3] - sy0, box[0] - sx0:box[2] - sx0] = self._L[rows, cols]
+            stamp[box[1] - sy0:box[3] - sy0, box[0] - sx0:box[2] - sx0] = self._stamp[rows, cols]
         self._L, self._stamp, self._offset = L, stamp, (sx0, sy0)
 
     # ------------------------------------------------------------------ files
