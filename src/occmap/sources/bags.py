@@ -6,11 +6,14 @@ Where each message was taken comes, in this order, from:
 * a pose file (:class:`~occmap.io.poses.PoseTrack`): by the message's header stamp for a track
   with stamps (TUM), else pose ``k`` for message ``k``;
 * tf: ``T_fixed_sensor`` looked up in the bag's :class:`~occmap.geometry.frames.FrameTree`
-  (``/tf`` and ``/tf_static``, read in a first pass over those topics alone) from the fixed frame
-  to the message's ``header.frame_id`` at its header stamp, interpolated between tf samples. An
-  odometry topic (``nav_msgs/Odometry``) joins the tree as the link ``header.frame_id →
-  child_frame_id`` of its messages, so odometry serves where a bag has no tf, or only a static
-  sensor mount.
+  (``/tf`` and ``/tf_static``) from the fixed frame to the message's ``header.frame_id`` at its
+  header stamp, interpolated between tf samples. An odometry topic (``nav_msgs/Odometry``) joins
+  the tree as the link ``header.frame_id → child_frame_id`` of its messages, so odometry serves
+  where a bag has no tf, or only a static sensor mount. tf is read in the same pass as the
+  messages (:class:`~occmap.io.bags.transforms.TransformFeed`), and a message waits until tf has
+  passed its stamp, as tf2's message filters make a node wait; if tf lags so far behind that
+  :data:`WAIT_LIMIT` batches wait, or never joins the sensor frame, the bag's whole tf is read in a
+  pass of its own. With tf recorded in stamp order, the poses are those the whole bag's tf gives.
 
 A message whose stamp lies outside the tf samples (or beyond the pose file's tolerance) is not
 guessed at: it is dropped and counted in ``dropped`` under its reason, as are scans with no beams
@@ -18,11 +21,12 @@ and clouds with no finite points. A sensor frame that tf does not join to the fi
 stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming both frames and the
 time. A topic (the scans', tf, odometry) whose connection defines its type otherwise than ROS does
 is refused with a :class:`~occmap.errors.FormatError` saying what differs
-(:mod:`occmap.io.bags.definitions`). Memory holds the frame tree and one message (a batch of 50 for
-laser scans, whose poses are looked up together).
+(:mod:`occmap.io.bags.definitions`). Memory holds the frame tree and the messages waiting for tf
+(one, or a batch of 50 for laser scans, whose poses are looked up together).
 
 The fixed frame defaults to the root of the sensor frame's tf tree (``odom`` or ``map`` in a
-usual robot's), and to ``fallback_frame`` when tf does not know the sensor frame.
+usual robot's) as tf stands :data:`ROOT_HORIZON` seconds after the topic's first message, and to
+``fallback_frame`` when tf does not know the sensor frame by then.
 """
 
 from __future__ import annotations
@@ -36,13 +40,19 @@ import numpy as np
 
 from ..cloud import PointCloud
 from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, TransformError, UnknownFrameError
-from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree, read_odometry
+from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree
 from ..io.bags.bag import Where
-from ..io.bags.transforms import ODOMETRY
+from ..io.bags.transforms import ODOMETRY, TransformFeed
 from ..io.bags.wire import Wire
 from ..scan import LaserScan
 
 __all__ = ["BagClouds", "BagScans"]
+
+#: Seconds of tf after the first message that tell the default fixed frame (the root of the sensor's tree)
+ROOT_HORIZON = 1.0
+#: Batches of messages that may wait for tf to pass their stamps before the whole bag's tf is read
+#: in a pass of its own (tf that lags far behind, or never joins the sensor frame)
+WAIT_LIMIT = 10
 
 #: A laser whose scan plane leans further than this from the fixed frame's xy plane is counted as tilted.
 TILT_NOTE = math.radians(5.0)
@@ -64,42 +74,52 @@ class _BagSource:
         self.dropped: Counter = Counter()
         self.tilted = 0  # laser scans whose plane leans more than TILT_NOTE (see BagScans)
         self.pose_track = poses
-        self._tree = None
+        self.odom_topic = odom_topic
+        self._by_tf = False  # whether tf (and odometry) place the messages
         bag = self._bag = open_bag(path)  # kept for the first iteration: opening a ROS 2 bag costs 0.1 s
         try:
             self.topic = _pick_topic(bag, topic, self.MSGTYPE)
             bag.require_standard(self.topic)
             self.count = bag.topics[self.topic].count
-            self.sensor_frame = _first_frame(bag, self.topic)
+            self.sensor_frame, first_time = _first_frame(bag, self.topic)
             self.fixed_frame = fixed_frame or ""
             if poses is not None:
                 if poses.stamps is None:
                     poses.by_index(self.count, f"messages on {self.topic}")
-            else:
-                self._tree = self._frame_tree(bag, odom_topic, unposed)
-                if self._tree is not None:
-                    self.fixed_frame = self.fixed_frame or _root(self._tree, self.sensor_frame) or self.FALLBACK_FRAME
+            elif self._has_tf(bag, unposed):
+                self._by_tf = True
+                self.fixed_frame = self.fixed_frame or self._tf_root(bag, first_time) or self.FALLBACK_FRAME
         except BaseException:
             bag.close()
             raise
 
-    def _frame_tree(self, bag, odom_topic, unposed: bool):
-        """tf, with the odometry topic's link; when there is nothing to place scans by, None if the
-        caller takes ``unposed`` messages (scan matching gives them poses), else an error."""
-        tree = read_frame_tree(bag)
-        if odom_topic is not None:
-            odometry = read_odometry(bag, odom_topic)
-            if len(odometry.stamps):
-                tree.set_transform(odometry.frame_id, odometry.child_frame_id, odometry.poses, odometry.stamps)
-        if not tree.frames:
-            if unposed:
-                return None
-            odoms = [t.name for t in bag.topics.values() if t.msgtype == ODOMETRY]
-            raise InvalidArgumentError(
-                f"{self.path}: its {self.topic} messages have no poses: the bag has no tf (/tf, /tf_static)"
-                + (f" (odometry on {', '.join(odoms)}: give --odom-topic)" if odoms else " and no odometry")
-                + "; give a pose file with --poses, or build the poses from the scans with --scan-match")
-        return tree
+    def _has_tf(self, bag, unposed: bool) -> bool:
+        """Whether the bag has tf or the odometry topic to place messages by; when it has neither,
+        False if the caller takes ``unposed`` messages (scan matching gives them poses), else an error."""
+        feeds = [t for t in ("/tf", "/tf_static", self.odom_topic) if t in bag.topics]
+        if any(bag.topics[t].count for t in feeds) or self.odom_topic is not None:
+            return True
+        if unposed:
+            return False
+        odoms = [t.name for t in bag.topics.values() if t.msgtype == ODOMETRY]
+        raise InvalidArgumentError(
+            f"{self.path}: its {self.topic} messages have no poses: the bag has no tf (/tf, /tf_static)"
+            + (f" (odometry on {', '.join(odoms)}: give --odom-topic)" if odoms else " and no odometry")
+            + "; give a pose file with --poses, or build the poses from the scans with --scan-match")
+
+    def _tf_root(self, bag, first_time: float | None) -> str | None:
+        """The root of the sensor frame's tf tree as tf stands :data:`ROOT_HORIZON` seconds after
+        the first message (None when tf does not know the sensor frame by then)."""
+        feed = TransformFeed(bag, odom_topic=self.odom_topic)
+        stream = bag.messages(feed.topics)
+        try:
+            for m in stream:
+                feed.add(m)
+                if first_time is None or m.time > first_time + ROOT_HORIZON:
+                    break
+        finally:
+            stream.close()
+        return _root(feed.flush(), self.sensor_frame)
 
     def __len__(self) -> int:
         """Messages the stream looks at (every ``every``-th of the topic's)."""
@@ -113,39 +133,56 @@ class _BagSource:
         self.dropped.clear()
         self.tilted = 0
         with bag:
-            batch = []
-            for k, m in enumerate(bag.messages(self.topic, self.MSGTYPE)):
+            feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
+            tree, whole = None, feed is None  # whole: the tree holds all of the bag's tf (or none is used)
+            waiting = []  # decoded messages waiting for tf to pass their stamps
+            k = -1
+            for m in bag.messages([self.topic] + ([] if feed is None else feed.topics)):
+                if m.topic != self.topic:
+                    if not whole:
+                        feed.add(m)
+                    continue
+                k += 1
                 if k % self.every:
                     continue
                 where = Where(self.path, self.topic, k, m.time)
                 item = self._decode(m, where)
                 if item is not None:
-                    batch.append((k, where, *item))
-                if len(batch) == self.BATCH:
-                    yield from self._placed(batch)
-                    batch = []
-            yield from self._placed(batch)
+                    waiting.append((k, where, *item))
+                if len(waiting) < self.BATCH:
+                    continue
+                if not whole:
+                    tree = feed.flush()
+                    if len(waiting) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
+                        with open_bag(self.path) as again:
+                            tree, whole = read_frame_tree(again, odom_topic=self.odom_topic), True
+                n = len(waiting) if whole else _covered(tree, self.fixed_frame, waiting)
+                yield from self._placed(waiting[:n], tree)
+                del waiting[:n]
+            if not whole:
+                tree = feed.flush()
+            yield from self._placed(waiting, tree)
 
-    def _placed(self, batch):
+    def _placed(self, batch, tree):
         """The records of ``batch`` (``(k, where, record, frame, stamp)``) that have a pose, placed;
         their poses found at once when they share a frame (a lookup costs 20 µs, one of 50 the same)."""
-        if len(batch) > 1 and self.pose_track is None and self._tree is not None \
+        if len(batch) > 1 and self.pose_track is None and tree is not None \
                 and all(b[3] == batch[0][3] for b in batch):
             try:
-                poses = self._tree.lookup(self.fixed_frame, batch[0][3], np.array([b[4] for b in batch])).matrix
+                poses = tree.lookup(self.fixed_frame, batch[0][3], np.array([b[4] for b in batch])).matrix
             except TransformError:  # a stamp outside the tf data, or no tf at all: told message by message
                 pass
             else:
                 return self._place([b[2] for b in batch], poses)
         records, poses = [], []
         for k, where, record, frame, stamp in batch:
-            pose = self._pose(k, frame, stamp, where)
+            pose = self._pose(k, frame, stamp, where, tree)
             if pose is not None:
                 records.append(record)
                 poses.append(pose)
         return self._place(records, np.array(poses).reshape(-1, 4, 4))
 
-    def _pose(self, k: int, frame: str, stamp: float, where: Where):
+    def _pose(self, k: int, frame: str, stamp: float, where: Where, tree):
         """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
         if self.pose_track is not None:
             if self.pose_track.stamps is None:
@@ -155,10 +192,10 @@ class _BagSource:
                 self.dropped[f"no pose in {self.pose_track.path} within {self.tolerance:g} s"] += 1
                 return None
             return pose.matrix[0]
-        if self._tree is None:  # unposed: at the origin, for scan matching to place
+        if tree is None:  # unposed: at the origin, for scan matching to place
             return np.eye(4)
         try:
-            return self._tree.lookup(self.fixed_frame, frame, stamp).matrix
+            return tree.lookup(self.fixed_frame, frame, stamp).matrix
         except ExtrapolationError:
             self.dropped["no tf at that time (outside the tf data)"] += 1
             return None
@@ -247,14 +284,35 @@ def _listing(bag) -> str:
     return ", ".join(f"{t.name} ({t.msgtype})" for t in bag.topics.values()) or "(none)"
 
 
-def _first_frame(bag, topic: str) -> str:
-    """The frame of the first message on ``topic`` ("" when it has none)."""
+def _first_frame(bag, topic: str) -> tuple[str, float | None]:
+    """The frame of the first message on ``topic`` and its record time ("" and None when the
+    topic has no message)."""
     stream = bag.messages(topic)
     try:
         first = next(stream, None)
     finally:
         stream.close()
-    return "" if first is None else Wire(first.raw, first.encoding, Where(bag.path, topic, 0, first.time)).header()[1]
+    if first is None:
+        return "", None
+    return Wire(first.raw, first.encoding, Where(bag.path, topic, 0, first.time)).header()[1], first.time
+
+
+def _covered(tree, fixed_frame: str, waiting) -> int:
+    """How many of the first ``waiting`` messages (``(k, where, record, frame, stamp)``) tf has
+    passed: their stamps at or before the newest time at which every link from their frame to the
+    fixed frame has a sample (any stamp when those links are static). A frame tf does not yet join
+    to the fixed frame waits."""
+    latest: dict[str, float] = {}
+    for n, (_, _, _, frame, stamp) in enumerate(waiting):
+        if frame not in latest:
+            try:
+                t = tree.latest_common_time(fixed_frame, frame)
+            except TransformError:
+                t = -math.inf
+            latest[frame] = math.inf if t is None else t
+        if stamp > latest[frame]:
+            return n
+    return len(waiting)
 
 
 def _root(tree, frame: str) -> str | None:

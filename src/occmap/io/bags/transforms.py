@@ -23,8 +23,8 @@ from .bag import Where
 from .definitions import TF_TYPES
 from .wire import Wire, frame_name
 
-__all__ = ["Odometry", "TF_TYPES", "TransformsMessage", "decode_odometry", "decode_tf_message", "read_frame_tree",
-           "read_odometry", "ros_poses"]
+__all__ = ["Odometry", "TF_TYPES", "TransformFeed", "TransformsMessage", "decode_odometry", "decode_tf_message",
+           "read_frame_tree", "read_odometry", "ros_poses"]
 
 ODOMETRY = "nav_msgs/msg/Odometry"
 # The fewest bytes a TransformStamped takes (stamp, two empty strings, seven float64), so that a
@@ -118,20 +118,25 @@ def read_odometry(bag, topic: str) -> Odometry:
     bag.require_standard(topic)
     for k, m in enumerate(messages):
         stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(bag.path, topic, k, m.time))
+        frames = _same_frames(bag.path, topic, m.time, frames, pair)
         stamps.append(stamp)
         poses.append(pose)
-        if frames is None:
-            frames = pair
-        elif pair != frames:
-            raise FormatError(bag.path, f"topic {topic!r}: odometry of {pair[0]!r} -> {pair[1]!r} at "
-                              f"{m.time:.9f} s, earlier messages were {frames[0]!r} -> {frames[1]!r}")
     if frames is None:
         return Odometry(np.zeros(0), SE3.identity(0), "", "")
     poses = np.array(poses)
     return Odometry(np.array(stamps), ros_poses(poses[:, :3], poses[:, 3:], f"{bag.path}: topic {topic!r}"), *frames)
 
 
-def read_frame_tree(bag, topics=None) -> FrameTree:
+def _same_frames(path, topic: str, time: float, frames, pair):
+    """The frames ``(frame_id, child_frame_id)`` of an odometry topic: ``pair`` for its first
+    message (``frames`` None), else ``frames``, which ``pair`` must equal (:class:`FormatError`)."""
+    if frames is not None and pair != frames:
+        raise FormatError(path, f"topic {topic!r}: odometry of {pair[0]!r} -> {pair[1]!r} at {time:.9f} s, "
+                          f"earlier messages were {frames[0]!r} -> {frames[1]!r}")
+    return pair if frames is None else frames
+
+
+def read_frame_tree(bag, topics=None, odom_topic: str | None = None) -> FrameTree:
     """Every transform on the tf topics of ``bag`` (an open :class:`~occmap.io.bags.Bag`) in one
     :class:`FrameTree` that keeps the whole bag's history.
 
@@ -139,34 +144,81 @@ def read_frame_tree(bag, topics=None) -> FrameTree:
     ends in ``tf_static`` holds static links (valid at all times, the last one of a link wins).
     Dynamic samples are stored at their header stamps, so lookups interpolate between them and
     raise :class:`~occmap.errors.ExtrapolationError` outside them. A link both static and dynamic
-    ends up dynamic. Raises :class:`FormatError` for a transform that is not rigid or links that
-    would form a loop.
+    ends up dynamic. ``odom_topic``, an odometry topic, joins the tree as the link
+    ``frame_id -> child_frame_id`` of its messages (see :class:`TransformFeed`). Raises
+    :class:`FormatError` for a transform that is not rigid or links that would form a loop.
     """
-    if topics is None:
-        topics = [t for t in ("/tf", "/tf_static") if t in bag.topics]
-    for t in topics:
-        if t in bag.topics and bag.topics[t].msgtype not in TF_TYPES:
-            raise FormatError(bag.path, f"topic {t!r} holds {bag.topics[t].msgtype}, not {TF_TYPES[0]}")
-    bag.require_standard(t for t in topics if t in bag.topics)
-    links: dict[tuple[str, str, bool], tuple[list, list]] = {}
-    counts: dict[str, int] = {}
-    for m in bag.messages(topics):
+    feed = TransformFeed(bag, topics, odom_topic)
+    for m in bag.messages(feed.topics):
+        feed.add(m)
+    return feed.flush()
+
+
+class TransformFeed:
+    """The tf of a bag (and an odometry topic's ``frame_id -> child_frame_id`` link) gathered
+    into one :class:`FrameTree` message by message, as a stream of the bag reads them:
+    :meth:`add` each message of :attr:`topics`, :meth:`flush` to have the tree hold all those
+    added (the samples of a link wait in lists and go into the tree in one call, which costs what
+    one sample does). Read to the end, the tree is :func:`read_frame_tree`'s: static links first,
+    the last static sample of a link wins, a link both static and dynamic ends up dynamic, and the
+odometry's child frame keeps the odometry's frame as its parent whatever tf says.
+
+    ``topics`` defaults to whichever of ``/tf`` and ``/tf_static`` the bag has (checked to hold
+    TFMessage, and defined as ROS does); ``odom_topic``, when given, must hold Odometry.
+    """
+
+    def __init__(self, bag, topics=None, odom_topic: str | None = None):
+        if topics is None:
+            topics = [t for t in ("/tf", "/tf_static") if t in bag.topics]
+        for t in topics:
+            if t in bag.topics and bag.topics[t].msgtype not in TF_TYPES:
+                raise FormatError(bag.path, f"topic {t!r} holds {bag.topics[t].msgtype}, not {TF_TYPES[0]}")
+        if odom_topic is not None:
+            bag.messages(odom_topic, msgtype=ODOMETRY).close()  # the topic exists and holds Odometry
+        self.topics = list(topics) + ([] if odom_topic is None else [odom_topic])
+        bag.require_standard(t for t in self.topics if t in bag.topics)
+        self.path, self.odom_topic = bag.path, odom_topic
+        span = 0.0 if bag.start is None else bag.end - bag.start
+        self.tree = FrameTree(cache_time=max(10.0, span + 1.0))
+        self._waiting: dict[tuple[str, str, bool], tuple[list, list]] = {}
+        self._dynamic: set[tuple[str, str]] = set()  # links that have had a dynamic sample
+        self._counts: dict[str, int] = {}
+        self._odom_frames = None
+
+    def add(self, m) -> None:
+        """Read one message (a :class:`~occmap.io.bags.Message` of :attr:`topics`)."""
+        k = self._counts[m.topic] = self._counts.get(m.topic, -1) + 1
+        where = Where(self.path, m.topic, k, m.time)
+        if m.topic == self.odom_topic:
+            stamp, *pair, pose = _odometry(m.raw, m.encoding, where)
+            self._odom_frames = _same_frames(self.path, m.topic, m.time, self._odom_frames, pair)
+            self._wait(*pair, False, stamp, pose)
+            return
         static = m.topic.endswith("tf_static")
-        k = counts[m.topic] = counts.get(m.topic, -1) + 1
-        for parent, child, stamp, pose in _transforms(m.raw, m.encoding, Where(bag.path, m.topic, k, m.time)):
-            stamps, poses = links.setdefault((parent, child, static), ([], []))
-            stamps.append(stamp)
-            poses.append(pose)
-    span = 0.0 if bag.start is None else bag.end - bag.start
-    tree = FrameTree(cache_time=max(10.0, span + 1.0))
-    for (parent, child, static), (stamps, values) in sorted(links.items(), key=lambda kv: not kv[0][2]):
-        values = np.array(values)
-        poses = ros_poses(values[:, :3], values[:, 3:], f"{bag.path}: tf link {parent!r} -> {child!r}")
-        try:
-            if static:
-                tree.set_transform(parent, child, SE3(poses.matrix[-1]), static=True)
-            else:
-                tree.set_transform(parent, child, poses, np.array(stamps))
-        except TransformError as e:
-            raise FormatError(bag.path, f"tf link {parent!r} -> {child!r}: {e}") from e
-    return tree
+        for parent, child, stamp, pose in _transforms(m.raw, m.encoding, where):
+            self._wait(parent, child, static, stamp, pose)
+
+    def _wait(self, parent: str, child: str, static: bool, stamp: float, pose) -> None:
+        stamps, poses = self._waiting.setdefault((parent, child, static), ([], []))
+        stamps.append(stamp)
+        poses.append(pose)
+
+    def flush(self) -> FrameTree:
+        """The tree, holding every sample added so far."""
+        waiting, self._waiting = self._waiting, {}
+        for (parent, child, static), (stamps, values) in sorted(waiting.items(), key=lambda kv: not kv[0][2]):
+            if static and (parent, child) in self._dynamic:
+                continue
+            if self._odom_frames is not None and child == self._odom_frames[1] and parent != self._odom_frames[0]:
+                continue  # the odometry's child frame: its parent is the odometry's frame
+            values = np.array(values)
+            poses = ros_poses(values[:, :3], values[:, 3:], f"{self.path}: tf link {parent!r} -> {child!r}")
+            try:
+                if static:
+                    self.tree.set_transform(parent, child, SE3(poses.matrix[-1]), static=True)
+                else:
+                    self._dynamic.add((parent, child))
+                    self.tree.set_transform(parent, child, poses, np.array(stamps))
+            except TransformError as e:
+                raise FormatError(self.path, f"tf link {parent!r} -> {child!r}: {e}") from e
+        return self.tree
