@@ -1,6 +1,6 @@
-"""The tracker's shortcut kernels against plain references: the occlusion test (exact bearings
-only near the sectors it reads) and the promotion of mostly-moving components (searches stopped
-at an object's span)."""
+"""The tracker's shortcut kernels against plain references: the returns beyond clusters' ends
+(exact bearings only near the sectors it reads) and the promotion of mostly-moving components
+(searches stopped at an object's span)."""
 
 from __future__ import annotations
 
@@ -14,16 +14,16 @@ from occmap.local.tracking import _kernels as K
 BINS = 1440
 
 
-def _occluded_reference(points, starts, scene, sx, sy, angle, depth):
+def _beyond_reference(points, starts, scene, sx, sy, angle, slack):
     """Every finite scene return binned by its exact bearing; each cluster's angular ends as the
-    kernel defines them."""
+    kernel defines them, and the nearest return beyond each less than ``slack`` farther."""
     scale = BINS / (2 * np.pi)
     sc = scene[np.isfinite(scene).all(axis=1)] - (sx, sy)
     nearest = np.full(BINS, np.inf)
     np.minimum.at(nearest, ((np.arctan2(sc[:, 1], sc[:, 0]) + np.pi) * scale).astype(int) % BINS,
                   np.hypot(sc[:, 0], sc[:, 1]))
     reach = int(np.ceil(angle * scale))
-    out = []
+    ends, out = [], []
     for a, b in zip(starts[:-1], starts[1:]):
         d = points[a:b] - (sx, sy)
         mid = np.arctan2(*d.sum(axis=0)[::-1])
@@ -33,14 +33,18 @@ def _occluded_reference(points, starts, scene, sx, sy, angle, depth):
         r = np.hypot(d[:, 0], d[:, 1])
         b_lo, b_hi = int((mid + rel[lo] + np.pi) * scale), int((mid + rel[hi] + np.pi) * scale)
         j = np.arange(1, reach + 1)
-        out.append(bool((nearest[(b_lo - j) % BINS] < r[lo] - depth).any()
-                        or (nearest[(b_hi + j) % BINS] < r[hi] - depth).any()))
-    return np.array(out)
+        row = []
+        for near, r_end in ((nearest[(b_lo - j) % BINS], r[lo]), (nearest[(b_hi + j) % BINS], r[hi])):
+            near = near[near < r_end + slack]
+            row.append(near.min() if len(near) else np.inf)
+        ends.append((a + lo, a + hi))
+        out.append(row)
+    return np.array(ends), np.array(out)
 
 
-def test_occlusion_equals_exact_bearings_of_every_return():
+def test_returns_beyond_cluster_ends_equal_exact_bearings_of_every_return():
     rng = np.random.default_rng(1)
-    hidden = 0
+    hidden = total = 0
     for trial in range(60):
         sx, sy = rng.uniform(-2, 2, 2)
         clusters = [np.column_stack([c[0] + rng.uniform(-1, 1, m), c[1] + rng.uniform(-1, 1, m)])
@@ -55,12 +59,15 @@ def test_occlusion_equals_exact_bearings_of_every_return():
         scene = np.concatenate([rng.uniform(-25, 25, (int(rng.integers(0, 400)), 2)), points,
                                 [[sx, sy], [sx + 1, sy - 1e-300], [np.nan, 1.0], [np.inf, 0.0]],
                                 ring if trial % 3 == 0 else np.empty((0, 2))])
-        angle, depth = np.radians(rng.uniform(0.5, 3)), rng.uniform(0, 1)
-        out = np.zeros(len(clusters), bool)
-        K.occluded_ends(points, starts, scene, sx, sy, BINS, angle, depth, out)
-        np.testing.assert_array_equal(out, _occluded_reference(points, starts, scene, sx, sy, angle, depth))
-        hidden += out.sum()
-    assert 0.2 * 60 < hidden < 0.8 * 60 * 4  # both outcomes occur
+        angle, slack = np.radians(rng.uniform(0.5, 3)), rng.uniform(0, 1)
+        ends, out = np.empty((len(clusters), 2), np.int64), np.empty((len(clusters), 2))
+        K.beyond_ends(points, starts, scene, sx, sy, BINS, angle, slack, ends, out)
+        want_ends, want = _beyond_reference(points, starts, scene, sx, sy, angle, slack)
+        np.testing.assert_array_equal(ends, want_ends)
+        np.testing.assert_array_equal(out, want)
+        hidden += np.isfinite(out).sum()
+        total += out.size
+    assert 0.1 * total < hidden < 0.9 * total  # both outcomes occur
 
 
 def _promoted_reference(pts, moving, blocked, res, H, W, reach, max_span):

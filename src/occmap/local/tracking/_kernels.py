@@ -233,12 +233,15 @@ def nearest_by_bearing(scene, sx, sy, limit, need, out):
 
 
 @kernel
-def occluded_ends(points, starts, scene, sx, sy, bins, angle, depth, out):
-    """Whether something nearer hides an end of each cluster from the sensor at ``(sx, sy)``:
-    ``out[k]`` is true when, among the returns of ``scene`` (K, 2) in the ``bins`` equal bearing
-    sectors over the full circle within ``angle`` (rad) beyond either angular end of cluster
-    ``k`` (``points[starts[k]:starts[k + 1]]``), one lies at least ``depth`` (m) nearer than
-    that end (:func:`nearest_by_bearing` over those sectors only)."""
+def beyond_ends(points, starts, scene, sx, sy, bins, angle, slack, ends, out):
+    """The angular ends of each cluster seen from the sensor at ``(sx, sy)`` and what lies just
+    beyond them: cluster ``k`` is ``points[starts[k]:starts[k + 1]]``; ``ends[k]`` = the indices
+    (into ``points``) of its clockwise and its counter-clockwise end (the least and the greatest
+    bearing about the cluster's mean direction; the first such point on ties); ``out[k, e]`` =
+    the range (m) of the nearest return of ``scene`` (K, 2) in the ``bins`` equal bearing sectors
+    over the full circle within ``angle`` (rad) beyond end ``e``, counting only the returns less
+    than ``slack`` (m) farther than that end (+inf where none; :func:`nearest_by_bearing` over
+    those sectors only)."""
     scale = bins / (2.0 * np.pi)
     reach = int(np.ceil(angle * scale))
     n = starts.shape[0] - 1
@@ -267,23 +270,28 @@ def occluded_ends(points, starts, scene, sx, sy, bins, angle, depth, out):
             if rel < lo:
                 lo = rel
                 r_lo[k] = np.hypot(dx, dy)
+                ends[k, 0] = i
             if rel > hi:
                 hi = rel
                 r_hi[k] = np.hypot(dx, dy)
+                ends[k, 1] = i
         b_lo[k] = int((mid + lo + np.pi) * scale)
         b_hi[k] = int((mid + hi + np.pi) * scale)
         for j in range(1, reach + 1):
             need[(b_lo[k] - j) % bins] = True
             need[(b_hi[k] + j) % bins] = True
-        limit = max(limit, r_lo[k] - depth, r_hi[k] - depth)
+        limit = max(limit, r_lo[k] + slack, r_hi[k] + slack)
     nearest = nearest_by_bearing(scene, sx, sy, limit, need, np.empty(bins))
     for k in range(n):
-        hidden = False
+        out[k, 0] = np.inf
+        out[k, 1] = np.inf
         for j in range(1, reach + 1):
-            if nearest[(b_lo[k] - j) % bins] < r_lo[k] - depth or nearest[(b_hi[k] + j) % bins] < r_hi[k] - depth:
-                hidden = True
-                break
-        out[k] = hidden
+            q = nearest[(b_lo[k] - j) % bins]
+            if q < r_lo[k] + slack:
+                out[k, 0] = min(out[k, 0], q)
+            q = nearest[(b_hi[k] + j) % bins]
+            if q < r_hi[k] + slack:
+                out[k, 1] = min(out[k, 1], q)
     return out
 
 

@@ -31,10 +31,15 @@ FIT_MIN_DISTANCE = 0.01
 class Detections(NamedTuple):
     """Per detected object: box centre ``x``, ``y`` (m, world), ``heading`` of its longer side
     (rad, in [−π/2, π/2): a box's heading is known modulo π), ``length`` ≥ ``width`` (m, extent of
-    the points), ``points`` (how many), ``occluded`` (something nearer hides one of its ends from
-    the sensor, so its extent may be cut short) and ``oriented``: an L-shaped cluster (two faces seen, both
-    sides at least ``min_width``) whose box heading is the object's, up to π. A single face seen
-    (a line of points) gives a box whose heading may be the object's side or its end."""
+    the points), ``points`` (how many), ``cut`` ``(M, 2)`` (its clockwise and its counter-clockwise
+    end as seen from the sensor may not be the object's: something nearer hides what lies beyond,
+    or the end lies at the range limit), ``oriented``: an L-shaped cluster (two faces seen, both
+    sides at least ``min_width``) whose box heading is the object's, up to π — a single face seen
+    (a line of points) gives a box whose heading may be the object's side or its end —, ``ends``
+    ``(M, 2, 2)``: the returns at those two ends (world, m; NaN when the sensor is not known), and
+    ``bare`` ``(M, 2)``: that end is not cut and nothing lies just beyond it but farther than it
+    by ``depth`` or more (the surface does not go on into returns not taken as moving, as a wall's
+    does). A bare end is a point of the object: it moves with it, whatever hides the other."""
 
     x: np.ndarray
     y: np.ndarray
@@ -42,16 +47,24 @@ class Detections(NamedTuple):
     length: np.ndarray
     width: np.ndarray
     points: np.ndarray
-    occluded: np.ndarray
+    cut: np.ndarray
     oriented: np.ndarray
+    ends: np.ndarray
+    bare: np.ndarray
 
     def __len__(self) -> int:
         return int(self.x.shape[0])
 
+    @property
+    def occluded(self) -> np.ndarray:
+        """Per detection: an end of it is cut, so its extent may be cut short."""
+        return self.cut.any(axis=1)
+
     @staticmethod
     def empty() -> Detections:
         f = np.empty(0)
-        return Detections(f, f, f, f, f, np.empty(0, np.int64), np.empty(0, bool), np.empty(0, bool))
+        return Detections(f, f, f, f, f, np.empty(0, np.int64), np.empty((0, 2), bool), np.empty(0, bool),
+                          np.empty((0, 2, 2)), np.empty((0, 2), bool))
 
 
 def box_corners(x, y, heading, length, width) -> np.ndarray:
@@ -70,10 +83,12 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
     of at least ``min_points``; a box is ``oriented`` when its width is at least ``min_width`` m.
 
     With the ``sensor`` position (x, y) and the ``scene`` (all returns of the scan, ``(K, 2)``), a
-    detection is ``occluded`` when a return within ``angle`` (rad, about two beams; in sectors of
-    0.25°) beyond either of its angular ends is at least ``depth`` m nearer, or (given the sensor's
-    ``max_range``) when a point of it lies within ``depth`` of the range limit, beyond which the
-    rest may lie; without the sensor none is."""
+    detection's angular end is ``cut`` when a return within ``angle`` (rad, about two beams; in
+    sectors of 0.25°) beyond it is at least ``depth`` m nearer, or (given the sensor's
+    ``max_range``) when it lies within ``depth`` of the range limit, beyond which the rest may lie
+    (both ends when only other points of it do); without the sensor none is, and ``ends`` are NaN.
+    An end is ``bare`` when it is not cut and no return within ``angle`` beyond it lies less than
+    ``depth`` m farther."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ShapeError(f"points must have shape (N, 2), got {p.shape}")
@@ -95,17 +110,26 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     box = K.fit_boxes(pts, starts, FIT_STEPS, FIT_MIN_DISTANCE, np.empty((len(counts), 5)))
     oriented = box[:, 4] >= checks.non_negative("min_width", min_width, "metres")
-    occluded = np.zeros(len(counts), bool)
+    cut = np.zeros((len(counts), 2), bool)
+    bare = np.zeros((len(counts), 2), bool)
+    ends = np.full((len(counts), 2, 2), np.nan)
     if sensor is not None:
         sx, sy = (checks.finite("sensor", v) for v in np.asarray(sensor, dtype=np.float64).reshape(-1)[:2])
-    if sensor is not None and scene is not None:
-        sc = np.ascontiguousarray(scene, dtype=np.float64)
+        sc = np.empty((0, 2)) if scene is None else np.ascontiguousarray(scene, dtype=np.float64)
         if sc.ndim != 2 or sc.shape[1] != 2:
             raise ShapeError(f"scene must have shape (K, 2), got {sc.shape}")
         depth = checks.non_negative("depth", depth, "metres")
-        K.occluded_ends(pts, starts, sc, sx, sy, BEARING_SECTORS, checks.positive("angle", angle), depth, occluded)
-    if sensor is not None and max_range is not None:
-        far = np.hypot(pts[:, 0] - sx, pts[:, 1] - sy) >= checks.positive("max_range", max_range) - depth
-        occluded |= np.add.reduceat(far, starts[:-1]) > 0 if len(counts) else occluded
-    return Detections(box[:, 0], box[:, 1], box[:, 2], box[:, 3], box[:, 4], counts.astype(np.int64), occluded,
-                      oriented)
+        index = np.empty((len(counts), 2), np.int64)
+        beyond = np.empty((len(counts), 2))
+        K.beyond_ends(pts, starts, sc, sx, sy, BEARING_SECTORS, checks.positive("angle", angle), depth, index, beyond)
+        ends = pts[index]
+        r_end = np.hypot(ends[..., 0] - sx, ends[..., 1] - sy)
+        cut = beyond < r_end - depth
+        if max_range is not None and len(counts):
+            far = np.hypot(pts[:, 0] - sx, pts[:, 1] - sy) >= checks.positive("max_range", max_range) - depth
+            # an end at the range limit is cut there; a cluster reaching it elsewhere, both
+            elsewhere = (np.add.reduceat(far, starts[:-1]) > 0) & ~far[index].any(axis=1)
+            cut |= far[index] | elsewhere[:, None]
+        bare = ~cut & np.isinf(beyond)
+    return Detections(box[:, 0], box[:, 1], box[:, 2], box[:, 3], box[:, 4], counts.astype(np.int64), cut,
+                      oriented, ends, bare)

@@ -16,7 +16,8 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
 4. **Manage**: a matched track is updated (its heading too when the box is L-shaped, choosing the
    box axis nearer to the track's heading); its size grows to the largest extent seen (capped). A
    detection left over starts a *tentative* track; once it has moved ``init_distance`` or been seen
-   whole for ``init_span`` seconds its velocity is set from the displacement (see
+   for ``init_span`` seconds its velocity is set from the displacement of its centre between whole
+   views, or of a bare end when a vehicle comes out from behind something (see
    :meth:`Tracker._correct`). A tentative track is *confirmed* once it has been detected in
    ``confirm_hits`` of its last ``confirm_window`` scans, has moved at least ``min_travel`` from
    where it started (walls and parked cars that leak into the detections do not move), knows its
@@ -74,7 +75,6 @@ class TrackerParams:
     max_position_sigma: float = 3.0
     max_size: tuple = (8.0, 3.0)
     vehicle_size: tuple = (4.4, 1.8)
-    vehicle_width: float = 1.2
     min_moving_speed: float = 3.0
     max_speed: float = 20.0
     footprint_margin: float = 0.5
@@ -89,7 +89,7 @@ class TrackerParams:
 
     def __post_init__(self):
         for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after",
-                     "max_coast", "tentative_coast", "max_position_sigma", "vehicle_width", "max_speed",
+                     "max_coast", "tentative_coast", "max_position_sigma", "max_speed",
                      "footprint_margin", "settled_heading_sigma", "confirm_speed_sigma", "confirm_speed", "init_span",
                      "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma", "doppler_sigma", "doppler_gate"):
             checks.positive(name, getattr(self, name))
@@ -193,7 +193,11 @@ class Tracker:
         self.last_hit = np.empty(0)
         self.updates = np.empty(0, np.int64)
         self.hit_bits = np.empty(0, np.uint8)
-        self.clean = np.empty(0, bool)  # the last detection was whole (not occluded)
+        # the view the wait for a velocity started from (see _correct): its ends, which were bare,
+        # whether it was whole (no end cut)
+        self.birth_ends = np.empty((0, 2, 2))
+        self.birth_bare = np.empty((0, 2), bool)
+        self.birth_whole = np.empty(0, bool)
         self.stats = {"updates": 0, "detections": 0, "tracks_started": 0, "tracks_confirmed": 0, "tracks_dropped": 0,
                       "doppler_updates": 0}
 
@@ -403,16 +407,23 @@ class Tracker:
         """Update matched tracks; returns ``(rows, cols)`` of those that have a velocity now.
 
         A track without a velocity yet (seen once, or only since its last restart) waits for
-        ``init_span`` seconds or ``init_distance`` metres of motion between whole views and takes
-        its velocity from that displacement; a view an occluder cuts restarts it there (such a
-        box's centre moves with the occluder, not with the object)."""
+        ``init_span`` seconds or ``init_distance`` metres of motion from the view it started from
+        and takes its velocity from that displacement: of the box's centre between whole views
+        (not cut: a cut box's centre moves with the occluder, not with the object); when a view is
+        cut, of an end bare in both views (a point of the object, whatever hides the other) if it
+        moved at ``min_moving_speed`` or faster — a vehicle coming out from behind something; a
+        slower one may be a wall that pose errors shift. Any other view restarts the wait there."""
         p = self.params
         young = self.updates[rows] == 0
         here = np.stack([det.x[cols], det.y[cols]], -1)
-        restart = young & ~(self.clean[rows] & ~det.occluded[cols])
-        d = here - self.birth[rows]
+        whole = ~det.occluded[cols] & self.birth_whole[rows]
+        kept = det.bare[cols] & self.birth_bare[rows]  # ends bare in both views
+        end = np.argmax(kept, axis=1)
+        d = np.where(whole[:, None], here - self.birth[rows], det.ends[cols, end] - self.birth_ends[rows, end])
         elapsed = self.time - self.born[rows]
         dist = np.hypot(d[:, 0], d[:, 1])
+        fast = dist >= p.min_moving_speed * np.maximum(elapsed, 1e-9)
+        restart = young & ~(whole | (kept.any(axis=1) & fast))
         ready = young & ~restart & ((elapsed >= p.init_span) | (dist >= p.init_distance))
         waiting = young & ~ready
         if waiting.any():
@@ -422,9 +433,12 @@ class Tracker:
             self.state[r, 3:] = 0.0
             self.size[r] = np.minimum(np.stack([det.length[c], det.width[c]], -1), p.max_size)
         if restart.any():
-            r = rows[restart]
+            r, c = rows[restart], cols[restart]
             self.birth[r] = here[restart]
             self.born[r] = self.time
+            self.birth_ends[r] = det.ends[c]
+            self.birth_bare[r] = det.bare[c]
+            self.birth_whole[r] = ~det.occluded[c]
         if ready.any():
             r, c = rows[ready], cols[ready]
             dt, dd = elapsed[ready], dist[ready]
@@ -461,7 +475,6 @@ class Tracker:
                 self.state[r[k]], self.cov[r[k]] = ekf.update(self.state[r[k]], self.cov[r[k]], y, H, R)
         self.updates[rows[~waiting]] += 1
         self.last_hit[rows] = self.time
-        self.clean[rows] = ~det.occluded[cols]
         self.hit_bits[rows] |= 1
         d = self.state[rows, :2] - self.birth[rows]
         self.travel[rows] = np.maximum(self.travel[rows], np.hypot(d[:, 0], d[:, 1]))
@@ -469,8 +482,9 @@ class Tracker:
 
     def _resize(self, rows, cols, det: Detections, sensor) -> None:
         """After an update: sizes grow to the largest extent seen along the measuring axes of the
-        updated heading (capped; a round object stays round; a moving object as wide as a car is
-        taken as at least ``vehicle_size`` until seen whole), and the face seen stays where it is:
+        updated heading (capped; a round object stays round; an object moving at
+        ``min_moving_speed`` or faster — a vehicle, however little of it shows — is measured in its
+        own axes and taken as at least ``vehicle_size`` until seen whole), and the face seen stays where it is:
         along an axis measured from one edge the centre moves away from it by half the growth.
         A track at its second detection has just got its heading: its size is what is seen now
         along it, its centre measured anew."""
@@ -478,6 +492,8 @@ class Tracker:
         centres = np.stack([det.x[cols], det.y[cols]], -1)
         first = self.updates[rows] == 1
         size = np.where(first[:, None], 0.0, self.size[rows])
+        car = self.state[rows, 3] >= p.min_moving_speed  # measured in its own axes, at least a car's size
+        size[car] = np.maximum(size[car], p.vehicle_size)
         axes, size = _frames(self.state[rows, 2], size, centres, sensor, det.heading[cols], _directed(det)[cols])
         corners = _corners(det)[cols]
         _, _, seen, side = self._measure(corners, axes, size, sensor)
@@ -488,7 +504,6 @@ class Tracker:
                                                   & (self.cov[rows, 2, 2] <= p.settled_heading_sigma ** 2)))
         grown = np.where((settled | first)[:, None], np.maximum(size, seen), size)
         grown[small] = grown[small].max(axis=1, keepdims=True)
-        car = (grown.max(axis=1) >= p.vehicle_width) & (self.state[rows, 3] >= p.min_moving_speed)
         grown[car] = np.where(settled[car, None], np.maximum(grown[car], p.vehicle_size), p.vehicle_size)
         grown = np.minimum(grown, p.max_size)
         self.state[rows, :2] += np.einsum("ka,kaj->kj", side * 0.5 * (grown - size), axes)
@@ -515,7 +530,7 @@ class Tracker:
 
     def _keep(self, keep) -> None:
         for name in ("id", "state", "cov", "status", "size", "birth", "born", "travel", "last_hit", "updates",
-                     "hit_bits", "clean"):
+                     "hit_bits", "birth_ends", "birth_bare", "birth_whole"):
             setattr(self, name, getattr(self, name)[keep])
 
     def _spawn(self, det: Detections, which) -> None:
@@ -541,7 +556,9 @@ class Tracker:
         self.last_hit = np.concatenate([self.last_hit, np.full(k, self.time)])
         self.updates = np.concatenate([self.updates, np.zeros(k, np.int64)])
         self.hit_bits = np.concatenate([self.hit_bits, np.ones(k, np.uint8)])
-        self.clean = np.concatenate([self.clean, ~det.occluded[which]])
+        self.birth_ends = np.concatenate([self.birth_ends, det.ends[which]])
+        self.birth_bare = np.concatenate([self.birth_bare, det.bare[which]])
+        self.birth_whole = np.concatenate([self.birth_whole, ~det.occluded[which]])
         self.stats["tracks_started"] += k
 
     # ------------------------------------------------------------------ read-out
