@@ -27,6 +27,7 @@ DEFAULT_MAX_EXTENT = 10_000.0
 
 #: Cells added on each side when a growing map must grow, at least (amortises the copies).
 _GROW_MARGIN_CELLS = 64
+_FIRST_MARGIN_CELLS = 4096
 
 
 def _new_cells(shape, l_prior: float) -> tuple[np.ndarray, np.ndarray]:
@@ -442,10 +443,13 @@ class OccupancyGrid2D(OneCallAtATime):
         (gx0, gy0), (H, W) = self._offset, self._L.shape
         if H and gx0 <= x0 and gy0 <= y0 and x1 <= gx0 + W and y1 <= gy0 + H:
             return
-        # the first storage too gets margins of half its size: a robot's first scans show most of
-        # the place, so the map then rarely grows again (each growth copies the map)
-        margin_x = min(max(_GROW_MARGIN_CELLS, max(W, need_w) // 2), min(limit - need_w, 2**62) // 2)
-        margin_y = min(max(_GROW_MARGIN_CELLS, max(H, need_h) // 2), min(limit - need_h, 2**62) // 2)
+        # half the storage's size on a growing side, and half the box's size (at most
+        # _FIRST_MARGIN_CELLS) round the first storage: a robot's first scans show much of the
+        # place, so the map then grows rarely (each growth copies the map)
+        first_x, first_y = (min(need_w // 2, _FIRST_MARGIN_CELLS), min(need_h // 2, _FIRST_MARGIN_CELLS)) \
+            if not H else (0, 0)
+        margin_x = min(max(_GROW_MARGIN_CELLS, W // 2, first_x), min(limit - need_w, 2**62) // 2)
+        margin_y = min(max(_GROW_MARGIN_CELLS, H // 2, first_y), min(limit - need_h, 2**62) // 2)
         sx0 = x0 - margin_x if not H or x0 < gx0 else gx0
         sy0 = y0 - margin_y if not H or y0 < gy0 else gy0
         sx1 = x1 + margin_x if not H or x1 > gx0 + W else gx0 + W
