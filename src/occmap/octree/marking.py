@@ -282,7 +282,8 @@ _SLAB_MARGIN = 1.0 + 1e-9
 @kernel
 def _cube_slabs(frees, idx, n, tM, tA, tB, gM, gA, gB, dM, dA, dB, tie_a, tie_b):
     """``n`` slabs of OctoMap's DDA in the free cube, from a voxel the walk has just entered along
-    its major axis M (``t``, ``g``, index step ``d`` per axis; minor axes A and B). In a slab the
+    its major axis M, or the sensor's voxel where each minor axis crosses a border at most once
+    before M does (``t``, ``g``, index step ``d`` per axis; minor axes A and B). In a slab the
     minor axes step at most once each (see :data:`_SLAB_MARGIN`): A when ``tA < tM``, or equal
     and ``tie_a`` (OctoMap's tie-breaks prefer z over y over x; ``tie_a`` and ``tie_b`` are
     literals, so each form compiles to one compare), likewise B, A before B when ``tA < tB``; then
@@ -316,11 +317,12 @@ def _room(local, step):
 
 @kernel
 def _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
-    """How many slabs (:func:`_cube_slabs`) a walk just past a major-axis step can take without
-    checks: every voxel of them, and the one after, stays in the cube (the minor axes step at most
-    once a slab), short of the end voxel's major coordinate (so none is the end voxel) and with the
-    major axis's next crossing within ``length`` (so the walk's range test cannot stop it; one slab
-    of margin for the rounding of the sums)."""
+    """How many slabs (:func:`_cube_slabs`) a walk at the start of a slab (just past a major-axis
+    step, or in the sensor's voxel) can take without checks: every voxel of them, and the one
+    after, stays in the cube (the minor axes step at most once a slab), short of the end voxel's
+    major coordinate (so none is the end voxel) and with the major axis's next crossing within
+    ``length`` (so the walk's range test cannot stop it; one slab of margin for the rounding of
+    the sums)."""
     lx, ly, lz = unpack(key - corner)
     n = min(_room(lx, sx), _room(ly, sy), _room(lz, sz))
     t, g = (tx, ty, tz)[major], (gx, gy, gz)[major]
@@ -387,25 +389,23 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
         dk = (pack(sx, 0, 0), pack(0, sy, 0), pack(0, 0, sz))  # a step per axis, packed
         if ray and corner >= 0:
             # the cube phase (the sensor's voxel lies in the cube): the walk's key and the cube
-            # index move together, no block to look up; from the first step along the major axis
-            # on, in slabs where the ray allows (see _cube_slabs)
+            # index move together, no block to look up; in slabs where the ray allows (see
+            # _cube_slabs), from the sensor's voxel when each minor axis crosses a border at most
+            # once before the major axis first does (nearly always), else from the first step
+            # along the major axis on
             idx = _cube_index(key, corner)
             di = (sx, sy * CUBE, sz * CUBE * CUBE)
             major = 0 if gx <= min(gy, gz) else (1 if gy <= gz else 2)
             g_middle = min(max(gx, gy), max(gy, gz), max(gx, gz))
             slabs = g_middle >= min(gx, gy, gz) * _SLAB_MARGIN
+            if major == 0:
+                at_slab = slabs and ty + gy > tx and tz + gz > tx
+            elif major == 1:
+                at_slab = slabs and tx + gx > ty and tz + gz > ty
+            else:
+                at_slab = slabs and tx + gx > tz and ty + gy > tz
             while True:
-                cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
-                axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
-                key += dk[axis]
-                idx += di[axis]
-                if key == end_key or min(tx, ty, tz) > length:
-                    key = end_key  # (the range test may stop the walk short of it)
-                    done = True
-                    break
-                if (key - corner) & _OUTSIDE:
-                    break
-                if slabs and axis == major:
+                if at_slab:
                     slabs = False
                     n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
                     if n > 0:
@@ -419,6 +419,17 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                             idx, tz, tx, ty = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy, di[2], sx, di[1],
                                                           False, False)
                         key = _cube_key(idx, corner)
+                cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
+                axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
+                key += dk[axis]
+                idx += di[axis]
+                if key == end_key or min(tx, ty, tz) > length:
+                    key = end_key  # (the range test may stop the walk short of it)
+                    done = True
+                    break
+                if (key - corner) & _OUTSIDE:
+                    break
+                at_slab = slabs and axis == major
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
             j = _cube_index(end_key, corner)
