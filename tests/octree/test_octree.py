@@ -250,7 +250,8 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     directions along diagonals, rays ending inside and beyond the cube) against OctoMap's plain
     step-by-step walk (``ray_voxels``), voxel for voxel, hits included; also with a scan that
     lies on one side of its sensor (+x, +y, −z), which moves the cube to that side; on one
-    thread and on two (taking runs of rays in turn)."""
+    thread and on two (taking runs of rays in turn). The calling thread's cube serves its
+    markings in turn: each leaves it zeroed for the next."""
     from occmap.octree import blocks, insertion, marking
     from occmap.octree.keys import pack_keys, unpack
 
@@ -284,6 +285,8 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         order = np.argsort(keys)
         np.testing.assert_array_equal(keys[order] + pack_keys(shift), unique)
         np.testing.assert_array_equal(is_hit[order], unique_hit)
+        cube_hits, cube_frees = insertion._kept.cube
+        assert not cube_hits.any() and not cube_frees.any()
 
 
 def test_one_numba_thread_means_no_worker_thread(monkeypatch):

@@ -63,12 +63,12 @@ def prepare_rays(points, origins, max_range, res, box, shift):
         ox, oy, oz = origins[j, 0], origins[j, 1], origins[j, 2]
         px, py, pz = np.float32(points[i, 0]), np.float32(points[i, 1]), np.float32(points[i, 2])
         dx, dy, dz = px - ox, py - oy, pz - oz
-        norm = math.sqrt(np.float64(dx * dx + dy * dy + dz * dz))
-        is_hit = max_range < 0.0 or norm <= max_range
+        square = np.float64(dx * dx + dy * dy + dz * dz)  # (its root only where a max range asks)
+        is_hit = max_range < 0.0 or math.sqrt(square) <= max_range
         if not is_hit:
-            s = np.float32(norm)
+            s = np.float32(math.sqrt(square))
             px, py, pz = ox + (dx / s) * mr, oy + (dy / s) * mr, oz + (dz / s) * mr
-        if not (norm < np.inf and key_in_range(coord_to_key(px, inv_res) - shift[0])
+        if not (square < np.inf and key_in_range(coord_to_key(px, inv_res) - shift[0])
                 and key_in_range(coord_to_key(py, inv_res) - shift[1])
                 and key_in_range(coord_to_key(pz, inv_res) - shift[2])):
             continue  # (an overflowing length only where a resolution of 1e34 m or more puts such ends in range)
@@ -490,7 +490,8 @@ _GATHER = 0x0002040810204081
 @kernel
 def cube_blocks(cube_hits, cube_frees, corner):
     """The cube's marked voxels as blocks: codes, hit masks, free masks (the blocks that have any;
-    :func:`merge_blocks` ors them with the same blocks marked elsewhere)."""
+    :func:`merge_blocks` ors them with the same blocks marked elsewhere). Leaves the cube zeroed,
+    as :func:`new_cube` makes it, for the next scan."""
     nb = CUBE // 8
     w_row = CUBE // 64  # words of hit bits per row of the cube
     free_rows = cube_frees.view(np.uint64)  # eight voxels' free bytes per word
@@ -512,7 +513,10 @@ def cube_blocks(cube_hits, cube_frees, corner):
                     for ly in range(8):
                         w = word0 + (lz * CUBE + ly) * w_row
                         hw |= ((cube_hits[w] >> shift) & 0xFF) << (8 * ly)
-                        f = free_rows[row0 + (lz * CUBE + ly) * (CUBE // 8)]
+                        r = row0 + (lz * CUBE + ly) * (CUBE // 8)
+                        f = free_rows[r]
+                        if f != 0:
+                            free_rows[r] = 0
                         fw |= np.int64(((f * np.uint64(_GATHER)) >> np.uint64(49)) & np.uint64(0xFF)) << (8 * ly)
                     hits[n, lz] = hw
                     frees[n, lz] = fw
@@ -520,6 +524,7 @@ def cube_blocks(cube_hits, cube_frees, corner):
                 if any_bits != 0:
                     codes[n] = block_code(corner + pack(bx * 8, by * 8, bz * 8))
                     n += 1
+    cube_hits[:] = 0
     return codes[:n], hits[:n], frees[:n]
 
 
