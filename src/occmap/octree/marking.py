@@ -306,32 +306,42 @@ def _cube_slabs(frees, idx, n, tM, tA, tB, gM, gA, gB, dM, dA, dB, tie_a, tie_b)
     return idx, tM, tA, tB
 
 
-@kernel
+@inline_kernel
 def _room(local, step):
     """Steps of one voxel in direction ``step`` that keep cube coordinate ``local`` in the cube
     (unlimited for an axis that does not move)."""
-    if step == 0:
-        return CUBE
-    return CUBE - 1 - local if step > 0 else local
+    return CUBE if step == 0 else (CUBE - 1 - local if step > 0 else local)
 
 
-@kernel
+@inline_kernel
 def _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
     """How many slabs (:func:`_cube_slabs`) a walk at the start of a slab (just past a major-axis
     step, or in the sensor's voxel) can take without checks: every voxel of them, and the one
     after, stays in the cube (the minor axes step at most once a slab), short of the end voxel's
     major coordinate (so none is the end voxel) and with the major axis's next crossing within
     ``length`` (so the walk's range test cannot stop it; one slab of margin for the rounding of
-    the sums)."""
+    the sums). (Selects, no branch: it runs in :func:`mark_scan`'s vectorised loop too.)"""
     lx, ly, lz = unpack(key - corner)
     n = min(_room(lx, sx), _room(ly, sy), _room(lz, sz))
-    t, g = (tx, ty, tz)[major], (gx, gy, gz)[major]
+    t = tx if major == 0 else (ty if major == 1 else tz)
+    g = gx if major == 0 else (gy if major == 1 else gz)
     n = min(n, abs(field(end_key, major) - field(key, major)) - 1)
-    if t < length:
-        n = min(n, int((length - t) / g) - 1)
-    else:
-        n = 0
-    return n
+    return min(n, np.int64((length - t) / g) - 1) if t < length else 0
+
+
+@inline_kernel
+def _slab_plan(key, corner, end_key, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
+    """How a ray from the sensor's voxel ``key`` takes the cube in slabs (:func:`_cube_slabs`):
+    ``(major, n, later)``, its major axis (the one whose borders lie closest together), the slabs
+    it takes from the sensor's voxel on (0: none), and whether it takes them from its first
+    major-axis step on instead (a minor axis crosses twice before the major axis first does).
+    Slabs need the minor axes' borders sparser than the major's by :data:`_SLAB_MARGIN`."""
+    major = 0 if gx <= min(gy, gz) else (1 if gy <= gz else 2)
+    slabs = min(max(gx, gy), max(gy, gz), max(gx, gz)) >= min(gx, gy, gz) * _SLAB_MARGIN
+    t = tx if major == 0 else (ty if major == 1 else tz)
+    once = ((major == 0) | (tx + gx > t)) & ((major == 1) | (ty + gy > t)) & ((major == 2) | (tz + gz > t))
+    n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
+    return major, max(n, 0) if slabs & once else 0, slabs & (not once)
 
 
 #: Rays whose walk states :func:`mark_scan` computes in one vectorised loop.
@@ -360,7 +370,7 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
     # coordinates laid out per axis: the compiler vectorises it (a ray's nine divisions then cost
     # about a fifth as much); the walks read them
     e = np.empty((3, _RUN), np.float32)
-    ints = np.empty((4, _RUN), np.int64)  # end key, sx, sy, sz
+    ints = np.empty((7, _RUN), np.int64)  # end key, sx, sy, sz, major axis, slabs from the sensor, later
     floats = np.empty((7, _RUN))  # length, tx, ty, tz, gx, gy, gz
     s0, s1, s2 = shift[0], shift[1], shift[2]
     for i in range(start, stop):
@@ -371,10 +381,14 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                 e[0, j], e[1, j], e[2, j] = ends[i + j, 0], ends[i + j, 1], ends[i + j, 2]
             for j in range(m):
                 ex, ey, ez = e[0, j], e[1, j], e[2, j]
-                ints[0, j] = pack(coord_to_key(ex, inv_res) - s0, coord_to_key(ey, inv_res) - s1,
-                                  coord_to_key(ez, inv_res) - s2)
-                (floats[0, j], ints[1, j], ints[2, j], ints[3, j], floats[1, j], floats[2, j], floats[3, j],
-                 floats[4, j], floats[5, j], floats[6, j]) = _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+                ek = pack(coord_to_key(ex, inv_res) - s0, coord_to_key(ey, inv_res) - s1,
+                          coord_to_key(ez, inv_res) - s2)
+                length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+                ints[0, j], ints[1, j], ints[2, j], ints[3, j] = ek, sx, sy, sz
+                floats[0, j], floats[1, j], floats[2, j], floats[3, j] = length, tx, ty, tz
+                floats[4, j], floats[5, j], floats[6, j] = gx, gy, gz
+                ints[4, j], ints[5, j], ints[6, j] = _slab_plan(origin_key, corner, ek, sx, sy, sz, tx, ty, tz,
+                                                                gx, gy, gz, length)
         end_key = ints[0, r]
         ray = rays and end_key != origin_key
         if ray:
@@ -389,36 +403,25 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
         dk = (pack(sx, 0, 0), pack(0, sy, 0), pack(0, 0, sz))  # a step per axis, packed
         if ray and corner >= 0:
             # the cube phase (the sensor's voxel lies in the cube): the walk's key and the cube
-            # index move together, no block to look up; in slabs where the ray allows (see
-            # _cube_slabs), from the sensor's voxel when each minor axis crosses a border at most
-            # once before the major axis first does (nearly always), else from the first step
-            # along the major axis on
+            # index move together, no block to look up; in slabs where the ray allows
+            # (_slab_plan), from the sensor's voxel (nearly always) or from the first step along
+            # the major axis on
             idx = _cube_index(key, corner)
             di = (sx, sy * CUBE, sz * CUBE * CUBE)
-            major = 0 if gx <= min(gy, gz) else (1 if gy <= gz else 2)
-            g_middle = min(max(gx, gy), max(gy, gz), max(gx, gz))
-            slabs = g_middle >= min(gx, gy, gz) * _SLAB_MARGIN
-            if major == 0:
-                at_slab = slabs and ty + gy > tx and tz + gz > tx
-            elif major == 1:
-                at_slab = slabs and tx + gx > ty and tz + gz > ty
-            else:
-                at_slab = slabs and tx + gx > tz and ty + gy > tz
+            major, n, later = ints[4, r], ints[5, r], ints[6, r] != 0
             while True:
-                if at_slab:
-                    slabs = False
-                    n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
-                    if n > 0:
-                        if major == 0:
-                            idx, tx, ty, tz = _cube_slabs(cube_frees, idx, n, tx, ty, tz, gx, gy, gz, sx, di[1], di[2],
-                                                          True, True)
-                        elif major == 1:
-                            idx, ty, tx, tz = _cube_slabs(cube_frees, idx, n, ty, tx, tz, gy, gx, gz, di[1], sx, di[2],
-                                                          False, True)
-                        else:
-                            idx, tz, tx, ty = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy, di[2], sx, di[1],
-                                                          False, False)
-                        key = _cube_key(idx, corner)
+                if n > 0:
+                    if major == 0:
+                        idx, tx, ty, tz = _cube_slabs(cube_frees, idx, n, tx, ty, tz, gx, gy, gz, sx, di[1], di[2],
+                                                      True, True)
+                    elif major == 1:
+                        idx, ty, tx, tz = _cube_slabs(cube_frees, idx, n, ty, tx, tz, gy, gx, gz, di[1], sx, di[2],
+                                                      False, True)
+                    else:
+                        idx, tz, tx, ty = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy, di[2], sx, di[1],
+                                                      False, False)
+                    key = _cube_key(idx, corner)
+                    n = 0
                 cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
                 axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
                 key += dk[axis]
@@ -429,7 +432,9 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                     break
                 if (key - corner) & _OUTSIDE:
                     break
-                at_slab = slabs and axis == major
+                if later and axis == major:
+                    later = False
+                    n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
             j = _cube_index(end_key, corner)
