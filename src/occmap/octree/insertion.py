@@ -49,7 +49,7 @@ VOXELS = np.zeros(0, np.int8)
 
 #: Per thread, its zeroed cube (:func:`.marking.new_cube`: 2.25 MiB) kept between scans.
 _kept = threading.local()
-_NO_CUBE = (np.zeros(0, np.int64), np.zeros(0, np.uint8))
+_NO_CUBE = (np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros((2, 3), np.int64))
 
 
 def pipeline():

@@ -185,8 +185,12 @@ _OUTSIDE = ~pack.py_func(CUBE - 1, CUBE - 1, CUBE - 1)
 
 @kernel
 def new_cube():
-    """Dense hit bits and free bytes of a cube (zeroed)."""
-    return np.zeros(_CUBE_WORDS, np.int64), np.zeros(CUBE ** 3, np.uint8)
+    """Dense hit bits and free bytes of a cube (zeroed), and the box its marks lie in (int64
+    (2, 3): least and greatest cube coordinates per axis; empty)."""
+    box = np.empty((2, 3), np.int64)
+    box[0] = CUBE
+    box[1] = -1
+    return np.zeros(_CUBE_WORDS, np.int64), np.zeros(CUBE ** 3, np.uint8), box
 
 
 #: Rays sampled (evenly over the scan) to place the cube, and points taken along each.
@@ -344,20 +348,30 @@ def _slab_plan(key, corner, end_key, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
     return major, max(n, 0) if slabs & once else 0, slabs & (not once)
 
 
+@inline_kernel
+def _widen(lo, hi, idx):
+    """Widen the box ``lo``..``hi`` (cube coordinates per axis) to hold cube index ``idx``."""
+    x, y, z = idx % CUBE, idx // CUBE % CUBE, idx // (CUBE * CUBE)
+    lo[0], lo[1], lo[2] = min(lo[0], x), min(lo[1], y), min(lo[2], z)
+    hi[0], hi[1], hi[2] = max(hi[0], x), max(hi[1], y), max(hi[2], z)
+
+
 #: Rays whose walk states :func:`mark_scan` computes in one vectorised loop.
 _RUN = 256
 
 
 @kernel
 def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, codes, hits, frees, count,
-              cube_hits, cube_frees, corner):
+              cube_hits, cube_frees, cube_box, corner):
     """Set the hit bit of each in-range end voxel and the free bits of every ray's voxels, for rays
     ``start..stop-1`` (only the hits when ``rays`` is false). Returns ``stop``, or the ray at which
     the block storage filled up (marking is idempotent, so the caller grows it and resumes there).
     Within a block, bit ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates
     (lx, ly, lz). Voxels in the cube at ``corner`` (from :func:`cube_corner`; −1: none) are
-    marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`). Keys are local:
-    OctoMap's less ``shift``."""
+    marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`), ``cube_box``
+    widened to hold them: a walk moves each key one way, so the box of the sensor's voxel, the
+    last voxel a walk marks in the cube and its hit holds all it marks. Keys are local: OctoMap's
+    less ``shift``."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
     okx = coord_to_key(ox, inv_res)  # (the walk starts from the unshifted key)
@@ -373,6 +387,12 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
     ints = np.empty((7, _RUN), np.int64)  # end key, sx, sy, sz, major axis, slabs from the sensor, later
     floats = np.empty((7, _RUN))  # length, tx, ty, tz, gx, gy, gz
     s0, s1, s2 = shift[0], shift[1], shift[2]
+    lo = np.empty(3, np.int64)  # the cube box, kept here and written back on return
+    hi = np.empty(3, np.int64)
+    lo[:] = cube_box[0]
+    hi[:] = cube_box[1]
+    if corner >= 0:
+        _widen(lo, hi, _cube_index(origin_key, corner))
     for i in range(start, stop):
         r = (i - start) % _RUN
         if r == 0:
@@ -435,10 +455,12 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                 if later and axis == major:
                     later = False
                     n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
+            _widen(lo, hi, idx - di[axis])  # the last voxel marked
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
             j = _cube_index(end_key, corner)
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
+            _widen(lo, hi, j)
             continue
         # the block phase: local coordinates on entering a block, per axis
         wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7
@@ -456,6 +478,8 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                         h = (h + 1) & mask
                     if table[h] == 0:
                         if count[0] == codes.shape[0]:
+                            cube_box[0] = lo
+                            cube_box[1] = hi
                             return i
                         table[h] = code
                         slots[h] = count[0]
@@ -484,6 +508,8 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                 key = end_key
                 is_hit = True
                 lookup = True
+    cube_box[0] = lo
+    cube_box[1] = hi
     return stop
 
 
@@ -493,10 +519,11 @@ _GATHER = 0x0002040810204081
 
 
 @kernel
-def cube_blocks(cube_hits, cube_frees, corner):
+def cube_blocks(cube_hits, cube_frees, cube_box, corner):
     """The cube's marked voxels as blocks: codes, hit masks, free masks (the blocks that have any;
-    :func:`merge_blocks` ors them with the same blocks marked elsewhere). Leaves the cube zeroed,
-    as :func:`new_cube` makes it, for the next scan."""
+    :func:`merge_blocks` ors them with the same blocks marked elsewhere); only the blocks within
+    ``cube_box`` are read. Leaves the cube zeroed and its box empty, as :func:`new_cube` makes
+    them, for the next scan."""
     nb = CUBE // 8
     w_row = CUBE // 64  # words of hit bits per row of the cube
     free_rows = cube_frees.view(np.uint64)  # eight voxels' free bytes per word
@@ -504,9 +531,9 @@ def cube_blocks(cube_hits, cube_frees, corner):
     hits = np.empty((nb ** 3, 8), np.int64)
     frees = np.empty((nb ** 3, 8), np.int64)
     n = 0
-    for bz in range(nb):
-        for by in range(nb):
-            for bx in range(nb):
+    for bz in range(cube_box[0, 2] >> 3, (cube_box[1, 2] >> 3) + 1):
+        for by in range(cube_box[0, 1] >> 3, (cube_box[1, 1] >> 3) + 1):
+            for bx in range(cube_box[0, 0] >> 3, (cube_box[1, 0] >> 3) + 1):
                 # the block's 8×8×8 voxels: byte bx % 8 of one hit word, and one free word, per row (y, z)
                 word0 = (bz * 8 * CUBE + by * 8) * w_row + (bx * 8) // 64
                 shift = (bx * 8) % 64
@@ -530,6 +557,8 @@ def cube_blocks(cube_hits, cube_frees, corner):
                     codes[n] = block_code(corner + pack(bx * 8, by * 8, bz * 8))
                     n += 1
     cube_hits[:] = 0
+    cube_box[0] = CUBE
+    cube_box[1] = -1
     return codes[:n], hits[:n], frees[:n]
 
 
