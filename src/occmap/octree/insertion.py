@@ -47,7 +47,7 @@ _CUBE_RAYS = 4096
 VOXELS = np.zeros(0, np.int8)
 
 
-#: Per thread, its zeroed cube (:func:`.marking.new_cube`: 2.25 MiB) kept between scans.
+#: Per thread, its cube (:func:`.marking.new_cube`: 2.25 MiB) kept between scans, zeroed, its box empty.
 _kept = threading.local()
 _NO_CUBE = (np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros((2, 3), np.int64))
 
