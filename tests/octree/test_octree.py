@@ -250,7 +250,8 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     directions along diagonals, rays ending inside and beyond the cube) against OctoMap's plain
     step-by-step walk (``ray_voxels``), voxel for voxel, hits included; also with a scan that
     lies on one side of its sensor (+x, +y, −z), which moves the cube to that side; on one
-    thread and on two (taking runs of rays in turn)."""
+    thread and on two (taking runs of rays in turn). The calling thread's cube serves its
+    markings in turn: each leaves it zeroed for the next."""
     from occmap.octree import blocks, insertion, marking
     from occmap.octree.keys import pack_keys, unpack
 
@@ -258,9 +259,10 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
     d = rng.normal(size=(6000, 3))
     d[:1000] = np.round(d[:1000])  # axis-aligned and diagonal directions: ties between axes
     d[np.all(d == 0, axis=1)] = (1.0, 1.0, 0.0)
-    if one_sided:
-        d = np.abs(d) * (1.0, 1.0, -1.0)
-    pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(0.2, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
+    if one_sided:  # a cone of rays that all end far away: no ray ends near the sensor's block
+        d = (np.abs(d) + 0.5) * (1.0, 1.0, -1.0)
+    near = 3.0 if one_sided else 0.2
+    pts = d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(near, 9.0, (len(d), 1)) + (0.013, -0.021, 0.034)
     origin = np.array([0.013, -0.021, 0.034], np.float32)
     none = np.zeros(3, np.int64)
     ends, hit, _, _, _ = marking.prepare_rays(pts, origin[None], -1.0, res, np.empty((0, 3), np.float32), none)
@@ -284,6 +286,9 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         order = np.argsort(keys)
         np.testing.assert_array_equal(keys[order] + pack_keys(shift), unique)
         np.testing.assert_array_equal(is_hit[order], unique_hit)
+        cube_hits, cube_frees, cube_box = insertion._kept.cube
+        assert not cube_hits.any() and not cube_frees.any()
+        np.testing.assert_array_equal(cube_box, [[128] * 3, [-1] * 3])
 
 
 def test_one_numba_thread_means_no_worker_thread(monkeypatch):

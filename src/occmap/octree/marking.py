@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from .._intrinsics import add_if_le, add_if_lt
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from . import raywalk
 from .blocks import home
 from .keys import MAX_KEY, block_code, coord_to_key, field, in_block, key_in_range, key_to_coord, pack, unpack
@@ -63,12 +63,12 @@ def prepare_rays(points, origins, max_range, res, box, shift):
         ox, oy, oz = origins[j, 0], origins[j, 1], origins[j, 2]
         px, py, pz = np.float32(points[i, 0]), np.float32(points[i, 1]), np.float32(points[i, 2])
         dx, dy, dz = px - ox, py - oy, pz - oz
-        norm = math.sqrt(np.float64(dx * dx + dy * dy + dz * dz))
-        is_hit = max_range < 0.0 or norm <= max_range
+        square = np.float64(dx * dx + dy * dy + dz * dz)  # (its root only where a max range asks)
+        is_hit = max_range < 0.0 or math.sqrt(square) <= max_range
         if not is_hit:
-            s = np.float32(norm)
+            s = np.float32(math.sqrt(square))
             px, py, pz = ox + (dx / s) * mr, oy + (dy / s) * mr, oz + (dz / s) * mr
-        if not (norm < np.inf and key_in_range(coord_to_key(px, inv_res) - shift[0])
+        if not (square < np.inf and key_in_range(coord_to_key(px, inv_res) - shift[0])
                 and key_in_range(coord_to_key(py, inv_res) - shift[1])
                 and key_in_range(coord_to_key(pz, inv_res) - shift[2])):
             continue  # (an overflowing length only where a resolution of 1e34 m or more puts such ends in range)
@@ -121,7 +121,7 @@ def voxel_centres(points, res, shift):
     return centres[:m], non_finite, outside
 
 
-@kernel
+@inline_kernel
 def _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res):
     """``computeRayKeys``' walk state of the ray from float32 ``o`` (in voxel ``ok``) to ``e``:
     its float32 length (as float64) and :func:`.raywalk.start`'s state."""
@@ -185,8 +185,12 @@ _OUTSIDE = ~pack.py_func(CUBE - 1, CUBE - 1, CUBE - 1)
 
 @kernel
 def new_cube():
-    """Dense hit bits and free bytes of a cube (zeroed)."""
-    return np.zeros(_CUBE_WORDS, np.int64), np.zeros(CUBE ** 3, np.uint8)
+    """Dense hit bits and free bytes of a cube (zeroed), and the box its marks lie in (int64
+    (2, 3): least and greatest cube coordinates per axis; empty)."""
+    box = np.empty((2, 3), np.int64)
+    box[0] = CUBE
+    box[1] = -1
+    return np.zeros(_CUBE_WORDS, np.int64), np.zeros(CUBE ** 3, np.uint8), box
 
 
 #: Rays sampled (evenly over the scan) to place the cube, and points taken along each.
@@ -282,7 +286,8 @@ _SLAB_MARGIN = 1.0 + 1e-9
 @kernel
 def _cube_slabs(frees, idx, n, tM, tA, tB, gM, gA, gB, dM, dA, dB, tie_a, tie_b):
     """``n`` slabs of OctoMap's DDA in the free cube, from a voxel the walk has just entered along
-    its major axis M (``t``, ``g``, index step ``d`` per axis; minor axes A and B). In a slab the
+    its major axis M, or the sensor's voxel where each minor axis crosses a border at most once
+    before M does (``t``, ``g``, index step ``d`` per axis; minor axes A and B). In a slab the
     minor axes step at most once each (see :data:`_SLAB_MARGIN`): A when ``tA < tM``, or equal
     and ``tie_a`` (OctoMap's tie-breaks prefer z over y over x; ``tie_a`` and ``tie_b`` are
     literals, so each form compiles to one compare), likewise B, A before B when ``tA < tB``; then
@@ -305,43 +310,68 @@ def _cube_slabs(frees, idx, n, tM, tA, tB, gM, gA, gB, dM, dA, dB, tie_a, tie_b)
     return idx, tM, tA, tB
 
 
-@kernel
+@inline_kernel
 def _room(local, step):
     """Steps of one voxel in direction ``step`` that keep cube coordinate ``local`` in the cube
     (unlimited for an axis that does not move)."""
-    if step == 0:
-        return CUBE
-    return CUBE - 1 - local if step > 0 else local
+    return CUBE if step == 0 else (CUBE - 1 - local if step > 0 else local)
 
 
-@kernel
+@inline_kernel
 def _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
-    """How many slabs (:func:`_cube_slabs`) a walk just past a major-axis step can take without
-    checks: every voxel of them, and the one after, stays in the cube (the minor axes step at most
-    once a slab), short of the end voxel's major coordinate (so none is the end voxel) and with the
-    major axis's next crossing within ``length`` (so the walk's range test cannot stop it; one slab
-    of margin for the rounding of the sums)."""
+    """How many slabs (:func:`_cube_slabs`) a walk at the start of a slab (just past a major-axis
+    step, or in the sensor's voxel) can take without checks: every voxel of them, and the one
+    after, stays in the cube (the minor axes step at most once a slab), short of the end voxel's
+    major coordinate (so none is the end voxel) and with the major axis's next crossing within
+    ``length`` (so the walk's range test cannot stop it; one slab of margin for the rounding of
+    the sums). (Selects, no branch: it runs in :func:`mark_scan`'s vectorised loop too.)"""
     lx, ly, lz = unpack(key - corner)
     n = min(_room(lx, sx), _room(ly, sy), _room(lz, sz))
-    t, g = (tx, ty, tz)[major], (gx, gy, gz)[major]
+    t = tx if major == 0 else (ty if major == 1 else tz)
+    g = gx if major == 0 else (gy if major == 1 else gz)
     n = min(n, abs(field(end_key, major) - field(key, major)) - 1)
-    if t < length:
-        n = min(n, int((length - t) / g) - 1)
-    else:
-        n = 0
-    return n
+    return min(n, np.int64((length - t) / g) - 1) if t < length else 0
+
+
+@inline_kernel
+def _slab_plan(key, corner, end_key, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
+    """How a ray from the sensor's voxel ``key`` takes the cube in slabs (:func:`_cube_slabs`):
+    ``(major, n, later)``, its major axis (the one whose borders lie closest together), the slabs
+    it takes from the sensor's voxel on (0: none), and whether it takes them from its first
+    major-axis step on instead (a minor axis crosses twice before the major axis first does).
+    Slabs need the minor axes' borders sparser than the major's by :data:`_SLAB_MARGIN`."""
+    major = 0 if gx <= min(gy, gz) else (1 if gy <= gz else 2)
+    slabs = min(max(gx, gy), max(gy, gz), max(gx, gz)) >= min(gx, gy, gz) * _SLAB_MARGIN
+    t = tx if major == 0 else (ty if major == 1 else tz)
+    once = ((major == 0) | (tx + gx > t)) & ((major == 1) | (ty + gy > t)) & ((major == 2) | (tz + gz > t))
+    n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
+    return major, max(n, 0) if slabs & once else 0, slabs & (not once)
+
+
+@inline_kernel
+def _widen(lo, hi, idx):
+    """Widen the box ``lo``..``hi`` (cube coordinates per axis) to hold cube index ``idx``."""
+    x, y, z = idx % CUBE, idx // CUBE % CUBE, idx // (CUBE * CUBE)
+    lo[0], lo[1], lo[2] = min(lo[0], x), min(lo[1], y), min(lo[2], z)
+    hi[0], hi[1], hi[2] = max(hi[0], x), max(hi[1], y), max(hi[2], z)
+
+
+#: Rays whose walk states :func:`mark_scan` computes in one vectorised loop.
+_RUN = 256
 
 
 @kernel
 def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, codes, hits, frees, count,
-              cube_hits, cube_frees, corner):
+              cube_hits, cube_frees, cube_box, corner):
     """Set the hit bit of each in-range end voxel and the free bits of every ray's voxels, for rays
     ``start..stop-1`` (only the hits when ``rays`` is false). Returns ``stop``, or the ray at which
     the block storage filled up (marking is idempotent, so the caller grows it and resumes there).
     Within a block, bit ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates
     (lx, ly, lz). Voxels in the cube at ``corner`` (from :func:`cube_corner`; −1: none) are
-    marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`). Keys are local:
-    OctoMap's less ``shift``."""
+    marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`), ``cube_box``
+    widened to hold them: a walk moves each key one way, so the box of the sensor's voxel, the
+    last voxel a walk marks in the cube and its hit holds all it marks. Keys are local: OctoMap's
+    less ``shift``."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
     okx = coord_to_key(ox, inv_res)  # (the walk starts from the unshifted key)
@@ -350,13 +380,40 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
     origin_key = pack(okx - shift[0], oky - shift[1], okz - shift[2])
     last_code = 0  # the block accessor's cache: the last block's code and index
     last = -1
+    # the rays' end keys and walk states, a run of rays at a time, in a loop of its own over
+    # coordinates laid out per axis: the compiler vectorises it (a ray's nine divisions then cost
+    # about a fifth as much); the walks read them
+    e = np.empty((3, _RUN), np.float32)
+    ints = np.empty((7, _RUN), np.int64)  # end key, sx, sy, sz, major axis, slabs from the sensor, later
+    floats = np.empty((7, _RUN))  # length, tx, ty, tz, gx, gy, gz
+    s0, s1, s2 = shift[0], shift[1], shift[2]
+    lo = np.empty(3, np.int64)  # the cube box, kept here and written back on return
+    hi = np.empty(3, np.int64)
+    lo[:] = cube_box[0]
+    hi[:] = cube_box[1]
+    if corner >= 0:
+        _widen(lo, hi, _cube_index(origin_key, corner))
     for i in range(start, stop):
-        ex, ey, ez = ends[i, 0], ends[i, 1], ends[i, 2]
-        end_key = pack(coord_to_key(ex, inv_res) - shift[0], coord_to_key(ey, inv_res) - shift[1],
-                       coord_to_key(ez, inv_res) - shift[2])
+        r = (i - start) % _RUN
+        if r == 0:
+            m = min(_RUN, stop - i)
+            for j in range(m):
+                e[0, j], e[1, j], e[2, j] = ends[i + j, 0], ends[i + j, 1], ends[i + j, 2]
+            for j in range(m):
+                ex, ey, ez = e[0, j], e[1, j], e[2, j]
+                ek = pack(coord_to_key(ex, inv_res) - s0, coord_to_key(ey, inv_res) - s1,
+                          coord_to_key(ez, inv_res) - s2)
+                length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+                ints[0, j], ints[1, j], ints[2, j], ints[3, j] = ek, sx, sy, sz
+                floats[0, j], floats[1, j], floats[2, j], floats[3, j] = length, tx, ty, tz
+                floats[4, j], floats[5, j], floats[6, j] = gx, gy, gz
+                ints[4, j], ints[5, j], ints[6, j] = _slab_plan(origin_key, corner, ek, sx, sy, sz, tx, ty, tz,
+                                                                gx, gy, gz, length)
+        end_key = ints[0, r]
         ray = rays and end_key != origin_key
         if ray:
-            length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+            length, sx, sy, sz = floats[0, r], ints[1, r], ints[2, r], ints[3, r]
+            tx, ty, tz, gx, gy, gz = floats[1, r], floats[2, r], floats[3, r], floats[4, r], floats[5, r], floats[6, r]
             key = origin_key
             done = False
         else:
@@ -366,14 +423,25 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
         dk = (pack(sx, 0, 0), pack(0, sy, 0), pack(0, 0, sz))  # a step per axis, packed
         if ray and corner >= 0:
             # the cube phase (the sensor's voxel lies in the cube): the walk's key and the cube
-            # index move together, no block to look up; from the first step along the major axis
-            # on, in slabs where the ray allows (see _cube_slabs)
+            # index move together, no block to look up; in slabs where the ray allows
+            # (_slab_plan), from the sensor's voxel (nearly always) or from the first step along
+            # the major axis on
             idx = _cube_index(key, corner)
             di = (sx, sy * CUBE, sz * CUBE * CUBE)
-            major = 0 if gx <= min(gy, gz) else (1 if gy <= gz else 2)
-            g_middle = min(max(gx, gy), max(gy, gz), max(gx, gz))
-            slabs = g_middle >= min(gx, gy, gz) * _SLAB_MARGIN
+            major, n, later = ints[4, r], ints[5, r], ints[6, r] != 0
             while True:
+                if n > 0:
+                    if major == 0:
+                        idx, tx, ty, tz = _cube_slabs(cube_frees, idx, n, tx, ty, tz, gx, gy, gz, sx, di[1], di[2],
+                                                      True, True)
+                    elif major == 1:
+                        idx, ty, tx, tz = _cube_slabs(cube_frees, idx, n, ty, tx, tz, gy, gx, gz, di[1], sx, di[2],
+                                                      False, True)
+                    else:
+                        idx, tz, tx, ty = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy, di[2], sx, di[1],
+                                                      False, False)
+                    key = _cube_key(idx, corner)
+                    n = 0
                 cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
                 axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
                 key += dk[axis]
@@ -384,24 +452,15 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                     break
                 if (key - corner) & _OUTSIDE:
                     break
-                if slabs and axis == major:
-                    slabs = False
+                if later and axis == major:
+                    later = False
                     n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
-                    if n > 0:
-                        if major == 0:
-                            idx, tx, ty, tz = _cube_slabs(cube_frees, idx, n, tx, ty, tz, gx, gy, gz, sx, di[1], di[2],
-                                                          True, True)
-                        elif major == 1:
-                            idx, ty, tx, tz = _cube_slabs(cube_frees, idx, n, ty, tx, tz, gy, gx, gz, di[1], sx, di[2],
-                                                          False, True)
-                        else:
-                            idx, tz, tx, ty = _cube_slabs(cube_frees, idx, n, tz, tx, ty, gz, gx, gy, di[2], sx, di[1],
-                                                          False, False)
-                        key = _cube_key(idx, corner)
+            _widen(lo, hi, idx - di[axis])  # the last voxel marked
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
             j = _cube_index(end_key, corner)
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
+            _widen(lo, hi, j)
             continue
         # the block phase: local coordinates on entering a block, per axis
         wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7
@@ -419,6 +478,8 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                         h = (h + 1) & mask
                     if table[h] == 0:
                         if count[0] == codes.shape[0]:
+                            cube_box[0] = lo
+                            cube_box[1] = hi
                             return i
                         table[h] = code
                         slots[h] = count[0]
@@ -447,6 +508,8 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                 key = end_key
                 is_hit = True
                 lookup = True
+    cube_box[0] = lo
+    cube_box[1] = hi
     return stop
 
 
@@ -456,9 +519,11 @@ _GATHER = 0x0002040810204081
 
 
 @kernel
-def cube_blocks(cube_hits, cube_frees, corner):
+def cube_blocks(cube_hits, cube_frees, cube_box, corner):
     """The cube's marked voxels as blocks: codes, hit masks, free masks (the blocks that have any;
-    :func:`merge_blocks` ors them with the same blocks marked elsewhere)."""
+    :func:`merge_blocks` ors them with the same blocks marked elsewhere); only the blocks within
+    ``cube_box`` are read. Leaves the cube zeroed and its box empty, as :func:`new_cube` makes
+    them, for the next scan."""
     nb = CUBE // 8
     w_row = CUBE // 64  # words of hit bits per row of the cube
     free_rows = cube_frees.view(np.uint64)  # eight voxels' free bytes per word
@@ -466,9 +531,9 @@ def cube_blocks(cube_hits, cube_frees, corner):
     hits = np.empty((nb ** 3, 8), np.int64)
     frees = np.empty((nb ** 3, 8), np.int64)
     n = 0
-    for bz in range(nb):
-        for by in range(nb):
-            for bx in range(nb):
+    for bz in range(cube_box[0, 2] >> 3, (cube_box[1, 2] >> 3) + 1):
+        for by in range(cube_box[0, 1] >> 3, (cube_box[1, 1] >> 3) + 1):
+            for bx in range(cube_box[0, 0] >> 3, (cube_box[1, 0] >> 3) + 1):
                 # the block's 8×8×8 voxels: byte bx % 8 of one hit word, and one free word, per row (y, z)
                 word0 = (bz * 8 * CUBE + by * 8) * w_row + (bx * 8) // 64
                 shift = (bx * 8) % 64
@@ -480,7 +545,10 @@ def cube_blocks(cube_hits, cube_frees, corner):
                     for ly in range(8):
                         w = word0 + (lz * CUBE + ly) * w_row
                         hw |= ((cube_hits[w] >> shift) & 0xFF) << (8 * ly)
-                        f = free_rows[row0 + (lz * CUBE + ly) * (CUBE // 8)]
+                        r = row0 + (lz * CUBE + ly) * (CUBE // 8)
+                        f = free_rows[r]
+                        if f != 0:
+                            free_rows[r] = 0
                         fw |= np.int64(((f * np.uint64(_GATHER)) >> np.uint64(49)) & np.uint64(0xFF)) << (8 * ly)
                     hits[n, lz] = hw
                     frees[n, lz] = fw
@@ -488,6 +556,9 @@ def cube_blocks(cube_hits, cube_frees, corner):
                 if any_bits != 0:
                     codes[n] = block_code(corner + pack(bx * 8, by * 8, bz * 8))
                     n += 1
+    cube_hits[:] = 0
+    cube_box[0] = CUBE
+    cube_box[1] = -1
     return codes[:n], hits[:n], frees[:n]
 
 

@@ -24,37 +24,37 @@ import math
 
 import numpy as np
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from .keys import key_to_coord
 
 #: "Never": the t of an axis the ray does not move along.
 BIG = np.finfo(np.float64).max
 
 
-@kernel
+@inline_kernel
 def direction(dx, dy, dz):
     """OctoMap's normalisation of a float32 vector: (float32 length, unit vector) with the length
     as float64; (0, 0, 0, 0) — no direction — for a vector whose float32 length is 0 or
     overflows."""
     length = np.float32(math.sqrt(np.float64(dx * dx + dy * dy + dz * dz)))
-    if not 0 < length < np.inf:
-        z = np.float32(0.0)
-        return 0.0, z, z, z
-    return np.float64(length), dx / length, dy / length, dz / length
+    ok = (length > 0) & (length < np.inf)  # (selects, no branch: loops of rays vectorise)
+    z = np.float32(0.0)
+    return (np.float64(length) if ok else 0.0, dx / length if ok else z, dy / length if ok else z,
+            dz / length if ok else z)
 
 
-@kernel
+@inline_kernel
 def _axis_start(o, u, k, res, border32):
-    s = 1 if u > 0 else (-1 if u < 0 else 0)
-    if s == 0:
-        return 0, BIG, BIG
+    s = np.int64(u > 0) - np.int64(u < 0)
     half = s * res * 0.5
     if border32:
         half = np.float64(np.float32(half))
-    return s, (key_to_coord(k, res) + half - np.float64(o)) / np.float64(u), res / abs(np.float64(u))
+    t = (key_to_coord(k, res) + half - np.float64(o)) / np.float64(u)  # (±inf or NaN where u = 0: replaced)
+    g = res / abs(np.float64(u))
+    return s, t if s != 0 else BIG, g if s != 0 else BIG
 
 
-@kernel
+@inline_kernel
 def start(ox, oy, oz, ux, uy, uz, kx, ky, kz, res, border32):
     """Walk state of a ray from float32 point ``o`` in voxel ``k`` along the unit float32 direction
     ``u`` (from :func:`direction`): ``(sx, sy, sz, tx, ty, tz, gx, gy, gz)``. ``border32``: round
