@@ -257,7 +257,7 @@ def test_fr079_stretch_where_the_map_is_wrong_is_held_on_odometry(fr079):
     spot. Before: the coasting cap ran out there, the scans weighed a cloud spread 4 m wide and
     dragged it 2-5 m away, for good (every seed). Now the reversing is read from the log's signed
     speed, the odometry carries the estimate through (the cloud that the scans weigh past the cap
-    is not trusted until it is not lost for 10 runs) and the filter is back on track after it."""
+    is not trusted until it is not lost for coast_confirm runs) and the filter is back on track after it."""
     grid, ref, raw, offset = fr079
     pairs = pair_scans(raw, ref)
     ref_poses = np.array([s.pose for s in ref])

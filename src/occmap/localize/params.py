@@ -100,7 +100,7 @@ class LocalizationParams:
         The most odometry travel (m) and heading change (rad, summed) the filter coasts through
         since the last scan that fitted; beyond either, scans weigh the cloud again, while the
         estimate stays the odometry's until ``coast_confirm`` runs confirm the cloud's.
-    coast_confirm : int, default 10
+    coast_confirm : int, default 5
         Past the coasting cap, consecutive filter runs whose scan fits the cloud's estimate (at
         least ``lost_fit`` of the usual fit) before that estimate replaces the odometry's.
     global_particles : int, default 20000
@@ -159,7 +159,7 @@ class LocalizationParams:
     coast_fit: float = 0.0
     coast_max_d: float = 3.0
     coast_max_a: float = 2 * math.pi
-    coast_confirm: int = 10
+    coast_confirm: int = 5
     # global localization
     global_particles: int = 20_000
     global_sigma_hit: float = 1.0
