@@ -361,3 +361,59 @@ def test_plain_copy_of_real_log(data_dir, tmp_path):
     a, b = read_carmen(src), read_carmen(plain)
     assert len(a.scans) == len(b.scans) == 910
     np.testing.assert_array_equal(stack_scans(a.scans).ranges, stack_scans(b.scans).ranges)
+
+
+def _odom(x, y, theta, tv, logger):
+    return f"ODOM {x} {y} {theta} {tv} 0 0 {logger} host {logger}"
+
+
+def test_odometry_that_went_forwards_while_the_speed_was_negative_is_reversed(tmp_path):
+    """A robot heading +y (theta = pi/2) drives 1 m forwards, then 0.5 m backwards, then turns;
+    the log's odometry advanced forwards all along (the speed unsigned) while its ODOM messages say
+    tv < 0: the backwards step is driven backwards, the turn and the later steps kept, composed
+    from the corrected pose. Where the odometry already went backwards, or no ODOM message says
+    anything, nothing changes."""
+    h = math.pi / 2
+    lines = [_flaser(odom=(0, 0, h), logger=1.0), _odom(0, 0.5, h, 0.5, 1.5),
+             _flaser(odom=(0, 1, h), logger=2.0), _odom(0, 1.25, h, -0.5, 2.5), _odom(0, 1.5, h + 0.1, -0.5, 2.8),
+             _flaser(odom=(0, 1.5, h + 0.1), logger=3.0), _odom(0, 1.5, h + 0.3, 0.0, 3.5),
+             _flaser(odom=(0, 1.5, h + 0.3), logger=4.0)]
+    log = read_carmen(_write(tmp_path, lines))
+    got = np.array([s.odom for s in log.scans])
+    assert log.stats.reversed_steps == 1
+    np.testing.assert_allclose(got[:2], [[0, 0, h], [0, 1, h]])  # untouched before the first reversal
+    np.testing.assert_allclose(got[2], [0, 0.5, h + 0.1], atol=1e-12)  # 0.5 m back, the turn kept
+    np.testing.assert_allclose(got[3], [0, 0.5, h + 0.3], atol=1e-12)  # the next step from there
+    # signed odometry (it went back by itself) and logs without ODOM: as read
+    signed = [_flaser(odom=(0, 1, h), logger=2.0), _odom(0, 0.75, h, -0.5, 2.5), _flaser(odom=(0, 0.5, h), logger=3.0)]
+    plain = [_flaser(odom=(0, 1, h), logger=2.0), _flaser(odom=(0, 1.5, h), logger=3.0)]
+    for name, log_lines, end in (("signed.log", signed, 0.5), ("plain.log", plain, 1.5)):
+        log = read_carmen(_write(tmp_path, log_lines, name))
+        assert log.stats.reversed_steps == 0 and log.scans[1].odom[1] == end
+    # an ODOM line without a readable speed is left out, as other ODOM lines are not validated
+    odd = [_flaser(odom=(0, 0, h), logger=1.0), "ODOM 0 0.5 1.57 fast", _flaser(odom=(0, 1, h), logger=2.0)]
+    assert read_carmen(_write(tmp_path, odd, "odd.log")).scans[1].odom[1] == 1.0
+
+
+def test_freiburg_079_reversing_is_read_as_reversing(logs, data_dir):
+    """Freiburg 079's raw odometry advances while its ODOM speed is negative (320 messages below
+    -0.05 m/s, every one); the corrected log (SLAM, scans matched) has the robot reversing there.
+    Read, the raw steps now go the same way as the corrected ones: refs 1386-1400 (the robot backs
+    up 2 m), 0.2 m a step back in both; and on the whole run the odometry no longer contradicts the
+    reference's direction of travel."""
+    from occmap.geometry.se2 import relative_poses
+    from occmap.localize.replay import pair_scans
+
+    raw = read_carmen(data_dir / "carmen" / "fr079-raw.clf.bz2")
+    ref = logs["freiburg-079-corrected.log.gz"].scans
+    assert raw.stats.reversed_steps == 294
+    pairs = pair_scans(raw.scans, ref)
+    assert (pairs >= 0).mean() > 0.95
+    ks = np.flatnonzero((pairs[:-1] >= 0) & (pairs[1:] >= 0))
+    odo = relative_poses(np.array([raw.scans[pairs[k]].odom for k in ks]),
+                         np.array([raw.scans[pairs[k + 1]].odom for k in ks]))[:, 0]
+    cor = relative_poses(np.array([ref[k].pose for k in ks]), np.array([ref[k + 1].pose for k in ks]))[:, 0]
+    back = (ks >= 1386) & (ks < 1400)
+    assert back.sum() >= 12 and (odo[back] < -0.05).all() and (cor[back] < -0.05).all()
+    contradicts = (np.sign(odo) != np.sign(cor)) & (np.abs(odo) > 0.05) & (np.abs(cor) > 0.05)
+    assert contradicts.sum() <= 5

@@ -38,6 +38,16 @@ malformed, since every reading would then count as "no return" and clear its bea
 Conventions
 -----------
 * ``pose[2]`` and ``odom[2]`` are wrapped to (-pi, pi] (the csail log reaches 10.9 rad).
+* ``odom`` drives backwards where the log's odometry says so. Some logs integrate the odometry
+  pose from the unsigned speed: Freiburg 079's raw log (``fr079-raw.clf``) advances every
+  ``ODOM``/``FLASER`` odometry pose *forwards* while its ``ODOM`` messages report a negative
+  translational velocity ``tv`` (all 320 messages with ``tv < -0.05`` m/s; the corrected log and
+  the scans show the robot reversing, up to 2 m at a time). So when the ``ODOM`` messages between
+  two scans average ``tv < 0`` and the odometry moved the robot forwards (along its heading) from
+  one scan to the next, that step's translation is reversed in the robot's frame (the turn is
+  kept) and the odometry from there on is composed from the corrected steps;
+  ``CarmenStats.reversed_steps`` counts them. Logs without ``ODOM`` messages, or whose odometry
+  already moves backwards when ``tv`` is negative (Intel's has no negative ``tv``), are unchanged.
 * ``stamp`` is the logger timestamp (the last field). A line that ends at the hostname (no logger
   timestamp) uses the ipc timestamp instead. Zero or wrapped timestamps are kept as read.
 * Maximum range (``LaserScan.max_range``; by that record's convention a reading at or beyond it
@@ -68,6 +78,7 @@ Counts and ``PARAM`` values go into a :class:`CarmenStats` the caller may pass t
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 import os
@@ -78,6 +89,7 @@ import numpy as np
 
 from .. import checks
 from ..errors import FormatError, InvalidArgumentError
+from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import wrap_angle
 from ..scan import LaserScan, ScanStack, stack_scans
 from ._compression import CORRUPT, open_binary
@@ -148,6 +160,9 @@ class CarmenStats:
     guessed_angles : int
         FLASER / RLASER scans whose beam count (not 180, 181, 360 or 361) does not say their
         angular step, given the closed 180° fan CARMEN guesses.
+    reversed_steps : int
+        Scan-to-scan odometry steps driven backwards because the ``ODOM`` messages between the two
+        scans report a negative speed while the odometry pose moved forwards (module docstring).
     errors : list[FormatError]
         The first 100 malformed-line errors met in lenient mode, for reporting.
     """
@@ -162,6 +177,7 @@ class CarmenStats:
     params: dict[str, str] = field(default_factory=dict)
     assumed_max_range: int = 0
     guessed_angles: int = 0
+    reversed_steps: int = 0
     errors: list[FormatError] = field(default_factory=list)
 
 
@@ -293,6 +309,11 @@ class _Parser:
         self.stats = stats
         self._angle_cache: dict = {}
         self._param_max: dict[str, float] = {}
+        # signed odometry: the ODOM speeds since the last scan, that scan's odometry as read and as corrected
+        self._tv_sum = 0.0
+        self._tv_n = 0
+        self._odom_read = None
+        self._odom_signed = None
 
     # -- helpers -------------------------------------------------------------------------------
     def _angles(self, key, make) -> np.ndarray:
@@ -313,6 +334,44 @@ class _Parser:
                     continue
                 if v > 0 and math.isfinite(v):
                     self._param_max[kind] = v
+
+    def odom_speed(self, line: str) -> None:
+        """Note the translational velocity ``tv`` of an ``ODOM x y theta tv rv accel ...`` line (a
+        line without a finite one is left out: ODOM lines are not validated)."""
+        p = line.split(None, 5)
+        if len(p) >= 5:
+            try:
+                tv = float(p[4])
+            except ValueError:
+                return
+            if math.isfinite(tv):
+                self._tv_sum += tv
+                self._tv_n += 1
+
+    def signed_odometry(self, scan: LaserScan) -> LaserScan:
+        """``scan`` with its odometry step from the previous scan reversed when the ODOM speeds
+        between them say the robot drove backwards but the step goes forwards (module docstring)."""
+        read = scan.odom
+        if read is None:
+            return scan
+        backwards = self._tv_n > 0 and self._tv_sum < 0.0
+        self._tv_sum, self._tv_n = 0.0, 0
+        prev_read, prev_signed = self._odom_read, self._odom_signed
+        self._odom_read = read
+        if prev_read is None:
+            self._odom_signed = read
+            return scan
+        step = relative_poses(prev_read, read)
+        if backwards and step[0] > 0.0:
+            step[:2] = -step[:2]
+            self.stats.reversed_steps += 1
+        elif np.array_equal(prev_read, prev_signed):
+            self._odom_signed = read  # nothing corrected so far: keep the log's numbers exactly
+            return scan
+        signed = compose_poses(prev_signed, step)
+        signed[2] = wrap_angle(signed[2])
+        self._odom_signed = signed
+        return dataclasses.replace(scan, odom=signed)
 
     def _fail(self, lineno, what):
         return FormatError(self.path, what, line=lineno)
@@ -525,7 +584,7 @@ def _scan_lines(path_str, wanted, lenient, every, parser, stats) -> Iterator[Las
                         stats.errors.append(err)
                     continue
                 stats.scans += 1
-                yield scan
+                yield parser.signed_odometry(scan)
             elif kind[0] == "#":
                 stats.skipped_other += 1
             elif kind == "PARAM":
@@ -535,6 +594,8 @@ def _scan_lines(path_str, wanted, lenient, every, parser, stats) -> Iterator[Las
                     parser.param(p[1], p[2])
             elif kind in _KNOWN_OTHER:
                 stats.skipped_other += 1
+                if kind == "ODOM":
+                    parser.odom_speed(line)
             else:
                 stats.skipped_unknown += 1
                 stats.unknown_types[kind] = stats.unknown_types.get(kind, 0) + 1

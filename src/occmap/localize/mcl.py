@@ -30,12 +30,20 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
   share of N is applied with its likelihood raised to a power below 1 (adaptive tempering).
 * **coasting** — with ``coast_fit`` a scan the map does not explain where the odometry says the
   robot is (after a local scan match from there: less than ``coast_fit`` of the usual ``fit``) is
-  left out and the odometry alone carries the cloud, for at most ``coast_max_d`` metres and
-  ``coast_max_a`` radians. Where the map shows a place poorly (Freiburg 079: a room visited once,
-  where the robot turns on the spot and the corrected poses fit their own map 0.3–0.45 m off) such
-  scans fit better at wrong poses a metre and 50–90° away, and weighing them drags the cloud there
-  a few degrees per scan; the cap keeps a wrong odometry, or a filter that is really lost, from
-  coasting on.
+  left out: the odometry alone carries the estimate and moves the cloud rigidly (without motion
+  noise: with AMCL's noise terms a cloud coasting 4 m spreads 4 m × 2 m × 160°, and the first scan
+  weighed afterwards picks any pose in it that fits). Where the map shows a place poorly
+  (Freiburg 079: a room visited once, where the robot turns on the spot and the corrected poses
+  fit their own map 0.3–0.45 m off) such scans fit better at wrong poses a metre and 50–90° away,
+  and weighing them drags the cloud there a few degrees per scan. After ``coast_max_d`` metres or
+  ``coast_max_a`` radians of coasting the filter keeps **two hypotheses**: the scans weigh the
+  cloud again (a filter that is really lost, or an odometry gone wrong, is found by it), while the
+  estimate stays the odometry's until the cloud's estimate is not ``lost`` (its fit at least
+  ``lost_fit`` of the usual) on ``coast_confirm`` filter runs in a row; if the odometry's pose fits
+  a scan (``coast_fit``) first, the cloud is moved back to it. (Freiburg 079, refs 1090–1240: the
+  reference's own scans fit the map 0.2–1.1 m off for 13 m of travel; weighed, those scans pulled
+  the cloud 2–4 m away and it never came back. The cloud's wrong poses there fit at ``coast_fit``
+  for 10 runs in a row while the robot turned on the spot, hence the stricter ``lost_fit``.)
 * **estimate** — the weighted mean of the dominant mode of the cloud (circular mean for the
   heading), its covariance and the effective sample size. A multi-modal cloud (global
   localization before it converges) reports its heaviest mode and the share of weight in it.
@@ -245,6 +253,8 @@ class MonteCarloLocalizer(OneCallAtATime):
         self._filter_odom = None  # odometry pose at the last filter run
         # odometry travel (m) and summed turns (rad) since the last applied scan; None once past the cap
         self._coasted: tuple[float, float] | None = (0.0, 0.0)
+        self._held = None  # coasting: the pose the odometry alone carried from the last scan that fitted
+        self._confirm = 0  # past the cap: consecutive filter runs whose (cloud's) estimate the scan fits
         self._usual_fit = None  # long-term average of the estimates' fit while not lost
         self._estimate: PoseEstimate | None = None
         self._force = True
@@ -290,6 +300,8 @@ class MonteCarloLocalizer(OneCallAtATime):
         self.w_slow = self.w_fast = 0.0
         self._filter_odom = None
         self._coasted = (0.0, 0.0)
+        self._held = None
+        self._confirm = 0
         self._estimate = None
         self._force = True
 
@@ -339,16 +351,17 @@ class MonteCarloLocalizer(OneCallAtATime):
             return PoseEstimate(pose, est.covariance, est.ess, len(self.particles), est.mode_weight, False, 0,
                                 est.converged, est.fit, est.lost)
 
-        # motion
+        bx, by, bx_all, by_all = beam_end_points(r, a, mr, prm)
+        coast = bx.size > 0 and self._coast((rot1, trans, rot2), bx_all, by_all)
+        # motion (rigid while coasting)
         if float(trans) > 0 or float(rot1) != 0 or float(rot2) != 0:
-            self.particles = apply_odometry(self.particles, (rot1, trans, rot2), prm.motion.alphas, self.rng)
+            self.particles = apply_odometry(self.particles, (rot1, trans, rot2), None if coast else prm.motion.alphas,
+                                            self.rng)
         self._filter_odom = odom.copy()
         self._force = False
 
         # measurement
-        bx, by, bx_all, by_all = beam_end_points(r, a, mr, prm)
         ess = 1.0 / float(np.sum(self.weights ** 2))
-        coast = bx.size > 0 and self._coast((rot1, trans, rot2), bx_all, by_all)
         if coast:
             self.stats.coasted += 1
         elif bx.size:
@@ -369,6 +382,8 @@ class MonteCarloLocalizer(OneCallAtATime):
             self.stats.converged_after = self.stats.updates
         if prm.refine and not self._global and bx_all.size and not coast:
             pose = self._refine(pose, bx_all, by_all)
+        if self._held is not None:
+            pose = self._choose(pose, coast, bx_all, by_all)
         fit, lost = math.nan, False
         if bx_all.size:
             fit = self._fit(pose, bx_all, by_all)
@@ -390,24 +405,58 @@ class MonteCarloLocalizer(OneCallAtATime):
         than ``coast_fit`` times the usual fit of it at the pose the odometry predicts (after a local
         scan match from there, so that odometry drift alone does not count), and the odometry has
         carried the cloud at most ``coast_max_d`` metres and ``coast_max_a`` radians (summed heading
-        changes) since the last scan that fitted."""
+        changes) since the last scan that fitted. The odometry's pose is kept (``_held``) for as
+        long as no scan fits, also past the cap; when a scan fits it again after the cap, the cloud
+        (which the scans weighed meanwhile) is moved back to it."""
         prm = self.params
         if prm.coast_fit <= 0 or self._global or self._usual_fit is None or self._estimate is None:
             return False
-        prior = apply_odometry(self._estimate.pose, delta)
+        prior = apply_odometry(self._estimate.pose if self._held is None else self._held, delta)
         x = self._local_match(prior, bx_all, by_all)
         at = prior if x is None else x
         fit = self._fit(at, bx_all, by_all)
         if fit >= prm.coast_fit * self._usual_fit:
+            if self._held is not None and self._coasted is None:
+                self._move_cloud(self._mean()[0], at)
+            self._held = None
             self._coasted = (0.0, 0.0)
+            self._confirm = 0
             return False
+        self._held = prior
         if self._coasted is None:
-            return False  # coasted as far as allowed: the scans weigh again until one fits
+            return False  # coasted as far as allowed: the scans weigh the cloud again (see _choose)
         rot1, trans, rot2 = delta
         d = self._coasted[0] + float(trans)
         a = self._coasted[1] + abs(wrap_angle_one(float(rot1 + rot2)))
         self._coasted = (d, a) if d <= prm.coast_max_d and a <= prm.coast_max_a else None
         return self._coasted is not None
+
+    def _choose(self, pose: np.ndarray, coast: bool, bx_all: np.ndarray, by_all: np.ndarray) -> np.ndarray:
+        """The estimate while the odometry's pose is held: that pose while coasting; past the cap,
+        the cloud's estimate ``pose`` once it has not been lost (fit at least ``lost_fit`` of the
+        usual) on ``coast_confirm`` filter runs in a row (then the odometry's pose is dropped), else
+        still the odometry's."""
+        if coast or not bx_all.size:
+            return self._held
+        prm = self.params
+        fits = self._fit(pose, bx_all, by_all) >= prm.lost_fit * self._usual_fit
+        self._confirm = self._confirm + 1 if fits else 0
+        if self._confirm < prm.coast_confirm:
+            return self._held
+        self._held = None
+        self._coasted = (0.0, 0.0)
+        self._confirm = 0
+        return pose
+
+    def _move_cloud(self, pose: np.ndarray, x: np.ndarray) -> None:
+        """Move the cloud rigidly so that ``pose`` lands on ``x``: rotate about ``pose`` by the
+        heading difference, then shift."""
+        dt = wrap_angle_one(float(x[2] - pose[2]))
+        c, s = math.cos(dt), math.sin(dt)
+        rel = self.particles[:, :2] - pose[:2]
+        self.particles[:, 0] = x[0] + c * rel[:, 0] - s * rel[:, 1]
+        self.particles[:, 1] = x[1] + s * rel[:, 0] + c * rel[:, 1]
+        self.particles[:, 2] = wrap_angle(self.particles[:, 2] + dt)
 
     @property
     def estimate(self) -> PoseEstimate | None:
@@ -541,11 +590,5 @@ class MonteCarloLocalizer(OneCallAtATime):
             return pose
         self.stats.refined += 1
         if self.params.refine_feedback:
-            # move the cloud rigidly: rotate about the estimate by the heading correction, then shift
-            dt = wrap_angle_one(float(x[2] - pose[2]))
-            c, s = math.cos(dt), math.sin(dt)
-            rel = self.particles[:, :2] - pose[:2]
-            self.particles[:, 0] = x[0] + c * rel[:, 0] - s * rel[:, 1]
-            self.particles[:, 1] = x[1] + s * rel[:, 0] + c * rel[:, 1]
-            self.particles[:, 2] = wrap_angle(self.particles[:, 2] + dt)
+            self._move_cloud(pose, x)
         return x

@@ -98,7 +98,11 @@ class LocalizationParams:
         odometry predicts, after a local scan match from there (0: off).
     coast_max_d, coast_max_a : float, default 3.0, 2π
         The most odometry travel (m) and heading change (rad, summed) the filter coasts through
-        since the last scan that fitted; beyond either, scans weigh again until one fits.
+        since the last scan that fitted; beyond either, scans weigh the cloud again, while the
+        estimate stays the odometry's until ``coast_confirm`` runs confirm the cloud's.
+    coast_confirm : int, default 5
+        Past the coasting cap, consecutive filter runs whose scan fits the cloud's estimate (at
+        least ``lost_fit`` of the usual fit) before that estimate replaces the odometry's.
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
@@ -155,6 +159,7 @@ class LocalizationParams:
     coast_fit: float = 0.0
     coast_max_d: float = 3.0
     coast_max_a: float = 2 * math.pi
+    coast_confirm: int = 5
     # global localization
     global_particles: int = 20_000
     global_sigma_hit: float = 1.0
@@ -166,7 +171,7 @@ class LocalizationParams:
         def put(name, value):
             object.__setattr__(self, name, value)
 
-        for name in ("n_particles", "max_beams", "global_particles"):
+        for name in ("n_particles", "max_beams", "global_particles", "coast_confirm"):
             put(name, checks.count(name, getattr(self, name)))
         if not isinstance(self.motion, OdometryMotionModel):
             put("motion", OdometryMotionModel(*self.motion))
