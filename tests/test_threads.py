@@ -165,3 +165,38 @@ def test_read_ahead_keeps_order_errors_and_stops_early():
         if k == 3:
             break
     assert len(made) <= 3 + 2 + 2  # the reader stopped a few items ahead, not at the end
+
+
+def test_read_ahead_switches_threads_often_while_a_reader_runs_and_restores_the_interval():
+    """A reader holding the GIL would keep the caller's kernels waiting 5 ms (Python's switch
+    interval) each time they return: while any reader runs the interval is short; the caller's own
+    interval comes back when the last reader stops, however they interleave, or at an error."""
+    from occmap._threads import READ_AHEAD_SWITCH_INTERVAL
+
+    before = sys.getswitchinterval()
+    try:
+        sys.setswitchinterval(0.004)
+        seen = []
+        outer = read_ahead(iter(range(3)))
+        seen.append((next(outer), sys.getswitchinterval()))
+        inner = read_ahead(iter(range(3)))
+        seen.append((next(inner), sys.getswitchinterval()))
+        outer.close()  # the first to start stops first: the other still runs
+        seen.append(sys.getswitchinterval())
+        assert list(inner) == [1, 2]
+        short = pytest.approx(READ_AHEAD_SWITCH_INTERVAL, rel=1e-6)  # the interpreter keeps microseconds
+        assert seen == [(0, short), (0, short), short]
+        assert sys.getswitchinterval() == pytest.approx(0.004, rel=1e-6)
+
+        def failing():
+            yield 1
+            raise ValueError("broken")
+
+        with pytest.raises(ValueError):
+            list(read_ahead(failing()))
+        assert sys.getswitchinterval() == pytest.approx(0.004, rel=1e-6)
+        sys.setswitchinterval(1e-5)  # a caller's shorter interval is kept
+        inside = [sys.getswitchinterval() for _ in read_ahead(iter(range(2)))]
+        assert inside == [pytest.approx(1e-5, rel=1e-6)] * 2
+    finally:
+        sys.setswitchinterval(before)
