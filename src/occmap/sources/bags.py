@@ -96,8 +96,7 @@ class _BagSource:
     def _has_tf(self, bag, unposed: bool) -> bool:
         """Whether the bag has tf or the odometry topic to place messages by; when it has neither,
         False if the caller takes ``unposed`` messages (scan matching gives them poses), else an error."""
-        feeds = [t for t in ("/tf", "/tf_static", self.odom_topic) if t in bag.topics]
-        if any(bag.topics[t].count for t in feeds) or self.odom_topic is not None:
+        if self.odom_topic is not None or any(bag.topics[t].count for t in ("/tf", "/tf_static") if t in bag.topics):
             return True
         if unposed:
             return False
