@@ -14,7 +14,7 @@ from .grid2d import LidarModel, OccupancyGrid2D
 from .grid2d.grid import DEFAULT_MAX_EXTENT
 from ._progress import Progress
 from ._threads import read_ahead
-from .scan import LaserScan, ScanStack, stack_scans
+from .scan import LaserScan, ScanStack, concat_stacks, stack_scans
 
 
 @dataclass
@@ -54,12 +54,10 @@ def map_scans(stack: ScanStack, resolution: float, max_range: float | None = Non
     A ``recorder`` (:class:`~occmap.mapping2d_recording.MappingRecorder`) is told each batch of
     ``recorder.every`` scans once they are in the grid (then the chunks are that long).
     """
-    poses, ranges, angles, max_ranges, stamps = stack
-    n = len(poses)
+    n = len(stack.poses)
     chunk = recorder.every if recorder is not None else chunk
-    limit = float(max_range) if max_range is not None else (float(max_ranges.max()) if n else 1.0)
-    chunks = (ScanStack(poses[s:s + chunk], ranges[s:s + chunk], angles if angles.ndim == 1 else angles[s:s + chunk],
-                        max_ranges[s:s + chunk], stamps[s:s + chunk]) for s in range(0, n, chunk))
+    limit = float(max_range) if max_range is not None else (float(stack.max_ranges.max()) if n else 1.0)
+    chunks = (stack.take(slice(s, s + chunk)) for s in range(0, n, chunk))
     return _integrate(chunks, resolution, lambda _: limit, model, max_extent, Progress(n, "scans", progress),
                       recorder)
 
@@ -79,7 +77,11 @@ def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: fl
     first = FIRST_CHUNK
     if recorder is not None:
         chunk = first = recorder.every
-    chunks = read_ahead(stack_scans(batch) for batch in _batches(scans, chunk, first))
+    if hasattr(scans, "stacks"):  # a source that decodes many scans at once (a bag's)
+        stacks = _restacked(scans.stacks(), chunk, first)
+    else:
+        stacks = (stack_scans(batch) for batch in _batches(scans, chunk, first))
+    chunks = read_ahead(stacks)
     return _integrate(chunks, resolution, lambda c: float(max_range) if max_range is not None
                       else float(c.max_ranges.max()), model, max_extent, progress, recorder)
 
@@ -96,6 +98,22 @@ def _batches(items, size: int, first: int):
     while batch := list(itertools.islice(it, n)):
         yield batch
         n = min(2 * n, size)
+
+
+def _restacked(stacks, size: int, first: int):
+    """The scans of ``stacks`` in runs sized as :func:`_batches` sizes them."""
+    n = max(1, min(first, size))
+    held, count = [], 0
+    for s in stacks:
+        held.append(s)
+        count += len(s.poses)
+        while count >= n:
+            run = concat_stacks(held)
+            yield run.take(slice(None, n))
+            held, count = [run.take(slice(n, None))], count - n
+            n = min(2 * n, size)
+    if count:
+        yield concat_stacks(held)
 
 
 def _integrate(chunks, resolution, limit_of, model, max_extent, progress, recorder) -> MappingSummary:

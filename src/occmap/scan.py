@@ -66,6 +66,11 @@ class ScanStack(NamedTuple):
     max_ranges: np.ndarray
     stamps: np.ndarray
 
+    def take(self, rows) -> ScanStack:
+        """The scans ``rows`` (indices, a mask or a slice) as a stack."""
+        return ScanStack(self.poses[rows], self.ranges[rows], self.angles if self.angles.ndim == 1 else self.angles[rows],
+                         self.max_ranges[rows], self.stamps[rows])
+
 
 def stack_scans(scans) -> ScanStack:
     """Stack an iterable of :class:`LaserScan` into arrays (a :class:`ScanStack`, which unpacks as
@@ -110,6 +115,33 @@ def stack_scans(scans) -> ScanStack:
         for k, s in enumerate(scans):
             angles[k, : np.shape(s.angles)[0]] = s.angles
     return ScanStack(poses, ranges, angles, max_ranges, stamps)
+
+
+def concat_stacks(stacks) -> ScanStack:
+    """One :class:`ScanStack` of the scans of ``stacks`` in order, as :func:`stack_scans` would
+    stack their scans: padded with NaN to the widest, one shared angle row when all share it."""
+    stacks = [s for s in stacks if len(s.poses)]
+    if len(stacks) == 1:
+        return stacks[0]
+    if not stacks:
+        return stack_scans([])
+    m = max(s.ranges.shape[1] for s in stacks)
+    first = stacks[0].angles
+    if first.ndim == 1 and all(s.angles is first or (s.angles.shape == first.shape and np.array_equal(s.angles, first))
+                               for s in stacks):
+        angles = first
+    else:
+        angles = np.concatenate([_padded(np.broadcast_to(s.angles, s.ranges.shape), m) for s in stacks])
+    return ScanStack(np.concatenate([s.poses for s in stacks]), np.concatenate([_padded(s.ranges, m) for s in stacks]),
+                     angles, np.concatenate([s.max_ranges for s in stacks]),
+                     np.concatenate([s.stamps for s in stacks]))
+
+
+def _padded(rows: np.ndarray, m: int) -> np.ndarray:
+    """``rows`` (N, k ≤ m) padded with NaN columns to (N, m)."""
+    if rows.shape[1] == m:
+        return rows
+    return np.concatenate([rows, np.full((rows.shape[0], m - rows.shape[1]), np.nan)], axis=1)
 
 
 def with_poses(scans, poses) -> list[LaserScan]:

@@ -12,6 +12,7 @@ import pytest
 
 from occmap.errors import FormatError, OccmapError
 from occmap.io.bags import decode_laser_scan, decode_odometry, decode_tf_message, ros_poses
+from occmap.io.bags.laserscan import decode_laser_scans
 from occmap.io.bags.wire import Wire
 
 rosbags = pytest.importorskip("rosbags")
@@ -78,6 +79,36 @@ def test_laser_scan_equals_rosbags(encoding, little):
             np.testing.assert_array_equal(w.array("f4", "ranges"), ref.ranges)
             np.testing.assert_array_equal(w.array("f4", "intensities"), ref.intensities)
             assert w.pos == len(raw)
+
+
+@pytest.mark.parametrize("encoding,little", ENCODINGS)
+def test_many_laser_scans_decode_as_each_alone(encoding, little):
+    """Scans decoded together, interleaving layouts (two frames, three beam counts, ranges below
+    range_min, a changed angle_min), are each message decoded alone, in message order."""
+    m = store(encoding)
+    rng = np.random.default_rng(3)
+    raws = []
+    for k in range(23):
+        frame, n = ("laser", 181) if k % 3 else ("/front_laser", 5 + 2 * (k % 2))
+        ranges = rng.uniform(0.1, 30.0, n)
+        ranges[3] = 0.015 if k % 4 == 2 else ranges[3]  # below range_min: NaN
+        msg = m.laser_scan(1_283_000_000.25 + 0.025 * k, frame, ranges,
+                           -2.35 + (0.01 if k == 7 else 0.0), 0.0061, 0.02, 30.0 + (k == 4))
+        raws.append(serialise(m, msg, SCAN, encoding, little))
+    stack, beams, frames = decode_laser_scans(raws, encoding)
+    for k, raw in enumerate(raws):
+        alone = decode_laser_scan(raw, encoding)
+        n = len(alone.scan.ranges)
+        assert beams[k] == n and frames[k] == alone.frame_id and stack.stamps[k] == alone.scan.stamp
+        assert stack.max_ranges[k] == alone.scan.max_range
+        np.testing.assert_array_equal(stack.ranges[k, :n], alone.scan.ranges)
+        assert np.isnan(stack.ranges[k, n:]).all()
+        np.testing.assert_array_equal(stack.angles[k, :n], alone.scan.angles)
+    assert np.isnan(stack.ranges[2::4, 3]).all() and not np.isnan(stack.ranges[1::4, 3]).any()
+    with pytest.raises(FormatError, match="scan 5: .*range_max"):
+        bad = raws[:5] + [serialise(m, m.laser_scan(1.0, "laser", np.ones(181), -2.35, 0.0061, 0.02, -1.0), SCAN,
+                                    encoding, little)]
+        decode_laser_scans(bad, encoding, lambda i: f"scan {i}")
 
 
 def tf_message(m, frames):

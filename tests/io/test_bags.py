@@ -12,14 +12,17 @@ import pytest
 
 from occmap.cli import main
 from occmap.errors import FormatError, InvalidArgumentError, OccmapError
+from occmap.geometry.frames import FrameTree
 from occmap.geometry.se3 import SE3
 from occmap.io.bags import (
     decode_laser_scan,
     decode_point_cloud2,
+    decode_tf_message,
     is_bag,
     open_bag,
     read_frame_tree,
     read_odometry,
+    ros_poses,
 )
 
 rosbags = pytest.importorskip("rosbags")
@@ -453,6 +456,42 @@ def test_unknown_message_type(tmp_path):
         assert bag.topics["/reading"].msgtype == "lab_msgs/msg/Reading"
         with pytest.raises(FormatError, match=r"humble: topic '/reading'.*lab_msgs/msg/Reading"):
             [m.msg for m in bag.messages()]
+
+
+@pytest.mark.parametrize("kind", ("ros1", "mcap"))
+def test_tf_of_mixed_layouts_reads_as_message_by_message(tmp_path, kind):
+    """tf read many messages at once (grouped by layout) is tf read message by message: messages
+    of one and of two transforms interleaved, a frame renamed midway, a static mount sent twice
+    (the last wins)."""
+    rng = np.random.default_rng(5)
+
+    def q(yaw):
+        return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+
+    def build(m):
+        yield "/tf_static", TF, 0.1, m.tf([m.transform(0.0, "base_link", "laser", (0.1, 0, 0.2), q(0.0))])
+        for k in range(120):
+            t = 1.0 + 0.05 * k
+            base = m.transform(t, "odom", "base_link", (0.1 * k, rng.normal(), 0.0), q(0.01 * k))
+            arm = m.transform(t + 0.01, "base_link", "arm" if k < 60 else "gripper_arm", (0, 0, 1), q(0.1 * k))
+            yield "/tf", TF, t, m.tf([base, arm] if k % 3 else [base])
+        yield "/tf_static", TF, 8.0, m.tf([m.transform(0.0, "base_link", "laser", (0.3, 0, 0.2), q(0.5))])
+
+    path = write_bag(tmp_path, kind, build)
+    with open_bag(path) as bag:
+        tree = read_frame_tree(bag)
+        alone = FrameTree(cache_time=100.0)
+        for m in bag.messages(["/tf", "/tf_static"]):
+            d = decode_tf_message(m.raw, m.encoding)
+            poses = ros_poses(d.translations, d.quaternions_xyzw)
+            for i, (parent, child) in enumerate(zip(d.parents, d.children)):
+                alone.set_transform(parent, child, poses.matrix[i], d.stamps[i], static=m.topic == "/tf_static")
+    assert set(tree.frames) == set(alone.frames) == {"odom", "base_link", "laser", "arm", "gripper_arm"}
+    stamps = np.linspace(1.02, 6.9, 50)
+    for frame, span in (("laser", stamps), ("arm", stamps[(stamps > 1.1) & (stamps < 3.9)]),
+                        ("gripper_arm", stamps[stamps > 4.2])):
+        np.testing.assert_array_equal(tree.lookup("odom", frame, span).matrix, alone.lookup("odom", frame, span).matrix)
+    np.testing.assert_allclose(tree.lookup("base_link", "laser", 2.0).translation, (0.3, 0, 0.2))
 
 
 def test_bad_transform_in_tf(tmp_path):

@@ -34,17 +34,18 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import replace
-from typing import Iterator
+from typing import Iterator, NamedTuple
 
 import numpy as np
 
 from ..cloud import PointCloud
 from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, TransformError, UnknownFrameError
-from ..io.bags import decode_laser_scan, decode_point_cloud2, open_bag, read_frame_tree
+from ..io.bags import decode_point_cloud2, open_bag, read_frame_tree
 from ..io.bags.bag import Where
+from ..io.bags.laserscan import decode_laser_scans
 from ..io.bags.transforms import ODOMETRY, TransformFeed
 from ..io.bags.wire import Wire
-from ..scan import LaserScan
+from ..scan import LaserScan, ScanStack, concat_stacks
 
 __all__ = ["BagClouds", "BagScans"]
 
@@ -125,6 +126,11 @@ class _BagSource:
         return -(-self.count // self.every)
 
     def __iter__(self) -> Iterator:
+        for chunk in self._chunks():
+            yield from self._items(chunk)
+
+    def _chunks(self) -> Iterator:
+        """The placed records in runs (as :meth:`_place` gives them), in message order."""
         bag, self._bag = self._bag, None
         if bag is None:  # a bag opened anew: checked again, its messages then decode by the standard types
             bag = open_bag(self.path)
@@ -134,7 +140,8 @@ class _BagSource:
         with bag:
             feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
             tree, whole = None, feed is None  # whole: the tree holds all of the bag's tf (or none is used)
-            waiting = []  # decoded messages waiting for tf to pass their stamps
+            pending = []  # (k, message) not yet decoded
+            waiting = None  # decoded messages waiting for tf to pass their stamps (a _Decoded)
             k = -1
             for m in bag.messages([self.topic] + ([] if feed is None else feed.topics)):
                 if m.topic != self.topic:
@@ -144,68 +151,115 @@ class _BagSource:
                 k += 1
                 if k % self.every:
                     continue
-                where = Where(self.path, self.topic, k, m.time)
-                item = self._decode(m, where)
-                if item is not None:
-                    waiting.append((k, where, *item))
-                if len(waiting) < self.BATCH:
+                pending.append((k, m))
+                if len(pending) < self.BATCH:
                     continue
+                waiting = self._joined(waiting, self._decoded(pending))
+                pending = []
                 if not whole:
                     tree = feed.flush()
-                    if len(waiting) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
+                    if len(waiting.ks) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
                         with open_bag(self.path) as again:
                             tree, whole = read_frame_tree(again, odom_topic=self.odom_topic), True
-                n = len(waiting) if whole else _covered(tree, self.fixed_frame, waiting)
-                yield from self._placed(waiting[:n], tree)
-                del waiting[:n]
+                n = len(waiting.ks) if whole else _covered(tree, self.fixed_frame, waiting)
+                if n:
+                    yield from self._placed(self._part(waiting, slice(None, n)), tree)
+                    waiting = self._part(waiting, slice(n, None))
             if not whole:
                 tree = feed.flush()
-            yield from self._placed(waiting, tree)
+            if pending:
+                waiting = self._joined(waiting, self._decoded(pending))
+            if waiting is not None and len(waiting.ks):
+                yield from self._placed(waiting, tree)
 
-    def _placed(self, batch, tree):
-        """The records of ``batch`` (``(k, where, record, frame, stamp)``) that have a pose, placed;
-        their poses found at once when they share a frame (a lookup costs 20 µs, one of 50 the same)."""
-        if len(batch) > 1 and self.pose_track is None and tree is not None \
-                and all(b[3] == batch[0][3] for b in batch):
-            try:
-                poses = tree.lookup(self.fixed_frame, batch[0][3], np.array([b[4] for b in batch])).matrix
-            except TransformError:  # a stamp outside the tf data, or no tf at all: told message by message
-                pass
-            else:
-                return self._place([b[2] for b in batch], poses)
-        records, poses = [], []
-        for k, where, record, frame, stamp in batch:
-            pose = self._pose(k, frame, stamp, where, tree)
-            if pose is not None:
-                records.append(record)
-                poses.append(pose)
-        return self._place(records, np.array(poses).reshape(-1, 4, 4))
+    def _decoded(self, batch) -> _Decoded:
+        """The messages ``batch`` (``(k, message)``) decoded, those that hold nothing dropped and counted."""
+        ks = np.array([k for k, _ in batch], dtype=np.intp)
+        times = np.array([m.time for _, m in batch], dtype=np.float64)
+        records, frames, stamps, keep = self._decode([m for _, m in batch],
+                                                     lambda i: Where(self.path, self.topic, int(ks[i]), times[i]))
+        if keep is None:
+            return _Decoded(ks, times, records, frames, stamps)
+        return _Decoded(ks[keep], times[keep], self._take(records, keep), [f for f, y in zip(frames, keep) if y],
+                        stamps[keep])
 
-    def _pose(self, k: int, frame: str, stamp: float, where: Where, tree):
-        """``T_fixed_sensor`` of message ``k`` as an (4, 4) array, or None (counted)."""
+    def _part(self, d: _Decoded, rows: slice) -> _Decoded:
+        return _Decoded(d.ks[rows], d.times[rows], self._take(d.records, rows), d.frames[rows], d.stamps[rows])
+
+    def _joined(self, a: _Decoded | None, b: _Decoded) -> _Decoded:
+        if a is None or not len(a.ks):
+            return b
+        if not len(b.ks):
+            return a
+        return _Decoded(np.concatenate([a.ks, b.ks]), np.concatenate([a.times, b.times]),
+                        self._join(a.records, b.records), a.frames + b.frames, np.concatenate([a.stamps, b.stamps]))
+
+    def _placed(self, d: _Decoded, tree) -> Iterator:
+        """The records of ``d`` that have a pose, placed (at most one run); their poses found at
+        once when they share a frame (a lookup costs 20 µs, one of 50 the same)."""
+        n = len(d.ks)
+        keep = None
         if self.pose_track is not None:
             if self.pose_track.stamps is None:
-                return self.pose_track.poses[k].matrix
-            pose, ok = self.pose_track.at([stamp], self.tolerance)
-            if not ok[0]:
-                self.dropped[f"no pose in {self.pose_track.path} within {self.tolerance:g} s"] += 1
-                return None
-            return pose.matrix[0]
-        if tree is None:  # unposed: at the origin, for scan matching to place
-            return np.eye(4)
+                T = self.pose_track.poses.matrix[d.ks]
+            else:
+                poses, keep = self.pose_track.at(d.stamps, self.tolerance)
+                T = poses.matrix
+                if not keep.all():
+                    self.dropped[f"no pose in {self.pose_track.path} within {self.tolerance:g} s"] += \
+                        int(np.count_nonzero(~keep))
+        elif tree is None:  # unposed: at the origin, for scan matching to place
+            T = np.broadcast_to(np.eye(4), (n, 4, 4))
+        else:
+            T = None
+            if n > 1 and d.frames.count(d.frames[0]) == n:
+                try:
+                    T = tree.lookup(self.fixed_frame, d.frames[0], d.stamps).matrix
+                except TransformError:  # a stamp outside the tf data, or no tf at all: told message by message
+                    pass
+            if T is None:
+                T = np.empty((n, 4, 4))
+                keep = np.ones(n, dtype=bool)
+                for i in range(n):
+                    pose = self._pose(i, d, tree)
+                    keep[i] = pose is not None
+                    if keep[i]:
+                        T[i] = pose
+        if keep is not None and not keep.all():
+            d = _Decoded(d.ks, d.times, self._take(d.records, keep), d.frames, d.stamps)
+            T = T[keep]
+        if len(T):
+            yield self._place(d.records, T)
+
+    def _pose(self, i: int, d: _Decoded, tree):
+        """``T_fixed_sensor`` of record ``i`` of ``d`` from tf as an (4, 4) array, or None (counted)."""
+        frame, stamp = d.frames[i], float(d.stamps[i])
         try:
             return tree.lookup(self.fixed_frame, frame, stamp).matrix
         except ExtrapolationError:
             self.dropped["no tf at that time (outside the tf data)"] += 1
             return None
         except (UnknownFrameError, ConnectivityError) as e:
+            where = Where(self.path, self.topic, int(d.ks[i]), float(d.times[i]))
             raise InvalidArgumentError(f"{where}: no tf from {self.fixed_frame!r} to the sensor frame {frame!r} at "
                                        f"{stamp:.9f} s ({e}); --fixed-frame names the frame to map in") from None
 
 
+class _Decoded(NamedTuple):
+    """Decoded messages of the topic: their numbers on it, record times, the source's records
+    (:meth:`_BagSource._decode`), frames and header stamps."""
+
+    ks: np.ndarray
+    times: np.ndarray
+    records: object
+    frames: list[str]
+    stamps: np.ndarray
+
+
 class BagScans(_BagSource):
     """The ``sensor_msgs/LaserScan`` messages of a bag topic as :class:`~occmap.scan.LaserScan`
-    records in the fixed frame (see :mod:`occmap.sources.bags`).
+    records in the fixed frame (see :mod:`occmap.sources.bags`), or as
+    :class:`~occmap.scan.ScanStack` runs (:meth:`stacks`), which is how a grid takes them.
 
     The planar pose ``(x, y, theta)`` is the sensor's position and the heading of its x axis
     projected on the fixed frame's xy plane; a laser mounted upside down (its z axis pointing down)
@@ -223,22 +277,52 @@ class BagScans(_BagSource):
         super().__init__(path, *args, **kwargs)
         self.max_range = None if max_range is None else float(max_range)
 
-    def _decode(self, m, where):
-        scan, frame = decode_laser_scan(m.raw, m.encoding, where)
-        if not len(scan):
-            self.dropped["scan with no beams"] += 1
-            return None
-        if self.max_range is not None:
-            scan = replace(scan, max_range=self.max_range)
-        return scan, frame, scan.stamp
+    def stacks(self) -> Iterator[ScanStack]:
+        """The scans in runs of up to 50 as :class:`~occmap.scan.ScanStack` (rows NaN-padded to
+        the widest scan of a run), in order."""
+        for stack, _ in self._chunks():
+            yield stack
 
-    def _place(self, scans, T):
+    def _items(self, chunk):
+        stack, beams = chunk
+        shared = stack.angles.ndim == 1
+        for i in range(len(beams)):
+            b = int(beams[i])
+            yield LaserScan(stack.poses[i], stack.ranges[i, :b], stack.angles[:b] if shared else stack.angles[i, :b],
+                            float(stack.max_ranges[i]), float(stack.stamps[i]))
+
+    def _decode(self, messages, where):
+        """``(records, frames, stamps, keep)`` of ``messages``: records ``(ScanStack, beams)``; keep
+        None or the mask of the scans that have beams."""
+        stack, beams, frames = decode_laser_scans([m.raw for m in messages], messages[0].encoding, where)
+        if self.max_range is not None:
+            stack = stack._replace(max_ranges=np.full(len(beams), self.max_range))
+        keep = beams > 0
+        if keep.all():
+            keep = None
+        else:
+            self.dropped["scan with no beams"] += int(np.count_nonzero(~keep))
+        return (stack, beams), frames, stack.stamps, keep
+
+    @staticmethod
+    def _take(records, rows):
+        stack, beams = records
+        return stack.take(rows), beams[rows]
+
+    @staticmethod
+    def _join(a, b):
+        return concat_stacks([a[0], b[0]]), np.concatenate([a[1], b[1]])
+
+    def _place(self, records, T):
+        stack, beams = records
         up = T[:, 2, 2]
         self.tilted += int(np.count_nonzero(np.arccos(np.minimum(1.0, np.abs(up))) > TILT_NOTE))
         poses = np.stack([T[:, 0, 3], T[:, 1, 3], np.arctan2(T[:, 1, 0], T[:, 0, 0])], axis=1)
-        # LaserScan(...), not dataclasses.replace, which costs as much as the rest of the placing
-        return [LaserScan(pose, s.ranges, -s.angles if flip else s.angles, s.max_range, s.stamp, s.odom)
-                for s, pose, flip in zip(scans, poses, (up < 0).tolist())]
+        angles, flip = stack.angles, up < 0
+        if flip.any():
+            rows = np.broadcast_to(angles, stack.ranges.shape)
+            angles = -angles if flip.all() else np.where(flip[:, None], -rows, rows)
+        return stack._replace(poses=poses, angles=angles), beams
 
 
 class BagClouds(_BagSource):
@@ -251,12 +335,28 @@ class BagClouds(_BagSource):
     FALLBACK_FRAME = "map"
     BATCH = 1  # a cloud is megabytes; its lookup is nothing beside its insertion
 
-    def _decode(self, m, where):
-        cloud = decode_point_cloud2(m.msg, where=where)
-        if not len(cloud.points):
-            self.dropped["cloud with no points" if not cloud.dropped else "cloud with no finite points"] += 1
-            return None
-        return cloud, cloud.frame_id, cloud.stamp
+    def _items(self, chunk):
+        return chunk
+
+    def _decode(self, messages, where):
+        """``(records, frames, stamps, keep)`` of ``messages``: records a list of clouds in their own frames."""
+        clouds = [decode_point_cloud2(m.msg, where=where(i)) for i, m in enumerate(messages)]
+        keep = np.array([len(c.points) > 0 for c in clouds], dtype=bool)
+        for c in clouds:
+            if not len(c.points):
+                self.dropped["cloud with no points" if not c.dropped else "cloud with no finite points"] += 1
+        return (clouds, [c.frame_id for c in clouds], np.array([c.stamp for c in clouds], dtype=np.float64),
+                None if keep.all() else keep)
+
+    @staticmethod
+    def _take(records, rows):
+        if isinstance(rows, slice):
+            return records[rows]
+        return [r for r, y in zip(records, rows) if y]
+
+    @staticmethod
+    def _join(a, b):
+        return a + b
 
     def _place(self, clouds, T):
         return [PointCloud(c.points, pose, c.stamp, c.dropped) for c, pose in zip(clouds, T)]
@@ -296,22 +396,23 @@ def _first_frame(bag, topic: str) -> tuple[str, float | None]:
     return Wire(first.raw, first.encoding, Where(bag.path, topic, 0, first.time)).header()[1], first.time
 
 
-def _covered(tree, fixed_frame: str, waiting) -> int:
-    """How many of the first ``waiting`` messages (``(k, where, record, frame, stamp)``) tf has
-    passed: their stamps at or before the newest time at which every link from their frame to the
-    fixed frame has a sample (any stamp when those links are static). A frame tf does not yet join
-    to the fixed frame waits."""
-    latest: dict[str, float] = {}
-    for n, (_, _, _, frame, stamp) in enumerate(waiting):
-        if frame not in latest:
-            try:
-                t = tree.latest_common_time(fixed_frame, frame)
-            except TransformError:
-                t = -math.inf
-            latest[frame] = math.inf if t is None else t
-        if stamp > latest[frame]:
-            return n
-    return len(waiting)
+def _covered(tree, fixed_frame: str, waiting: _Decoded) -> int:
+    """How many of the first ``waiting`` messages tf has passed: their stamps at or before the
+    newest time at which every link from their frame to the fixed frame has a sample (any stamp
+    when those links are static). A frame tf does not yet join to the fixed frame waits."""
+    latest = {}
+    for frame in dict.fromkeys(waiting.frames):
+        try:
+            t = tree.latest_common_time(fixed_frame, frame)
+        except TransformError:
+            t = -math.inf
+        latest[frame] = math.inf if t is None else t
+    if len(latest) == 1:
+        limit = latest[waiting.frames[0]]
+    else:
+        limit = np.array([latest[f] for f in waiting.frames])
+    late = np.flatnonzero(waiting.stamps > limit)
+    return int(late[0]) if len(late) else len(waiting.stamps)
 
 
 def _root(tree, frame: str) -> str | None:

@@ -10,21 +10,24 @@ are kept for the map to drop and count; a finite reading below ``range_min`` is 
 The message does not say where the sensor was: the scan's ``pose`` is ``(0, 0, 0)``, the sensor
 frame itself, and :class:`ScanMessage` carries the frame name and the stamp that place it in the
 world through tf.
+
+A sensor's messages share one layout (the same frame, beam count and size): many of them are
+decoded at once (:func:`decode_laser_scans`) as the rows of one array, so a stream of scans costs
+no Python per message beyond collecting its bytes.
 """
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from ...errors import FormatError
-from ...scan import LaserScan
-from .wire import Wire
+from ...scan import LaserScan, ScanStack, concat_stacks
+from .wire import Wire, by_layout, column
 
-__all__ = ["ScanMessage", "decode_laser_scan"]
+__all__ = ["ScanMessage", "ScanMessages", "decode_laser_scan", "decode_laser_scans"]
 
 
 class ScanMessage(NamedTuple):
@@ -32,6 +35,15 @@ class ScanMessage(NamedTuple):
 
     scan: LaserScan
     frame_id: str
+
+
+class ScanMessages(NamedTuple):
+    """Decoded LaserScans: the scans as a :class:`~occmap.scan.ScanStack` (poses zero), each
+    scan's beam count (rows are NaN-padded to the largest) and each scan's frame."""
+
+    stack: ScanStack
+    beams: np.ndarray
+    frames: list[str]
 
 
 def decode_laser_scan(raw, encoding: str, where: str = "LaserScan") -> ScanMessage:
@@ -43,19 +55,84 @@ def decode_laser_scan(raw, encoding: str, where: str = "LaserScan") -> ScanMessa
     Raises :class:`~occmap.errors.FormatError` for a message shorter than its fields, a
     non-finite or non-positive ``range_max``, or non-finite ``angle_min`` / ``angle_increment``.
     """
-    w = Wire(raw, encoding, where)
-    stamp, frame = w.header()
-    start, _, step, _, _, lowest, max_range = w.values("7f", "angle_min..range_max")
-    ranges = w.array("f4", "ranges").astype(np.float64)
-    w.skip_array(4, "intensities")  # not kept; read so that a truncated message is told
-    if not (math.isfinite(max_range) and max_range > 0):
-        raise FormatError(where, f"range_max is {max_range}, not a positive finite number of metres")
-    if not (math.isfinite(start) and math.isfinite(step)):
-        raise FormatError(where, f"angle_min {start} and angle_increment {step} must be finite")
-    low = ranges < lowest
-    if np.count_nonzero(low):
+    stack, beams, frames = decode_laser_scans([raw], encoding, lambda i: where)
+    return ScanMessage(LaserScan(np.zeros(3), stack.ranges[0], stack.angles, float(stack.max_ranges[0]),
+                                 float(stack.stamps[0])), frames[0])
+
+
+def decode_laser_scans(raws, encoding: str, where: Callable[[int], str] = lambda i: f"LaserScan {i}") -> ScanMessages:
+    """Decode the LaserScans ``raws`` (a sequence of serialised messages, as for
+    :func:`decode_laser_scan`), those of one layout together; ``where(i)`` names message ``i`` in
+    errors, which are :func:`decode_laser_scan`'s."""
+    parts, order = [], []
+    for group, layout, data in by_layout(raws, lambda i: _layout(raws[i], encoding, where(i))):
+        parts.append(_decode_alike(layout, data, lambda j, group=group: where(int(group[j]))))
+        order.append(group)
+    if len(parts) == 1:
+        return parts[0]
+    if not parts:
+        return ScanMessages(concat_stacks([]), np.zeros(0, np.intp), [])
+    back = np.argsort(np.concatenate(order), kind="stable")
+    frames = [f for p in parts for f in p.frames]
+    return ScanMessages(concat_stacks([p.stack for p in parts]).take(back),
+                        np.concatenate([p.beams for p in parts])[back], [frames[i] for i in back])
+
+
+def _decode_alike(layout: _Layout, data: bytes, where) -> ScanMessages:
+    """The scans of ``data``: messages of ``layout`` end to end."""
+    o, size, n = layout.order, layout.size, layout.beams
+    count = len(data) // size
+    sec, nsec = column(data, size, layout.stamp_at, o + "i4"), column(data, size, layout.stamp_at + 4, o + "u4")
+    values = column(data, size, layout.values_at, o + "f4", 7)
+    start, step, lowest, max_range = (values[:, c].astype(np.float64) for c in (0, 2, 5, 6))
+    bad = ~(np.isfinite(max_range) & (max_range > 0))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise FormatError(where(i), f"range_max is {max_range[i]}, not a positive finite number of metres")
+    bad = ~(np.isfinite(start) & np.isfinite(step))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise FormatError(where(i), f"angle_min {start[i]} and angle_increment {step[i]} must be finite")
+    ranges = column(data, size, layout.ranges_at, o + "f4", n).astype(np.float64)
+    low = ranges < lowest[:, None]
+    if low.any():
         ranges[low & np.isfinite(ranges)] = np.nan
-    return ScanMessage(LaserScan(np.zeros(3), ranges, beam_angles(start, step, len(ranges)), max_range, stamp), frame)
+    if (start == start[0]).all() and (step == step[0]).all():
+        angles = beam_angles(float(start[0]), float(step[0]), n)
+    else:
+        angles = start[:, None] + step[:, None] * np.arange(n, dtype=np.float64)
+    stack = ScanStack(np.zeros((count, 3)), ranges, angles, max_range, sec[:, 0] + nsec[:, 0] * 1e-9)
+    return ScanMessages(stack, np.full(count, n, np.intp), [layout.frame] * count)
+
+
+class _Layout(NamedTuple):
+    """Where a LaserScan's fields sit in its bytes, read from one message: the messages of the
+    same size whose frame, counts (and CDR byte order) have the same bytes sit alike."""
+
+    size: int
+    order: str  # "<" or ">"
+    stamp_at: int
+    frame: str
+    same: tuple  # (start, stop) byte spans every message of this layout shares
+    values_at: int  # angle_min .. range_max, 7 float32
+    ranges_at: int
+    beams: int
+
+
+def _layout(raw, encoding: str, where: str) -> _Layout:
+    w = Wire(raw, encoding, where)
+    stamp_at = w.pos if w.cdr else w.pos + 4  # ROS 1's header begins with a uint32 seq
+    frame = w.header()[1]
+    frame_span = (stamp_at + 8, w.pos)
+    w.values("7f", "angle_min..range_max")
+    values_at = w.pos - 28
+    ranges = w.array("f4", "ranges")
+    ranges_at = w.pos - ranges.nbytes
+    intensities_at = w.pos
+    w.skip_array(4, "intensities")  # not kept; read so that a truncated message is told
+    same = (frame_span, (ranges_at - 4, ranges_at), (intensities_at, intensities_at + 4)) + (((0, 2),) if w.cdr else ())
+    return _Layout(len(raw), w.order, stamp_at, frame, same, values_at, ranges_at,
+                   len(ranges))
 
 
 @lru_cache(maxsize=16)

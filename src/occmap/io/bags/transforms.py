@@ -21,7 +21,7 @@ from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
 from .bag import Where
 from .definitions import TF_TYPES
-from .wire import Wire, frame_name
+from .wire import Wire, by_layout, column, frame_name
 
 __all__ = ["Odometry", "TF_TYPES", "TransformFeed", "TransformsMessage", "decode_odometry", "decode_tf_message",
            "read_frame_tree", "read_odometry", "ros_poses"]
@@ -74,22 +74,52 @@ def decode_tf_message(raw, encoding: str, where: str = "TFMessage") -> Transform
     """Decode a ``tf2_msgs/TFMessage`` (or ROS 1's ``tf/tfMessage``) from its serialised bytes
     in ``encoding`` ``"ros1"`` or ``"cdr"`` (see :mod:`.wire`). ``where`` names the message in
     errors; the quaternions are as recorded (:func:`ros_poses` normalises them)."""
-    transforms = _transforms(raw, encoding, where)
-    values = np.array([t[3] for t in transforms], dtype=np.float64).reshape(-1, 7)
-    return TransformsMessage([t[0] for t in transforms], [t[1] for t in transforms],
-                             np.array([t[2] for t in transforms], dtype=np.float64), values[:, :3], values[:, 3:])
+    layout = _tf_layout(raw, encoding, where)
+    stamps, values = _tf_samples(layout, bytes(raw))
+    values = values.reshape(-1, 7)
+    return TransformsMessage([p for p, _ in layout.links], [c for _, c in layout.links], stamps.reshape(-1),
+                             values[:, :3], values[:, 3:])
 
 
-def _transforms(raw, encoding: str, where) -> list[tuple[str, str, float, tuple]]:
-    """A TFMessage's transforms as ``(parent, child, stamp, (x, y, z, qx, qy, qz, qw))``."""
+def _tf_samples(layout: _TFLayout, data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps (messages, transforms) in seconds and ``(x, y, z, qx, qy, qz, qw)`` (messages,
+    transforms, 7) of the messages of ``layout`` in ``data``, end to end."""
+    o, size, count = layout.order, layout.size, len(data) // layout.size
+    stamps = np.empty((count, len(layout.links)))
+    values = np.empty((count, len(layout.links), 7))
+    for t in range(len(layout.links)):
+        sec = column(data, size, layout.stamps_at[t], o + "i4")[:, 0]
+        stamps[:, t] = sec + column(data, size, layout.stamps_at[t] + 4, o + "u4")[:, 0] * 1e-9
+        values[:, t] = column(data, size, layout.values_at[t], o + "f8", 7)
+    return stamps, values
+
+
+class _TFLayout(NamedTuple):
+    """Where a TFMessage's fields sit in its bytes, read from one message (see :func:`.wire.by_layout`)."""
+
+    size: int
+    order: str
+    same: tuple
+    links: list  # (parent, child) of each transform
+    stamps_at: list
+    values_at: list  # translation and rotation, 7 float64
+
+
+def _tf_layout(raw, encoding: str, where) -> _TFLayout:
     w = Wire(raw, encoding, where)
-    out = []
+    same = [(w.pos, w.pos + 4)] + ([(0, 2)] if w.cdr else [])
+    links, stamps_at, values_at = [], [], []
     for i in range(w.count("transforms", _TRANSFORM_BYTES)):
         field = f"transforms[{i}]"
-        stamp, parent = w.header(field + ".header")
+        stamp_at = w.pos if w.cdr else w.pos + 4  # a header follows a count or float64s: aligned; ROS 1's has a seq
+        parent = w.header(field + ".header")[1]
         child = frame_name(w.string(field, ".child_frame_id"))
-        out.append((parent, child, stamp, w.values("7d", field, ".transform")))
-    return out
+        same.append((stamp_at + 8, w.pos))  # both frames
+        w.values("7d", field, ".transform")
+        links.append((parent, child))
+        stamps_at.append(stamp_at)
+        values_at.append(w.pos - 56)
+    return _TFLayout(len(raw), w.order, tuple(same), links, stamps_at, values_at)
 
 
 def _odometry(raw, encoding: str, where: str) -> tuple[float, str, str, tuple]:
@@ -180,7 +210,8 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
         self.path, self.odom_topic = bag.path, odom_topic
         span = 0.0 if bag.start is None else bag.end - bag.start
         self.tree = FrameTree(cache_time=max(10.0, span + 1.0))
-        self._waiting: dict[tuple[str, str, bool], tuple[list, list]] = {}
+        self._waiting: dict[tuple[str, str, bool], list] = {}  # link -> [(order, stamps, values), ...]
+        self._pending, self._keys = [], []  # tf messages (None for odometry's) and their numbers on their topics
         self._dynamic: set[tuple[str, str]] = set()  # links that have had a dynamic sample
         self._counts: dict[str, int] = {}
         self._odom_frames = None
@@ -188,37 +219,55 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
     def add(self, m) -> None:
         """Read one message (a :class:`~occmap.io.bags.Message` of :attr:`topics`)."""
         k = self._counts[m.topic] = self._counts.get(m.topic, -1) + 1
-        where = Where(self.path, m.topic, k, m.time)
         if m.topic == self.odom_topic:
-            stamp, *pair, pose = _odometry(m.raw, m.encoding, where)
+            stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(self.path, m.topic, k, m.time))
             self._odom_frames = _same_frames(self.path, m.topic, m.time, self._odom_frames, pair)
-            self._wait(*pair, False, stamp, pose)
-            return
-        static = m.topic.endswith("tf_static")
-        for parent, child, stamp, pose in _transforms(m.raw, m.encoding, where):
-            self._wait(parent, child, static, stamp, pose)
+            self._wait(*pair, False, np.array([len(self._pending)]), np.array([stamp]), np.array([pose]))
+        self._pending.append(m if m.topic != self.odom_topic else None)
+        self._keys.append(k)
 
-    def _wait(self, parent: str, child: str, static: bool, stamp: float, pose) -> None:
-        stamps, poses = self._waiting.setdefault((parent, child, static), ([], []))
-        stamps.append(stamp)
-        poses.append(pose)
+    def _wait(self, parent: str, child: str, static: bool, order, stamps, values) -> None:
+        """Samples of a link: their order of arrival, stamps (seconds) and ``(x, y, z, qx, qy, qz, qw)``."""
+        self._waiting.setdefault((parent, child, static), []).append((order, stamps, values))
+
+    def _decode_pending(self) -> None:
+        """The tf messages added since the last flush, decoded (those of one layout together)."""
+        for topic in {m.topic for m in self._pending if m is not None}:
+            at = [i for i, m in enumerate(self._pending) if m is not None and m.topic == topic]
+            raws = [self._pending[i].raw for i in at]
+            encoding = self._pending[at[0]].encoding
+
+            def where(j, at=at, topic=topic):
+                m = self._pending[at[j]]
+                return Where(self.path, topic, self._keys[at[j]], m.time)
+
+            static = topic.endswith("tf_static")
+            for group, layout, data in by_layout(raws, lambda j: _tf_layout(raws[j], encoding, where(j))):
+                order = np.asarray(at)[group]
+                stamps, values = _tf_samples(layout, data)
+                for t, (parent, child) in enumerate(layout.links):
+                    self._wait(parent, child, static, order, stamps[:, t], values[:, t])
+        self._pending, self._keys = [], []
 
     def flush(self) -> FrameTree:
         """The tree, holding every sample added so far."""
+        self._decode_pending()
         waiting, self._waiting = self._waiting, {}
-        for (parent, child, static), (stamps, values) in sorted(waiting.items(), key=lambda kv: not kv[0][2]):
+        for (parent, child, static), parts in sorted(waiting.items(), key=lambda kv: not kv[0][2]):
             if static and (parent, child) in self._dynamic:
                 continue
             if self._odom_frames is not None and child == self._odom_frames[1] and parent != self._odom_frames[0]:
                 continue  # the odometry's child frame: its parent is the odometry's frame
-            values = np.array(values)
+            order = np.argsort(np.concatenate([p[0] for p in parts]), kind="stable")  # as the messages came
+            stamps = np.concatenate([p[1] for p in parts])[order]
+            values = np.concatenate([p[2] for p in parts])[order]
             poses = ros_poses(values[:, :3], values[:, 3:], f"{self.path}: tf link {parent!r} -> {child!r}")
             try:
                 if static:
                     self.tree.set_transform(parent, child, SE3(poses.matrix[-1]), static=True)
                 else:
                     self._dynamic.add((parent, child))
-                    self.tree.set_transform(parent, child, poses, np.array(stamps))
+                    self.tree.set_transform(parent, child, poses, stamps)
             except TransformError as e:
                 raise FormatError(self.path, f"tf link {parent!r} -> {child!r}: {e}") from e
         return self.tree

@@ -12,7 +12,9 @@ Two serialisations, named as :attr:`Message.encoding <occmap.io.bags.Message>` n
   NUL; ``std_msgs/Header`` is ``int32 sec, uint32 nanosec, string frame_id``, no ``seq``.
 
 In both, a sequence is a ``uint32`` count and its items. Arrays of numbers come out as NumPy
-views of the message's bytes (no copy, nothing done per element in Python). A message shorter
+views of the message's bytes (no copy, nothing done per element in Python). Messages of one
+layout (a sensor's scans, a broadcaster's tf: the same size, frames and counts) are read many at
+once: :func:`by_layout` groups them and :func:`column` reads a field of every one. A message shorter
 than its fields need, a length past its end, or a string that is not UTF-8 raises
 :class:`~occmap.errors.FormatError` naming the message (``where``), the field and the value.
 """
@@ -26,7 +28,7 @@ import numpy as np
 
 from ...errors import FormatError, InvalidArgumentError
 
-__all__ = ["ENCODINGS", "Wire", "frame_name"]
+__all__ = ["ENCODINGS", "Wire", "by_layout", "column", "frame_name"]
 
 ENCODINGS = ("ros1", "cdr")
 _U32 = {"<": struct.Struct("<I"), ">": struct.Struct(">I")}
@@ -44,6 +46,35 @@ def _struct(fmt: str) -> tuple[struct.Struct, int]:
     """The :class:`struct.Struct` of ``fmt`` (a byte order and one type, ``"<7f"``) and the size
     of one of its values, which CDR aligns to."""
     return struct.Struct(fmt), struct.calcsize(fmt[0] + fmt[-1])
+
+
+def by_layout(raws, layout_of):
+    """The messages ``raws`` in groups of one layout: ``(indices, layout, data)`` for each, the
+    group of the first message first. ``layout_of(i)`` reads message ``i``'s layout (raising for a
+    message it cannot read), an object with ``size`` (bytes) and ``same``: the ``(start, stop)``
+    byte spans (its frames, counts, byte order: what fixes where the other fields sit) that the
+    messages of the group hold alike. ``data`` is the group's messages end to end (see
+    :func:`column`)."""
+    sizes = np.fromiter(map(len, raws), np.intp, len(raws))
+    left = np.arange(len(raws))
+    while len(left):
+        layout = layout_of(int(left[0]))
+        alike = left[sizes[left] == layout.size]
+        data = b"".join([raws[i] for i in alike])
+        rows = np.frombuffer(data, np.uint8).reshape(len(alike), layout.size)
+        same = np.ones(len(alike), dtype=bool)
+        for a, b in layout.same:
+            same &= (rows[:, a:b] == rows[0, a:b]).all(axis=1)
+        group = alike[same]
+        yield group, layout, data if same.all() else rows[same].tobytes()
+        left = left[~np.isin(left, group)]
+
+
+def column(data: bytes, size: int, at: int, dtype: str, n: int = 1) -> np.ndarray:
+    """The ``n`` values of NumPy type ``dtype`` (with its byte order, ``"<f4"``) at byte ``at``
+    of each ``size``-byte message of ``data`` (:func:`by_layout`), (messages, n): a view."""
+    kind = np.dtype(dtype)
+    return np.ndarray((len(data) // size, n), kind, data, at, (size, kind.itemsize))
 
 
 def frame_name(frame_id: str) -> str:
