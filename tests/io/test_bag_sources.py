@@ -156,6 +156,30 @@ def test_tf_recorded_after_the_scans_it_places_gives_the_same_poses(tmp_path, in
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)  # poses looked up in other batches: rounding apart
 
 
+@pytest.mark.parametrize("kind", ("ros1", "mcap"))
+def test_first_iteration_goes_on_from_what_opening_read(tmp_path, intel, kind, monkeypatch):
+    """Opening a source reads up to the sensor's first message and 1 s of tf past it (the root
+    frame); the first iteration goes on from there, the next ones read the bag anew, and when
+    what opening read passes HEAD_BYTES the first one does too: the same scans every time."""
+    import occmap.sources.bags as bags
+
+    path = write_bag(tmp_path, kind, laser_bag(intel[:80]))
+    source = BagScans(path)
+    assert source.fixed_frame == "odom" and source.sensor_frame == "laser"
+    first = next(m.time for m in source._head if m.topic == "/scan")
+    times = [m.time for m in source._head]
+    assert times[-1] > first + 1.0 >= times[-2]  # held: up to the first message 1 s past the first scan
+    runs = [stack_scans(source), stack_scans(source)]
+    monkeypatch.setattr(bags, "HEAD_BYTES", 500)  # less than a scan
+    reread = BagScans(path)
+    assert reread._head == [] and reread.fixed_frame == "odom"
+    runs.append(stack_scans(reread))
+    assert len(runs[0].poses) == 80
+    for run in runs[1:]:
+        for a, b in zip(runs[0], run):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_scans_outside_the_tf_data_are_dropped_and_counted(tmp_path, intel, capsys):
     path = write_bag(tmp_path, "sqlite3", laser_bag(intel[:50], drop_tf_after=40))
     assert main(["map2d", str(path), "-o", str(tmp_path / "m.yaml")]) == 0

@@ -22,7 +22,9 @@ stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming bot
 time. A topic (the scans', tf, odometry) whose connection defines its type otherwise than ROS does
 is refused with a :class:`~occmap.errors.FormatError` saying what differs
 (:mod:`occmap.io.bags.definitions`). Memory holds the frame tree and the messages waiting for tf
-(one, or a batch of 50 for laser scans, whose poses are looked up together).
+(one, or a batch of 50 for laser scans, decoded and placed together), and, from opening to the
+first iteration, what opening read (see below; at most :data:`HEAD_BYTES`), which that
+iteration goes on from rather than reading it again.
 
 The fixed frame defaults to the root of the sensor frame's tf tree (``odom`` or ``map`` in a
 usual robot's) as tf stands :data:`ROOT_HORIZON` seconds after the topic's first message, and to
@@ -31,6 +33,7 @@ usual robot's) as tf stands :data:`ROOT_HORIZON` seconds after the topic's first
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import Counter
 from dataclasses import replace
@@ -51,6 +54,8 @@ __all__ = ["BagClouds", "BagScans"]
 
 #: Seconds of tf after the first message that tell the default fixed frame (the root of the sensor's tree)
 ROOT_HORIZON = 1.0
+#: Bytes of messages that opening a bag source may hold for the first iteration (more are read again)
+HEAD_BYTES = 16 << 20
 #: Batches of messages that may wait for tf to pass their stamps before the whole bag's tf is read
 #: in a pass of its own (tf that lags far behind, or never joins the sensor frame)
 WAIT_LIMIT = 10
@@ -78,21 +83,54 @@ class _BagSource:
         self.odom_topic = odom_topic
         self._by_tf = False  # whether tf (and odometry) place the messages
         bag = self._bag = open_bag(path)  # kept for the first iteration: opening a ROS 2 bag costs 0.1 s
+        self._head, self._stream = [], None  # what opening read of the first iteration's messages, and their stream
         try:
             self.topic = _pick_topic(bag, topic, self.MSGTYPE)
             bag.require_standard(self.topic)
             self.count = bag.topics[self.topic].count
-            self.sensor_frame, first_time = _first_frame(bag, self.topic)
             self.fixed_frame = fixed_frame or ""
             if poses is not None:
                 if poses.stamps is None:
                     poses.by_index(self.count, f"messages on {self.topic}")
             elif self._has_tf(bag, unposed):
                 self._by_tf = True
-                self.fixed_frame = self.fixed_frame or self._tf_root(bag, first_time) or self.FALLBACK_FRAME
+            self._read_head(bag, root=self._by_tf and not self.fixed_frame)
         except BaseException:
             bag.close()
             raise
+
+    def _read_head(self, bag, root: bool) -> None:
+        """Read the stream up to the topic's first message (its frame is the sensor's) or, for
+        the ``root`` of the sensor frame's tf tree (the default fixed frame), :data:`ROOT_HORIZON`
+        seconds past it; the first iteration goes on from there. When the messages read pass
+        :data:`HEAD_BYTES`, the topic's are let go and that iteration reads the bag anew."""
+        feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
+        self.sensor_frame, first_time, held = "", None, 0
+        stream = bag.messages(self._topics(feed)) if self.count else iter(())
+        for m in stream:
+            if m.topic == self.topic and first_time is None:
+                first_time = m.time
+                self.sensor_frame = Wire(m.raw, m.encoding, Where(bag.path, self.topic, 0, m.time)).header()[1]
+            if held <= HEAD_BYTES or m.topic != self.topic:
+                self._head.append(m)
+                held += len(m.raw)
+            if first_time is not None and (not root or m.time > first_time + ROOT_HORIZON):
+                break
+        if root:
+            for m in self._head:
+                if m.topic != self.topic:
+                    feed.add(m)
+            self.fixed_frame = _root(feed.flush(), self.sensor_frame) or self.FALLBACK_FRAME
+        if held > HEAD_BYTES:
+            stream.close()
+            self._head, self._bag = [], None
+            bag.close()
+        else:
+            self._stream = stream
+
+    def _topics(self, feed) -> list[str]:
+        """The topics an iteration reads: the messages' and, to place them, tf's."""
+        return [self.topic] + ([] if feed is None else feed.topics)
 
     def _has_tf(self, bag, unposed: bool) -> bool:
         """Whether the bag has tf or the odometry topic to place messages by; when it has neither,
@@ -107,20 +145,6 @@ class _BagSource:
             + (f" (odometry on {', '.join(odoms)}: give --odom-topic)" if odoms else " and no odometry")
             + "; give a pose file with --poses, or build the poses from the scans with --scan-match")
 
-    def _tf_root(self, bag, first_time: float | None) -> str | None:
-        """The root of the sensor frame's tf tree as tf stands :data:`ROOT_HORIZON` seconds after
-        the first message (None when tf does not know the sensor frame by then)."""
-        feed = TransformFeed(bag, odom_topic=self.odom_topic)
-        stream = bag.messages(feed.topics)
-        try:
-            for m in stream:
-                feed.add(m)
-                if first_time is None or m.time > first_time + ROOT_HORIZON:
-                    break
-        finally:
-            stream.close()
-        return _root(feed.flush(), self.sensor_frame)
-
     def __len__(self) -> int:
         """Messages the stream looks at (every ``every``-th of the topic's)."""
         return -(-self.count // self.every)
@@ -131,7 +155,8 @@ class _BagSource:
 
     def _chunks(self) -> Iterator:
         """The placed records in runs (as :meth:`_place` gives them), in message order."""
-        bag, self._bag = self._bag, None
+        bag, head, stream = self._bag, self._head, self._stream
+        self._bag, self._head, self._stream = None, [], None
         if bag is None:  # a bag opened anew: checked again, its messages then decode by the standard types
             bag = open_bag(self.path)
             bag.require_standard(self.topic)
@@ -139,11 +164,13 @@ class _BagSource:
         self.tilted = 0
         with bag:
             feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
+            if stream is None:
+                stream = bag.messages(self._topics(feed))
             tree, whole = None, feed is None  # whole: the tree holds all of the bag's tf (or none is used)
             pending = []  # (k, message) not yet decoded
             waiting = None  # decoded messages waiting for tf to pass their stamps (a _Decoded)
             k = -1
-            for m in bag.messages([self.topic] + ([] if feed is None else feed.topics)):
+            for m in itertools.chain(head, stream):
                 if m.topic != self.topic:
                     if not whole:
                         feed.add(m)
@@ -381,19 +408,6 @@ def _pick_topic(bag, topic: str | None, msgtype: str) -> str:
 
 def _listing(bag) -> str:
     return ", ".join(f"{t.name} ({t.msgtype})" for t in bag.topics.values()) or "(none)"
-
-
-def _first_frame(bag, topic: str) -> tuple[str, float | None]:
-    """The frame of the first message on ``topic`` and its record time ("" and None when the
-    topic has no message)."""
-    stream = bag.messages(topic)
-    try:
-        first = next(stream, None)
-    finally:
-        stream.close()
-    if first is None:
-        return "", None
-    return Wire(first.raw, first.encoding, Where(bag.path, topic, 0, first.time)).header()[1], first.time
 
 
 def _covered(tree, fixed_frame: str, waiting: _Decoded) -> int:
