@@ -152,12 +152,17 @@ def _writer(kind, path, ts):
     return Writer2(path, version=9, storage_plugin=plugin), ts.serialize_cdr, path
 
 
-def _tf(ts, stamp, parent, child, translation, yaw):
+def _header(ts, stamp, frame):
     T = ts.types
     sec = int(stamp // 1)
     time = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=round((stamp - sec) * 1e9))
     extra = {"seq": 0} if "seq" in ts.fielddefs["std_msgs/msg/Header"][1][0] else {}
-    header = T["std_msgs/msg/Header"](stamp=time, frame_id=parent, **extra)
+    return T["std_msgs/msg/Header"](stamp=time, frame_id=frame, **extra)
+
+
+def _tf(ts, stamp, parent, child, translation, yaw):
+    T = ts.types
+    header = _header(ts, stamp, parent)
     tr = T["geometry_msgs/msg/Transform"](translation=T["geometry_msgs/msg/Vector3"](x=translation[0], y=translation[1],
                                                                                      z=translation[2]),
                                           rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=np.sin(yaw / 2),
@@ -242,10 +247,9 @@ def map2d_rows(scans, repeat):
     def messages(ts):
         T = ts.types
         for s in scans:
-            tf, header = _tf(ts, s.stamp, "odom", "laser", (s.pose[0], s.pose[1], 0.0), s.pose[2])
-            yield "/tf", TF, s.stamp, tf
+            yield "/tf", TF, s.stamp, _tf(ts, s.stamp, "odom", "laser", (s.pose[0], s.pose[1], 0.0), s.pose[2])[0]
             inc = float(s.angles[1] - s.angles[0])
-            yield "/scan", SCAN, s.stamp, T[SCAN](header=header, angle_min=float(s.angles[0]),
+            yield "/scan", SCAN, s.stamp, T[SCAN](header=_header(ts, s.stamp, "laser"), angle_min=float(s.angles[0]),
                                                   angle_max=float(s.angles[-1]), angle_increment=inc,
                                                   time_increment=0.0, scan_time=0.0, range_min=0.0,
                                                   range_max=s.max_range, ranges=s.ranges.astype(np.float32),
@@ -257,6 +261,7 @@ def map2d_rows(scans, repeat):
         for kind in ("ROS 1", "ROS 2 MCAP"):
             path = write_map_bag(Path(tmp) / kind.replace(" ", "_"), kind, messages)
             stack = stack_scans(BagScans(path))
+            assert np.allclose(stack.poses, [s.pose for s in scans], atol=1e-6)  # tf placed each scan at its pose
 
             def end_to_end():
                 return map_scan_stream(BagScans(path), 0.05)
