@@ -305,8 +305,8 @@ class BagScans(_BagSource):
         self.max_range = None if max_range is None else float(max_range)
 
     def stacks(self) -> Iterator[ScanStack]:
-        """The scans in runs of up to 50 as :class:`~occmap.scan.ScanStack` (rows NaN-padded to
-        the widest scan of a run), in order."""
+        """The scans as :class:`~occmap.scan.ScanStack` runs, in order: batches of 50 (more
+        while tf lags behind them), rows NaN-padded to the widest scan of a run."""
         for stack, _ in self._chunks():
             yield stack
 
