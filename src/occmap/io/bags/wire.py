@@ -65,8 +65,11 @@ def by_layout(raws, layout_of):
         same = np.ones(len(alike), dtype=bool)
         for a, b in layout.same:
             same &= (rows[:, a:b] == rows[0, a:b]).all(axis=1)
-        group = alike[same]
-        yield group, layout, data if same.all() else rows[same].tobytes()
+        whole = same.all()
+        group = alike if whole else alike[same]
+        yield group, layout, data if whole else rows[same].tobytes()
+        if len(group) == len(left):
+            return
         left = left[~np.isin(left, group)]
 
 
