@@ -274,16 +274,11 @@ class _Rosbags:
         connections = [c for c in self._reader.connections if c.topic in topics]
         if not connections:
             return
-        stream = self._reader.messages(connections=connections)
-        while True:
-            try:
-                item = next(stream, None)
-            except Exception as e:
-                raise FormatError(self.path, f"cannot read the messages ({_describe(e)})") from e
-            if item is None:
-                return
-            connection, time_ns, raw = item
-            yield connection.topic, connection.msgtype, time_ns, raw
+        try:  # what the consumer raises is not thrown in here: an error in here is the reader's
+            for connection, time_ns, raw in self._reader.messages(connections=connections):
+                yield connection.topic, connection.msgtype, time_ns, raw
+        except Exception as e:
+            raise FormatError(self.path, f"cannot read the messages ({_describe(e)})") from e
 
     def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
         """``(topic, type, digest, "msg" | "idl" | "", definition)`` of each connection of ``topics``."""
