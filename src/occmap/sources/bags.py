@@ -22,7 +22,7 @@ stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming bot
 time. A topic (the scans', tf, odometry) whose connection defines its type otherwise than ROS does
 is refused with a :class:`~occmap.errors.FormatError` saying what differs
 (:mod:`occmap.io.bags.definitions`). Memory holds the frame tree and the messages waiting for tf
-(one, or a batch of 50 for laser scans, decoded and placed together), and, from opening to the
+(one, or a batch of up to 200 laser scans, decoded and placed together), and, from opening to the
 first iteration, what opening read (see below; at most :data:`HEAD_BYTES`), which that
 iteration goes on from rather than reading it again.
 
@@ -56,9 +56,11 @@ __all__ = ["BagClouds", "BagScans"]
 ROOT_HORIZON = 1.0
 #: Bytes of messages that opening a bag source may hold for the first iteration (more are read again)
 HEAD_BYTES = 16 << 20
-#: Batches of messages that may wait for tf to pass their stamps before the whole bag's tf is read
-#: in a pass of its own (tf that lags far behind, or never joins the sensor frame)
-WAIT_LIMIT = 10
+#: Bytes of messages that end a batch before it has its count (see :class:`BagScans`)
+BATCH_BYTES = 256 << 10
+#: Largest batches of messages that may wait for tf to pass their stamps before the whole bag's tf
+#: is read in a pass of its own (tf that lags far behind, or never joins the sensor frame)
+WAIT_LIMIT = 3
 
 #: A laser whose scan plane leans further than this from the fixed frame's xy plane is counted as tilted.
 TILT_NOTE = math.radians(5.0)
@@ -69,7 +71,8 @@ class _BagSource:
 
     MSGTYPE = ""
     FALLBACK_FRAME = ""
-    BATCH = 1  # messages decoded before their poses are looked up together
+    BATCH = 1  # messages decoded before their poses are looked up together, at most
+    FIRST_BATCH = 1  # ... in the first batch (the batches double up to BATCH)
 
     def __init__(self, path, topic: str | None = None, fixed_frame: str | None = None,
                  odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1,
@@ -169,7 +172,7 @@ class _BagSource:
             tree, whole = None, feed is None  # whole: the tree holds all of the bag's tf (or none is used)
             pending = []  # (k, message) not yet decoded
             waiting = None  # decoded messages waiting for tf to pass their stamps (a _Decoded)
-            k = -1
+            k, batch, held = -1, self.FIRST_BATCH, 0
             for m in itertools.chain(head, stream):
                 if m.topic != self.topic:
                     if not whole:
@@ -179,10 +182,11 @@ class _BagSource:
                 if k % self.every:
                     continue
                 pending.append((k, m))
-                if len(pending) < self.BATCH:
+                held += len(m.raw)
+                if len(pending) < batch and held < BATCH_BYTES:
                     continue
                 waiting = self._joined(waiting, self._decoded(pending))
-                pending = []
+                pending, batch, held = [], min(2 * batch, self.BATCH), 0
                 if not whole:
                     tree = feed.flush()
                     if len(waiting.ks) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
@@ -223,7 +227,7 @@ class _BagSource:
 
     def _placed(self, d: _Decoded, tree) -> Iterator:
         """The records of ``d`` that have a pose, placed (at most one run); their poses found at
-        once when they share a frame (a lookup costs 20 µs, one of 50 the same)."""
+        once when they share a frame (a lookup costs 20 µs, one of 200 not much more)."""
         n = len(d.ks)
         keep = None
         if self.pose_track is not None:
@@ -298,15 +302,16 @@ class BagScans(_BagSource):
 
     MSGTYPE = "sensor_msgs/msg/LaserScan"
     FALLBACK_FRAME = "odom"
-    BATCH = 50
+    BATCH = 200  # a batch costs about 0.2 ms beside its messages (tf brought up to date, lookups)
+    FIRST_BATCH = 25  # the first run a grid takes (map_scan_stream's first chunk)
 
     def __init__(self, path, *args, max_range: float | None = None, **kwargs):
         super().__init__(path, *args, **kwargs)
         self.max_range = None if max_range is None else float(max_range)
 
     def stacks(self) -> Iterator[ScanStack]:
-        """The scans as :class:`~occmap.scan.ScanStack` runs, in order: batches of 50 (more
-        while tf lags behind them), rows NaN-padded to the widest scan of a run."""
+        """The scans as :class:`~occmap.scan.ScanStack` runs, in order: batches of 25, 50, 100,
+        then 200 (more while tf lags behind them), rows NaN-padded to the widest scan of a run."""
         for stack, _ in self._chunks():
             yield stack
 
