@@ -36,7 +36,6 @@ from __future__ import annotations
 import itertools
 import math
 from collections import Counter
-from dataclasses import replace
 from typing import Iterator, NamedTuple
 
 import numpy as np
