@@ -241,7 +241,7 @@ def map3d_rows(pts, clouds, repeat):
 
 def map2d_rows(scans, repeat):
     from occmap.mapping2d import map_scan_stream, map_scans
-    from occmap.scan import stack_scans
+    from occmap.scan import concat_stacks, stack_scans
     from occmap.sources import BagScans
 
     def messages(ts):
@@ -269,8 +269,8 @@ def map2d_rows(scans, repeat):
             def insertion():
                 return map_scans(stack, 0.05)
 
-            def reading():
-                stack_scans(BagScans(path))
+            def reading():  # what map_scan_stream reads: the source's runs of stacked scans
+                concat_stacks(list(BagScans(path).stacks()))
 
             assert np.array_equal(end_to_end().grid.log_odds(), insertion().grid.log_odds(), equal_nan=True)
             t_all, t_insert, t_read = median_times([end_to_end, insertion, reading], number=1, repeat=repeat)
@@ -307,10 +307,12 @@ def main():
         "copies of the scan driven 1.5 m apart, placed by tf (a static mount and moving `map → base_link`), "
         "into an octree at 0.1 m as `occmap map3d BAG` does — open, read tf, stream, decode, look up the pose, "
         "insert — beside inserting the same placed clouds. 2D: the Intel corrected log (910 scans) as LaserScan "
-        "+ tf into a grid at 0.05 m as `occmap map2d BAG` does, beside `map_scans` of the same placed scans. "
+        "+ tf (the laser's pose as `odom → laser`) into a grid at 0.05 m as `occmap map2d BAG` does, beside "
+        "`map_scans` of the same placed scans (checked to be the log's poses). "
         "The maps are checked equal. Both read ahead on a thread of their own (`occmap._threads.read_ahead`) "
         "while the kernels insert, which hides the reading only where a core is idle. The last column times the bag's part alone (open, tf, stream, decode, "
-        "place: `world_points` for clouds, stacking for scans), the figure that the machine's load disturbs least.",
+        "place: `world_points` for clouds; for scans the runs of stacked scans `BagScans.stacks()` gives), the "
+        "figure that the machine's load disturbs least.",
         map3d_rows(pts, args.map_clouds, max(3, args.repeat // 2)),
         map2d_rows(intel, max(3, args.repeat // 2)),
     ])
