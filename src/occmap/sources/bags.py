@@ -255,11 +255,11 @@ class _BagSource:
                     keep[i] = pose is not None
                     if keep[i]:
                         T[i] = pose
+        records = d.records
         if keep is not None and not keep.all():
-            d = _Decoded(d.ks, d.times, self._take(d.records, keep), d.frames, d.stamps)
-            T = T[keep]
+            records, T = self._take(records, keep), T[keep]
         if len(T):
-            yield self._place(d.records, T)
+            yield self._place(records, T)
 
     def _pose(self, i: int, d: _Decoded, tree):
         """``T_fixed_sensor`` of record ``i`` of ``d`` from tf as an (4, 4) array, or None (counted)."""
