@@ -332,6 +332,25 @@ def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
     assert encode_ot(ours) == ref.write()
 
 
+def test_scans_inserted_again_on_two_threads_leave_the_pool_as_it_is(monkeypatch):
+    """A scan inserted again adds no nodes: once the first thread's slot range of an earlier scan
+    is on the free list, later scans take their slots from it and reserve no range of their own,
+    so the slots in use (``meta[TOP]``) stop growing (a margin reserved every scan grew them by a
+    thousand slots a scan, written onto the free list and never used)."""
+    from occmap import _threads
+    from occmap.octree import insertion, pool
+
+    monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
+    monkeypatch.setattr(_threads, "thread_count", lambda: 2)
+    cloud = _room_cloud(np.random.default_rng(5), 5000, half=6.0)
+    tree = OcTree(0.2)
+    tops = []
+    for _ in range(6):
+        tree.insert_point_cloud(cloud, np.array([0.1, 0.2, 0.3]))
+        tops.append(int(tree._pool.meta[pool.TOP]))
+    assert tops[-1] - tops[1] < insertion._ROOM_MARGIN, tops
+
+
 def test_discretize_matches_octomap():
     octomap = _octomap()
     rng = np.random.default_rng(7)

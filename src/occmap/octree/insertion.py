@@ -198,12 +198,13 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     split = subtree_split(keys, shared, first)
     # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
     # second above the first's range; a thread that runs out leaves its rest to this one. (The
-    # first's range is what the free list may lack: a range it never touches would join the free
-    # list, and the pool would grow scan after scan with slots never used.)
+    # first's range is what the free list may lack, and none where the free list holds what it
+    # may need: the range's unused slots join the free list, so a margin given every scan would
+    # grow the pool scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
     need_a = _ROOM_PER_VOXEL * (split - first)
     need_a -= P.free_slots(pool.child, pool.meta[P.FREE], need_a)
-    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1)
+    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else 0
     room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
     if pool.value.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
