@@ -332,6 +332,51 @@ def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
     assert encode_ot(ours) == ref.write()
 
 
+def test_scans_inserted_again_on_two_threads_leave_the_pool_as_it_is(monkeypatch):
+    """A scan inserted again adds no nodes: once the first thread's slot range of an earlier scan
+    is on the free list, later scans take their slots from it and reserve no range of their own,
+    so the slots in use (``meta[TOP]``) stop growing (a margin reserved every scan grew them by a
+    thousand slots a scan, written onto the free list and never used)."""
+    from occmap import _threads
+    from occmap.octree import insertion, pool
+
+    monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
+    monkeypatch.setattr(_threads, "thread_count", lambda: 2)
+    cloud = _room_cloud(np.random.default_rng(5), 5000, half=6.0)
+    tree = OcTree(0.2)
+    tops = []
+    for _ in range(6):
+        tree.insert_point_cloud(cloud, np.array([0.1, 0.2, 0.3]))
+        tops.append(int(tree._pool.meta[pool.TOP]))
+    assert tops[-1] - tops[1] < insertion._ROOM_MARGIN, tops
+
+
+def test_a_scan_like_the_last_one_fits_its_block_storage_from_the_start(monkeypatch):
+    """The block storage of a scan starts with room for the blocks per ray of the thread's last
+    scan: a second scan like the first is marked without growing (rehashing) it, and the tree
+    is the same as with storage grown from a small start."""
+    from occmap.octree import blocks, insertion
+
+    grown = []
+    grow = blocks.grow_blocks
+    monkeypatch.setattr(blocks, "grow_blocks", lambda *a: grown.append(1) or grow(*a))
+    rng = np.random.default_rng(8)
+    first, second = _room_cloud(rng, 6000, half=6.0), _room_cloud(rng, 6000, half=6.0)
+    origin = np.array([0.1, 0.2, 0.3])
+    monkeypatch.setattr(insertion._kept, "blocks_per_ray", insertion._BLOCKS_PER_RAY, raising=False)
+    tree = OcTree(0.05)
+    tree.insert_point_cloud(first, origin)
+    assert grown  # (a small start grows)
+    grown.clear()
+    tree.insert_point_cloud(second, origin)
+    assert not grown
+    small = OcTree(0.05)
+    small.insert_point_cloud(first, origin)
+    monkeypatch.setattr(insertion._kept, "blocks_per_ray", insertion._BLOCKS_PER_RAY)
+    small.insert_point_cloud(second, origin)
+    assert encode_ot(small) == encode_ot(tree)
+
+
 def test_discretize_matches_octomap():
     octomap = _octomap()
     rng = np.random.default_rng(7)

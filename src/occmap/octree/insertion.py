@@ -47,8 +47,12 @@ _CUBE_RAYS = 4096
 VOXELS = np.zeros(0, np.int8)
 
 
-#: Per thread, its cube (:func:`.marking.new_cube`: 2.25 MiB) kept between scans, zeroed, its box empty.
+#: Per thread, its cube (:func:`.marking.new_cube`: 2.25 MiB) kept between scans, zeroed, its box empty;
+#: and ``blocks_per_ray``, the blocks its last scan's rays marked outside the cube, a ray (the
+#: first room for the next scan's blocks: storage that fills up is grown and rehashed).
 _kept = threading.local()
+#: Blocks a ray is taken to mark before a thread has marked a scan.
+_BLOCKS_PER_RAY = 1 / 32
 _NO_CUBE = (np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros((2, 3), np.int64))
 
 
@@ -62,7 +66,8 @@ def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacit
     """Block masks of the runs ``(start, stop)`` of rays this thread takes from ``runs`` (shared
     by the threads, each run taken once) until none is left, grown until they fit, a block
     possibly listed twice; with a cube (``corner`` ≥ 0) the voxels around the sensor are marked
-    in a dense one of this thread's."""
+    in a dense one of this thread's. Returns them with the number of blocks marked outside the
+    cube, or None when the runs were all taken."""
     storage = cube = None
     while True:
         try:
@@ -88,7 +93,7 @@ def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacit
     if corner >= 0:  # and the cube's (merge_blocks ors a block marked in both)
         blocks = tuple(np.concatenate(pair) for pair in zip(blocks, M.cube_blocks(*cube, corner)))
         _kept.cube = cube
-    return blocks
+    return blocks, n
 
 
 def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
@@ -99,15 +104,19 @@ def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
     cube costs several inside it), so a thread that is done early takes more."""
     n = len(ends)
     corner = M.cube_corner(origin, ends, res, shift) if rays and n >= _CUBE_RAYS else -1
+    # room for the blocks at the rate of this thread's last scan, and a quarter more
+    room = 1.25 * getattr(_kept, "blocks_per_ray", _BLOCKS_PER_RAY) * n
     if not threads or n < _PARALLEL_RAYS:
-        parts = [_mark_runs(origin, ends, hit, res, shift, rays, corner, deque([(0, n)]), max(256, n // 32))]
+        parts = [_mark_runs(origin, ends, hit, res, shift, rays, corner, deque([(0, n)]), max(256, int(room)))]
     else:
         bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
         runs = deque(zip(bounds[:-1], bounds[1:]))
-        capacity = max(256, n // 64)
+        capacity = max(256, int(room / 2))
         parts = [p for p in share(lambda: _mark_runs(origin, ends, hit, res, shift, rays, corner, runs, capacity))
                  if p is not None]
-    return B.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*parts)))
+    if n:
+        _kept.blocks_per_ray = sum(count for _, count in parts) / n
+    return B.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*(blocks for blocks, _ in parts))))
 
 
 def voxels(blocks, kbox, merge: bool, threads: bool):
@@ -198,12 +207,13 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     split = subtree_split(keys, shared, first)
     # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
     # second above the first's range; a thread that runs out leaves its rest to this one. (The
-    # first's range is what the free list may lack: a range it never touches would join the free
-    # list, and the pool would grow scan after scan with slots never used.)
+    # first's range is what the free list may lack, and none where the free list holds what it
+    # may need: the range's unused slots join the free list, so a margin given every scan would
+    # grow the pool scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
     need_a = _ROOM_PER_VOXEL * (split - first)
     need_a -= P.free_slots(pool.child, pool.meta[P.FREE], need_a)
-    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1)
+    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else 0
     room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
     if pool.value.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)

@@ -23,21 +23,6 @@ from .keys import DEPTH, child_index, unpack
 TOP, FREE, SIZE = 0, 1, 2
 
 
-@kernel
-def grow(value, child, capacity):
-    """The slot arrays with room for ``capacity`` slots, at least twice as many as now, contents
-    kept. The new slots are left as they come (:func:`alloc_block` sets a block when it hands it
-    out, and nothing reads past ``meta[TOP]``), so the memory they take is only reserved: the
-    process's resident memory follows the slots in use, not the room."""
-    n = value.shape[0]
-    m = max(2 * n, capacity)
-    v = np.empty(m, np.float32)
-    c = np.empty(m, np.int32)
-    v[:n] = value
-    c[:n] = child
-    return v, c
-
-
 @inline_kernel
 def settle(value, child, meta, node, set_max, prune):
     """Make inner ``node`` agree with its children: collapse it into a leaf if its eight
@@ -221,5 +206,20 @@ class Pool:
         self.meta = np.array([8, -1, 0], dtype=np.int64)
 
     def grow(self, capacity: int) -> None:
-        """Room for at least ``capacity`` slots (at least twice the present room)."""
-        self.value, self.child = grow(self.value, self.child, int(capacity))
+        """Room for at least ``capacity`` slots (at least twice the present room), contents kept.
+        The new slots are left as they come (:func:`alloc_block` sets a block when it hands it
+        out, and nothing reads past ``meta[TOP]``), so the memory they take is only reserved: the
+        process's resident memory follows the slots in use, not the room. The arrays are copied
+        one at a time, the old one let go before the next is copied: while the pool grows it
+        holds one array twice, not both (the peak of a long drive is such a moment)."""
+        m = max(2 * self.value.shape[0], int(capacity))
+        self.value = _enlarged(self.value, m)
+        self.child = _enlarged(self.child, m)
+
+
+def _enlarged(array: np.ndarray, m: int) -> np.ndarray:
+    """``array`` (1-D) copied into the start of a new one of ``m`` items, the rest left as it
+    comes."""
+    out = np.empty(m, array.dtype)
+    out[:array.shape[0]] = array
+    return out
