@@ -82,6 +82,7 @@ The settings, with units and defaults, are one :class:`~occmap.localize.params.L
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import warnings
@@ -195,6 +196,8 @@ class _Stats:
     refine_rejected: int = 0
     tempered: int = 0
     coasted: int = 0
+    searches: int = 0  # global searches started because the estimate stayed lost
+    relocalized: int = 0  # searches whose hypothesis replaced the cloud
     converged_after: int | None = None  # filter runs of a global localization until it converged
     extra: dict = field(default_factory=dict)
 
@@ -256,6 +259,12 @@ class MonteCarloLocalizer(OneCallAtATime):
         self._held = None  # coasting: the pose the odometry alone carried from the last scan that fitted
         self._confirm = 0  # past the cap: consecutive filter runs whose (cloud's) estimate the scan fits
         self._usual_fit = None  # long-term average of the estimates' fit while not lost
+        self._lost_runs = 0  # consecutive filter runs whose estimate was lost (or, searching, was not)
+        self._right_travel = 0.0  # searching: odometry travel (m) over those runs that were not lost
+        self._search: MonteCarloLocalizer | None = None  # the second hypothesis: a global localization
+        # its consecutive filter runs that fit and fit better than the estimate, their odometry travel (m),
+        # and its consecutive runs that do not fit
+        self._search_confirm = (0, 0.0, 0)
         self._estimate: PoseEstimate | None = None
         self._force = True
         self._global = False  # a global localization that has not converged yet
@@ -302,6 +311,9 @@ class MonteCarloLocalizer(OneCallAtATime):
         self._coasted = (0.0, 0.0)
         self._held = None
         self._confirm = 0
+        self._lost_runs = 0
+        self._search = None
+        self._search_confirm = (0, 0.0, 0)
         self._estimate = None
         self._force = True
 
@@ -394,7 +406,72 @@ class MonteCarloLocalizer(OneCallAtATime):
                 self._usual_fit += FIT_AVERAGE_RATE * (fit - self._usual_fit)
         self._estimate = PoseEstimate(pose, cov, ess, len(self.particles), mode_w, True, int(bx.size),
                                       not self._global, fit, lost)
+        if bx.size and not self._global and self._usual_fit is not None and prm.relocalize_after > 0:
+            self._relocalize(odom, r, a, mr, fit, lost, float(trans))
         return self._estimate
+
+    def _relocalize(self, odom, r, a, mr, fit: float, lost: bool, trans: float) -> None:
+        """The second hypothesis. After ``relocalize_after`` lost filter runs in a row a global
+        localization starts beside the tracking filter (a copy of this localizer sharing its map,
+        without coasting) and runs on the same scans, while the estimate stays the tracking
+        filter's. The search is dropped once the estimate has not been lost on ``coast_confirm``
+        runs in a row over ``relocalize_confirm_d`` metres of odometry travel. Once converged, the search's estimate has its own ``lost`` flag (its usual
+        fit starts at its first converged scan: the robot may be where the map shows less than
+        where it was); lost on ``relocalize_after`` of its runs in a row, the search starts over
+        from the whole free space. It replaces the cloud once, on every one of its runs over the
+        last ``coast_confirm`` runs and ``relocalize_confirm_d`` metres of odometry travel, its
+        estimate was not lost and fitted the scan at least as well as the tracking filter's, and
+        the tracking filter's was lost."""
+        prm = self.params
+        if self._search is None:
+            self._lost_runs = self._lost_runs + 1 if lost else 0
+            if self._lost_runs >= prm.relocalize_after:
+                self._search = copy.copy(self)
+                self._search.params = prm.replace(relocalize_after=0)
+                self._search.stats = _Stats()
+                self._search.rng = self.rng.spawn(1)[0]  # the tracking filter's draws stay as without a search
+                self._start_search()
+                self.stats.searches += 1
+            return
+        self._lost_runs = 0 if lost else self._lost_runs + 1
+        self._right_travel = 0.0 if lost else self._right_travel + trans
+        if self._lost_runs >= prm.coast_confirm and self._right_travel >= prm.relocalize_confirm_d:
+            self._search = None
+            self._lost_runs = 0
+            return
+        before = self._search._filter_odom
+        found = self._search.update(odom, r, a, mr)
+        if not found.updated or not found.converged:
+            return
+        runs, travel, misfits = self._search_confirm
+        if found.lost or found.fit < fit or not lost:
+            self._search_confirm = (0, 0.0, misfits + 1 if found.lost else 0)
+            if misfits + 1 >= prm.relocalize_after:
+                self._start_search()
+            return
+        travel += 0.0 if before is None else math.hypot(odom[0] - before[0], odom[1] - before[1])
+        self._search_confirm = (runs + 1, travel, 0)
+        if runs + 1 < prm.coast_confirm or travel < prm.relocalize_confirm_d:
+            return
+        s = self._search
+        self.particles, self.weights, self._filter_odom = s.particles, s.weights, s._filter_odom
+        self.w_slow, self.w_fast, self._count = s.w_slow, s.w_fast, s._count
+        self._held = None
+        self._coasted = (0.0, 0.0)
+        self._confirm = self._lost_runs = 0
+        self._search = None
+        self.stats.relocalized += 1
+        e = self._estimate
+        self._estimate = PoseEstimate(found.pose, found.covariance, found.ess, len(self.particles), found.mode_weight,
+                                      True, e.beams, True, found.fit, False)
+
+    def _start_search(self) -> None:
+        """(Re)start the second hypothesis: a global localization with no usual fit yet."""
+        self._search.initialize_global()
+        self._search._usual_fit = None
+        self._lost_runs = 0
+        self._right_travel = 0.0
+        self._search_confirm = (0, 0.0, 0)
 
     def _fit(self, pose, bx_all: np.ndarray, by_all: np.ndarray) -> float:
         """Share of the end points within ``refine_cutoff`` of an obstacle, seen from ``pose``."""
