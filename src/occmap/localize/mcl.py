@@ -18,9 +18,10 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
   effective sample size ``1 / Σ w²`` falls below ``resample_ess · N``; optional KLD-adaptive
   particle count (Fox 2003, AMCL's ``kld_err``/``kld_z`` and its 0.5 m × 0.5 m × 10° bins); random
   particles drawn uniformly over free space are injected with probability ``max(0, 1 − w_fast /
-  w_slow)`` (``recovery_alpha_slow``/``recovery_alpha_fast``), which is how a kidnapped robot is
-  found again. Unlike AMCL the averages are not reset after an injection (the book's version:
-  injection continues for as long as the short-term likelihood stays below the long-term one),
+  w_slow)`` (``recovery_alpha_slow``/``recovery_alpha_fast``), AMCL's way of finding a kidnapped
+  robot again (on the real runs it does not: see *finding the robot again*). Unlike AMCL the
+  averages are not reset after an injection (the book's version: injection continues for as long
+  as the short-term likelihood stays below the long-term one),
   injection starts only once ``w_fast / w_slow`` falls below ``recovery_threshold`` (on the Intel
   log, stretches where the scans fit the map poorly drop the ratio below 1 while tracking is fine,
   and a few random particles then win), and the averaged likelihood is the per-beam geometric mean,
@@ -51,6 +52,32 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
   below its usual value (``lost_fit``): the signal a caller acts on. Measured on the real runs
   (``lost_fit = 0.85``): raised for 4.4 % of Intel's scans while the track is right, and for the
   first scans after a simulated kidnapping until the filter is found again.
+* **finding the robot again** — with ``relocalize_after`` a ``lost`` estimate on that many filter
+  runs in a row starts a global localization as a **second hypothesis** (a copy of the filter that
+  shares its map and draws from its own random stream, with the schedule of *global
+  localization* below) which runs on the same scans beside the tracking filter; the published
+  estimate stays the tracking filter's, coasting on odometry as above. The search replaces the
+  cloud only once it has converged and, on every one of its runs over ``coast_confirm`` runs and
+  ``relocalize_confirm_d`` metres of odometry travel, its estimate was not lost (against its own
+  usual fit, which starts at its first converged scan: the robot may now be where the map explains
+  less than where it was), fitted the scan at least as well as the tracking estimate, and the
+  tracking estimate was lost. It is dropped once the tracking estimate has not been lost over as
+  many runs and metres, and starts over when its own estimate is lost on ``relocalize_after`` runs
+  in a row. A restart must not throw away a right track: the ``lost`` flag is raised for 4.4 % of
+  Intel's scans while the track is right, and for stretches of Freiburg 079 where the map is wrong,
+  and there a hypothesis elsewhere can fit better. Measured: 3 m of confirmation let a wrong
+  hypothesis (up to 30 m off) replace a right track on Freiburg 079 (seed 7), and without the condition
+  that the tracking estimate be lost a right but poorly fitting track was replaced (refs 304–422,
+  seed 1); with 5 m and the condition, tracking on both runs is as without the search (no
+  replacement on seeds 7, 1, 2, 3). Kidnapped from 10 places of each run (``BENCHMARKS.md``), the
+  robot is back within 0.2 m after 6–8.4 m of travel 9 times on Intel, but only 4 times on
+  Freiburg 079 (7.7–14.6 m): three kidnappings land where fewer than half the reference poses fit
+  their own map, elsewhere the search converges to another place or its confirmation keeps being
+  reset by a scan the kidnapped track happens to fit, and once a search replaced the kidnapped
+  track by another wrong one. Global localization in a search is costlier than tracking
+  (``global_particles``), but runs only every ``global_update_min_d`` / ``global_update_min_a``.
+  Random-particle injection (above) is the cheaper textbook answer, but did not bring the robot
+  back on the real runs.
 * **global localization** — :meth:`MonteCarloLocalizer.initialize_global` spreads
   ``global_particles`` over the free space and runs the filter coarse to fine: until the dominant
   mode holds ``converged_weight`` of the weight, beams score with the wider ``global_sigma_hit``
@@ -171,7 +198,8 @@ class PoseEstimate:
         runs that were not lost): much of the scan is unexplained where the filter believes the robot
         is (kidnapped, a wrong initial pose, or a place the map does not show as it is now).
         A caller can act on it (stop, re-initialize, call :meth:`MonteCarloLocalizer.initialize_global`);
-        with ``covariance`` and ``ess`` it is the filter's confidence.
+        with ``relocalize_after`` the filter acts on it itself (a global search beside the track).
+        With ``covariance`` and ``ess`` it is the filter's confidence.
     """
 
     pose: np.ndarray
@@ -226,7 +254,8 @@ class MonteCarloLocalizer(OneCallAtATime):
         The map's distance field and beam scores.
     particles : ndarray (N, 3), weights : ndarray (N,)
     stats
-        Counts of filter runs, resamplings, injected particles, refinements, ...
+        Counts of filter runs, resamplings, injected particles, refinements, global searches started
+        (``searches``) and those that replaced the cloud (``relocalized``), ...
     """
 
     def __init__(self, grid, n_particles: int | None = None, *, params: LocalizationParams | None = None, seed=None,
@@ -413,10 +442,11 @@ class MonteCarloLocalizer(OneCallAtATime):
     def _relocalize(self, odom, r, a, mr, fit: float, lost: bool, trans: float) -> None:
         """The second hypothesis. After ``relocalize_after`` lost filter runs in a row a global
         localization starts beside the tracking filter (a copy of this localizer sharing its map,
-        without coasting) and runs on the same scans, while the estimate stays the tracking
-        filter's. The search is dropped once the estimate has not been lost on ``coast_confirm``
-        runs in a row over ``relocalize_confirm_d`` metres of odometry travel. Once converged, the search's estimate has its own ``lost`` flag (its usual
-        fit starts at its first converged scan: the robot may be where the map shows less than
+        with its own random stream and no search of its own) and runs on the same scans, while the
+        estimate stays the tracking filter's. The search is dropped once the estimate has not been
+        lost on ``coast_confirm`` runs in a row over ``relocalize_confirm_d`` metres of odometry
+        travel. Once converged, the search's estimate has its own ``lost`` flag (its usual fit
+        starts at its first converged scan: the robot may be where the map explains less than
         where it was); lost on ``relocalize_after`` of its runs in a row, the search starts over
         from the whole free space. It replaces the cloud once, on every one of its runs over the
         last ``coast_confirm`` runs and ``relocalize_confirm_d`` metres of odometry travel, its
