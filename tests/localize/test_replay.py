@@ -289,6 +289,8 @@ def test_fr079_stretch_where_the_map_is_wrong_is_held_on_odometry(fr079):
     assert pe.max() < 0.6 and pe.mean() < 0.15
     assert pe[(ks >= 1340) & (ks < 1385)].max() < 0.2  # on track again where the map is right
     assert loc.stats.coasted > 20 and res.lost[(pairs[ks] - s0)[(ks > 1120) & (ks < 1180)]].mean() > 0.8
+    # lost long enough to start the global search beside the track, which never replaces it here
+    assert loc.stats.searches >= 1 and loc.stats.relocalized == 0
 
 
 KIDNAP_COV = np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2])
