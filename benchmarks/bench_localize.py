@@ -10,6 +10,10 @@
    (the last, coasting: :mod:`occmap.localize.mcl`), the default also with other seeds;
    global localization from particles spread over the free space, for 10 seeds (on Intel also
    with each part of its coarse-to-fine schedule taken away in turn).
+3. Kidnapping: on each run, from 10 reference poses spread over it, the robot is carried away
+   unseen (:func:`~occmap.localize.replay.kidnapped`: scans skipped, odometry continuous) and the
+   travel until the estimate is back within 0.2 m is measured, with and without the global search
+   that a persistently lost estimate starts (``relocalize_after``).
 
 The Freiburg 079 laser sits 0.04 m behind the robot's centre (``PARAM robot_frontlaser_offset``):
 the filter tracks the robot with its odometry and the track is compared as the laser's. Where a
@@ -42,8 +46,8 @@ from occmap.localize import _kernels as K  # noqa: E402
 from occmap.localize.likelihood_field import LikelihoodField, beam_end_points  # noqa: E402
 from occmap.localize.params import LocalizationParams  # noqa: E402
 from occmap.localize.replay import (  # noqa: E402
-    convergence_distance, make_localizer, pair_scans, reference_fit, reference_offset, replay, save_error_png,
-    save_track_png, track_errors, travelled,
+    convergence_distance, make_localizer, pair_scans, reference_fit, reference_offset, replay, replay_kidnapped,
+    save_error_png, save_track_png, track_errors, travelled,
 )
 from occmap.mapping2d import map_scans  # noqa: E402
 
@@ -291,6 +295,59 @@ def global_section(d: Loaded, seeds, ablate: bool) -> list[str]:
     return out
 
 
+#: Kidnappings per run: tracking from a reference pose, the robot carried away unseen KIDNAP_SETTLE
+#: scans later past KIDNAP_SKIP scans (odometry continuous), scored over KIDNAP_TRAVEL m after that.
+KIDNAPS = 10
+KIDNAP_SETTLE = 150
+KIDNAP_SKIP = 400
+KIDNAP_TRAVEL = 25.0
+
+
+def kidnap_section(d: Loaded, seed: int = 3) -> list[str]:
+    pairs = np.where(d.pairs < len(d.raw), d.pairs, -1)
+    paired = np.flatnonzero(pairs >= 0)
+    room = paired[pairs[paired] + KIDNAP_SETTLE + KIDNAP_SKIP + 1000 < len(d.raw)]
+    starts = room[np.linspace(0, len(room) - 1, KIDNAPS).astype(int)]
+    rows, found = [], 0
+    for start in starts:
+        args = dict(start=int(start), at=int(pairs[start]) + KIDNAP_SETTLE, skip=KIDNAP_SKIP, travel=KIDNAP_TRAVEL,
+                    cov=INIT_COV)
+        loc = make_localizer(d.grid, seed=seed, sensor_offset=d.offset)
+        k = replay_kidnapped(loc, d.raw, pairs, d.ref_poses, **args)
+        off = replay_kidnapped(make_localizer(d.grid, seed=seed, sensor_offset=d.offset, relocalize_after=0), d.raw,
+                               pairs, d.ref_poses, **args)
+        ok = k.first <= 20.0 and k.lost_between
+        found += ok
+        worst = float(k.after[k.travel >= k.first].max()) if math.isfinite(k.first) else math.inf
+        landed = paired[pairs[paired] >= args["at"] + KIDNAP_SKIP][: k.after.size]
+        fits = float(d.fits[landed].mean())
+        shown = f"{worst:.2f} m" if math.isfinite(worst) else "—"
+        rows.append(f"| {start:,} | {k.jump:.1f} m | {'yes' if k.lost_between else 'no'} | {_dist(k.first)} | "
+                    f"{_dist(k.recovered)} | {shown} | {loc.stats.searches} / {loc.stats.relocalized} | "
+                    f"{_dist(off.first)} | {100 * fits:.0f} % |")
+        print(f"{d.run.key} kidnapped from reference pose {start}: carried {k.jump:.1f} m, lost raised "
+              f"{k.lost_between}, back within 0.2 m after {_dist(k.first)} (for good after {_dist(k.recovered)}, worst "
+              f"after {shown}), {loc.stats.searches} searches, {loc.stats.relocalized} relocalized; without the "
+              f"search {_dist(off.first)}; {100 * fits:.0f} % of the reference poses after it fit their own map",
+              flush=True)
+    return [
+        f"Kidnapping on {d.run.title} (seed {seed}): tracking from a reference pose, {KIDNAP_SETTLE} scans later the "
+        f"robot is carried past {KIDNAP_SKIP} scans unseen (its odometry continues without a jump: "
+        "`replay.kidnapped`); distances are reference travel after the kidnapping, over "
+        f"{KIDNAP_TRAVEL:.0f} m.",
+        "",
+        "| from reference pose | carried | lost raised | back within 0.2 m after | within 0.2 m to the end after | "
+        "worst error after it is back | searches / relocalized | without the search: back after | reference poses "
+        "after it that fit their own map |",
+        "|---:|---:|:---:|---:|---:|---:|---:|---:|---:|",
+        *rows,
+        "",
+        f"{found} of {len(starts)} kidnappings back within 0.2 m within 20 m of travel with the lost flag raised in "
+        "between.",
+        "",
+    ]
+
+
 def main() -> None:
     quick = "--quick" in sys.argv
     data = shared_data()
@@ -317,6 +374,8 @@ def main() -> None:
         body += tracking_section(d, quick)
     for d in loaded:
         body += global_section(d, seeds, ablate=d.run.key == "intel" and not quick)
+    for d in loaded:
+        body += kidnap_section(d)
     write_section("localize", "\n".join(body).rstrip())
 
 

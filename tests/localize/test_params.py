@@ -47,6 +47,8 @@ def test_numpy_scalars_are_accepted_and_normalised():
     (dict(model="beam"), "model must be"),
     (dict(sensor_offset=(0.0, math.nan, 0.0)), "sensor_offset\\[1\\]"),
     (dict(sensor_offset=(0.0, 0.0)), "sensor_offset must be three"),
+    (dict(relocalize_after=-1), "relocalize_after must be an integer ≥ 0"),
+    (dict(relocalize_confirm_d=-1.0), "relocalize_confirm_d must be a non-negative"),
 ])
 def test_bad_values_name_the_field(changes, match):
     with pytest.raises(InvalidArgumentError, match=match):

@@ -14,12 +14,13 @@ import pytest
 from PIL import Image
 
 from occmap.commands.localize import add_parser
+from occmap.errors import InvalidArgumentError
 from occmap.grid2d import OccupancyGrid2D
 from occmap.io.carmen import iter_carmen, read_carmen
 from occmap.localize.recording import LocalizationRecording
 from occmap.localize.replay import (
-    anchor_odometry, convergence_distance, make_localizer, pair_scans, replay, save_error_png, save_track_png,
-    track_errors, travelled, write_track_csv,
+    anchor_odometry, convergence_distance, kidnapped, make_localizer, pair_scans, replay, replay_kidnapped,
+    save_error_png, save_track_png, track_errors, travelled, write_track_csv,
 )
 from occmap.mapping2d import map_scans
 from occmap.scan import LaserScan
@@ -62,6 +63,24 @@ def intel(data_dir):
     grid = map_scans(ref.stack(), 0.05).grid
     raw = list(itertools.islice(iter_carmen(carmen / "intel-raw.clf.bz2"), 1200))
     return grid, ref.scans, raw
+
+
+def test_kidnapped_skips_scans_and_keeps_the_odometry_continuous():
+    """The robot carried away before scan 2 past 3 scans: scans 0, 1, then 5.. with their true poses;
+    the odometry from scan 5 on continues from scan 1's by the steps the wheels measured (1→5
+    becomes 4→5's step, 5→6 stays), so the carrying itself leaves no trace in it."""
+    odo = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.5], [3, 1, 0.5], [4, 2, 1.0], [5, 2, 1.0], [5, 3, 1.5]], float)
+    scans = [LaserScan(pose=odo[i] + 10, ranges=np.ones(2), angles=np.zeros(2), max_range=5.0, stamp=float(i),
+                       odom=odo[i]) for i in range(len(odo))]
+    out = kidnapped(scans, 2, 3)
+    assert [s.stamp for s in out] == [0.0, 1.0, 5.0, 6.0]
+    assert np.array_equal(out[2].pose, scans[5].pose)
+    from occmap.geometry.se2 import relative_poses
+
+    assert relative_poses(out[1].odom, out[2].odom) == pytest.approx(relative_poses(odo[4], odo[5]))
+    assert relative_poses(out[2].odom, out[3].odom) == pytest.approx(relative_poses(odo[5], odo[6]))
+    with pytest.raises(InvalidArgumentError):
+        kidnapped(scans, 2, 5)
 
 
 def test_intel_scans_pair_with_the_corrected_log(intel):
@@ -270,29 +289,49 @@ def test_fr079_stretch_where_the_map_is_wrong_is_held_on_odometry(fr079):
     assert pe.max() < 0.6 and pe.mean() < 0.15
     assert pe[(ks >= 1340) & (ks < 1385)].max() < 0.2  # on track again where the map is right
     assert loc.stats.coasted > 20 and res.lost[(pairs[ks] - s0)[(ks > 1120) & (ks < 1180)]].mean() > 0.8
+    # lost long enough to start the global search beside the track, which never replaces it here
+    assert loc.stats.searches >= 1 and loc.stats.relocalized == 0
 
 
-def test_lost_flag_on_a_real_run_kidnapped(data_dir):
-    """Freiburg 079's raw run tracked in its corrected map, then the cloud teleported 2.2 m and 46°
-    mid-run: the lost flag stays down (a few per cent of the scans) while the track is right and
-    goes up from the teleport on. (Finding the robot again is not asserted: random-particle
-    injection does not yet bring it back within 20 m on the real runs; see BENCHMARKS.md.)"""
-    from occmap.io.carmen import CarmenStats, laser_offset
+KIDNAP_COV = np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2])
 
-    carmen = data_dir / "carmen"
-    ref = read_carmen(carmen / "freiburg-079-corrected.log.gz")
-    grid = map_scans(ref.stack(), 0.05).grid
-    stats = CarmenStats()
-    raw = list(itertools.islice(iter_carmen(carmen / "fr079-raw.clf.bz2", stats=stats), 700))
-    loc = make_localizer(grid, seed=3, sensor_offset=laser_offset(stats.params))
-    ref_poses = np.array([s.pose for s in ref.scans])
-    res = replay(loc, raw[:400], init=ref_poses[0], cov=np.diag([0.05 ** 2, 0.05 ** 2, math.radians(3) ** 2]))
-    loc.particles[:, :2] += (2.0, 1.0)
-    loc.particles[:, 2] += 0.8
-    after = [loc.update(s.odom, s.ranges, s.angles, s.max_range) for s in raw[400:450]]
-    pairs = pair_scans(raw[:400], ref.scans)
-    ok = pairs >= 0
-    pe, _ = track_errors(res.poses[pairs[ok]], ref_poses[ok])
-    assert pe.max() < 0.3  # tracked before
-    assert res.lost.mean() < 0.1
-    assert np.mean([e.lost for e in after]) > 0.9
+
+def _assert_found_again(k):
+    """Tracked before the kidnapping (lost on few scans), lost raised after it, back within 0.2 m
+    within 20 m of travel and within 0.2 m from there to the end of the stretch."""
+    assert k.jump > 5.0
+    assert k.before.max() < 0.3
+    assert k.lost_between
+    assert k.recovered <= 20.0 and k.travel[-1] >= k.recovered + 5.0
+    assert k.after[k.travel >= k.recovered].max() <= 0.2
+
+
+def test_intel_kidnapped_is_found_again(intel):
+    """Intel's raw run tracked from the first corrected pose, the robot carried 12.7 m away unseen
+    (scans 319-618 skipped, the odometry continuous): the estimate is lost, the global search
+    started beside it converges, replaces the cloud, and the filter is back within 0.2 m after
+    about 10 m of travel."""
+    grid, ref, raw = intel
+    pairs = pair_scans(raw, ref)
+    loc = make_localizer(grid, seed=3)
+    k = replay_kidnapped(loc, raw, pairs, np.array([s.pose for s in ref]), start=0, at=int(pairs[0]) + 150, skip=300,
+                         travel=20.0, cov=KIDNAP_COV)
+    _assert_found_again(k)
+    assert loc.stats.relocalized == 1
+
+
+def test_fr079_kidnapped_is_found_again(fr079):
+    """Freiburg 079 from reference pose 3600, the robot carried 11 m away unseen (400 scans
+    skipped): back within 0.2 m after about 8 m of travel. Without the global search
+    (``relocalize_after=0``) the same stretch is never found again: the cloud stays lost."""
+    grid, ref, raw, offset = fr079
+    pairs = pair_scans(raw, ref)
+    ref_poses = np.array([s.pose for s in ref])
+    args = dict(start=3600, at=int(pairs[3600]) + 150, skip=400, travel=20.0, cov=KIDNAP_COV)
+    loc = make_localizer(grid, seed=3, sensor_offset=offset)
+    k = replay_kidnapped(loc, raw, pairs, ref_poses, **args)
+    _assert_found_again(k)
+    assert loc.stats.relocalized == 1
+    off = replay_kidnapped(make_localizer(grid, seed=3, sensor_offset=offset, relocalize_after=0), raw, pairs,
+                           ref_poses, **args)
+    assert off.first == math.inf and off.result.lost[-50:].mean() > 0.5

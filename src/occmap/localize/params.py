@@ -103,6 +103,13 @@ class LocalizationParams:
     coast_confirm : int, default 5
         Past the coasting cap, consecutive filter runs whose scan fits the cloud's estimate (at
         least ``lost_fit`` of the usual fit) before that estimate replaces the odometry's.
+    relocalize_after : int, default 0
+        Consecutive filter runs with a ``lost`` estimate after which a global localization starts
+        as a second hypothesis beside the tracking filter, and replaces it once confirmed (0: off).
+    relocalize_confirm_d : float, default 5.0
+        Odometry travel (m) over which that hypothesis must fit the scans at least as well as the
+        tracking filter's estimate (which stays lost), with a compact cloud, on every filter run
+        before it replaces the cloud (:mod:`occmap.localize.mcl`).
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
@@ -160,6 +167,9 @@ class LocalizationParams:
     coast_max_d: float = 3.0
     coast_max_a: float = 2 * math.pi
     coast_confirm: int = 5
+    # finding the robot again
+    relocalize_after: int = 0
+    relocalize_confirm_d: float = 5.0
     # global localization
     global_particles: int = 20_000
     global_sigma_hit: float = 1.0
@@ -177,7 +187,7 @@ class LocalizationParams:
             put("motion", OdometryMotionModel(*self.motion))
         for name in ("z_hit", "z_rand", "laser_min_range", "recovery_alpha_slow", "recovery_alpha_fast",
                      "update_min_d", "update_min_a", "roughening", "global_update_min_d", "global_update_min_a",
-                     "coast_max_d", "coast_max_a"):
+                     "coast_max_d", "coast_max_a", "relocalize_confirm_d"):
             put(name, checks.non_negative(name, getattr(self, name)))
         if self.z_hit + self.z_rand <= 0:
             raise InvalidArgumentError("z_hit + z_rand must be positive")
@@ -203,6 +213,7 @@ class LocalizationParams:
             raise InvalidArgumentError(f"need 1 <= min_particles <= max_particles, got {lo!r}, {hi!r}")
         put("min_particles", lo)
         put("max_particles", hi)
+        put("relocalize_after", checks.count("relocalize_after", self.relocalize_after, minimum=0))
         for name in ("kld", "refine", "refine_feedback", "reset_averages"):
             put(name, bool(getattr(self, name)))
         off = tuple(self.sensor_offset)
