@@ -95,9 +95,9 @@ class TrackerParams:
     def __post_init__(self):
         for name in ("accel", "person_accel", "yaw_accel", "position_sigma", "heading_sigma", "gate", "lost_after",
                      "max_coast", "tentative_coast", "max_position_sigma", "max_speed",
-                     "footprint_margin", "settled_heading_sigma", "confirm_speed_sigma", "centre_sigma_floor", "walking_speed",
-                     "confirm_speed", "init_span",
-                     "init_distance", "initial_speed_sigma", "initial_yaw_rate_sigma", "doppler_sigma", "doppler_gate"):
+                     "footprint_margin", "settled_heading_sigma", "confirm_speed_sigma", "centre_sigma_floor",
+                     "walking_speed", "confirm_speed", "init_span", "init_distance", "initial_speed_sigma",
+                     "initial_yaw_rate_sigma", "doppler_sigma", "doppler_gate"):
             checks.positive(name, getattr(self, name))
         if not (isinstance(self.yaw_rate_time, (int, float)) and self.yaw_rate_time > 0):  # inf: constant turn rate
             raise InvalidArgumentError(f"yaw_rate_time must be a positive number of seconds (or inf), "
@@ -552,13 +552,13 @@ class Tracker:
         n = ok.sum(axis=1)
         xy, t = self.centres[..., :2], np.where(ok, self.centres[..., 2], 0.0)
         tm = t.sum(axis=1) / np.maximum(n, 1)
-        dt_ = np.where(ok, t - tm[:, None], 0.0)
-        stt = (dt_ ** 2).sum(axis=1)
+        dev = np.where(ok, t - tm[:, None], 0.0)
+        stt = (dev ** 2).sum(axis=1)
         z = np.where(ok[..., None], xy, 0.0)
         zm = z.sum(axis=1) / np.maximum(n, 1)[:, None]
         dz = np.where(ok[..., None], z - zm[:, None], 0.0)
-        fitted = np.einsum("nk,nkj->nj", dt_, dz) / np.maximum(stt, 1e-12)[:, None]
-        resid = dz - dt_[..., None] * fitted[:, None]
+        fitted = np.einsum("nk,nkj->nj", dev, dz) / np.maximum(stt, 1e-12)[:, None]
+        resid = dz - dev[..., None] * fitted[:, None]
         dof = np.maximum(2 * (n - 2), 1)
         var = np.maximum((resid ** 2).sum(axis=(1, 2)) / dof, p.centre_sigma_floor ** 2)
         se = np.sqrt(var / np.maximum(stt, 1e-12))
@@ -566,18 +566,16 @@ class Tracker:
         agree = np.hypot(*(mine - fitted).T) <= p.confirm_speed_sigma
         slower = np.minimum((fitted ** 2).sum(axis=1), self.state[:, 3] ** 2)
         moving = (slower >= p.gate * se ** 2) & (slower >= p.walking_speed ** 2)
-        round_ = self.size[:, 0] < MIN_VEHICLE_LENGTH
+        person = self.size[:, 0] < MIN_VEHICLE_LENGTH
         # the filter, fed these views at their own noise, would know the speed that much better
         filtered = np.sqrt(self.cov[:, 3, 3]) * p.centre_sigma_floor / p.position_sigma <= p.confirm_speed_sigma
-        return round_ & (n >= p.confirm_window) & (se <= p.confirm_speed_sigma) & agree & moving & filtered
+        return person & (n >= p.confirm_window) & (se <= p.confirm_speed_sigma) & agree & moving & filtered
 
     def _manage(self, matched) -> None:
         p = self.params
         window = (1 << p.confirm_window) - 1
         hits = np.unpackbits((self.hit_bits & window)[:, None], axis=1).sum(axis=1)
-        known = self.cov[:, 3, 3] <= p.confirm_speed_sigma ** 2
-        if len(self):
-            known |= self._measured_speed_known()
+        known = (self.cov[:, 3, 3] <= p.confirm_speed_sigma ** 2) | self._measured_speed_known()
         promote = ((self.status == TENTATIVE) & (hits >= p.confirm_hits) & (self.travel >= p.min_travel)
                    & (self.updates >= 2) & known & (self.state[:, 3] >= p.confirm_speed))
         self.status[promote] = CONFIRMED
