@@ -53,8 +53,8 @@ __all__ = ["BagClouds", "BagScans"]
 
 #: Seconds of tf after the first message that tell the default fixed frame (the root of the sensor's tree)
 ROOT_HORIZON = 1.0
-#: Bytes of messages that opening a bag source may hold for the first iteration (more are read again)
-HEAD_BYTES = 16 << 20
+#: Bytes of messages that opening a bag source may hold for the first iteration (two clouds are more)
+HEAD_BYTES = 4 << 20
 #: Bytes of messages that end a batch before it has its count (see :class:`BagScans`)
 BATCH_BYTES = 256 << 10
 #: Largest batches of messages that may wait for tf to pass their stamps before the whole bag's tf
@@ -104,31 +104,34 @@ class _BagSource:
     def _read_head(self, bag, root: bool) -> None:
         """Read the stream up to the topic's first message (its frame is the sensor's) or, for
         the ``root`` of the sensor frame's tf tree (the default fixed frame), :data:`ROOT_HORIZON`
-        seconds past it; the first iteration goes on from there. When the messages read pass
-        :data:`HEAD_BYTES`, the topic's are let go and that iteration reads the bag anew."""
+        seconds past it; the first iteration goes on from there. Past :data:`HEAD_BYTES` (point
+        clouds), nothing is held: the first message and tf are read in passes of their own."""
         feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
-        self.sensor_frame, first_time, held = "", None, 0
+        self.sensor_frame, first, held = "", None, 0
         stream = bag.messages(self._topics(feed)) if self.count else iter(())
         for m in stream:
-            if m.topic == self.topic and first_time is None:
-                first_time = m.time
-                self.sensor_frame = Wire(m.raw, m.encoding, Where(bag.path, self.topic, 0, m.time)).header()[1]
-            if held <= HEAD_BYTES or m.topic != self.topic:
-                self._head.append(m)
-                held += len(m.raw)
-            if first_time is not None and (not root or m.time > first_time + ROOT_HORIZON):
+            self._head.append(m)
+            held += len(m.raw)
+            first = first or (m if m.topic == self.topic else None)
+            if held > HEAD_BYTES or (first is not None and (not root or m.time > first.time + ROOT_HORIZON)):
                 break
-        if root:
-            for m in self._head:
-                if m.topic != self.topic:
-                    feed.add(m)
-            self.fixed_frame = _root(feed.flush(), self.sensor_frame) or self.FALLBACK_FRAME
         if held > HEAD_BYTES:
             stream.close()
-            self._head, self._bag = [], None
-            bag.close()
-        else:
-            self._stream = stream
+            stream = None
+            if first is None:
+                first = _first(bag.messages(self.topic))
+            self._head = _before(bag.messages(feed.topics), first.time + ROOT_HORIZON) if root else []
+        if first is not None:
+            where = Where(bag.path, self.topic, 0, first.time)
+            self.sensor_frame = Wire(first.raw, first.encoding, where).header()[1]
+        if root:
+            for m in self._head:
+                if m.topic != self.topic and first is not None and m.time <= first.time + ROOT_HORIZON:
+                    feed.add(m)
+            self.fixed_frame = _root(feed.flush(), self.sensor_frame) or self.FALLBACK_FRAME
+        if stream is None:
+            self._head = []
+        self._stream = stream
 
     def _topics(self, feed) -> list[str]:
         """The topics an iteration reads: the messages' and, to place them, tf's."""
@@ -412,6 +415,22 @@ def _pick_topic(bag, topic: str | None, msgtype: str) -> str:
 
 def _listing(bag) -> str:
     return ", ".join(f"{t.name} ({t.msgtype})" for t in bag.topics.values()) or "(none)"
+
+
+def _first(stream):
+    """The first message of ``stream``, which is then closed."""
+    try:
+        return next(stream)
+    finally:
+        stream.close()
+
+
+def _before(stream, time: float) -> list:
+    """The messages of ``stream`` recorded at or before ``time``; the stream is then closed."""
+    try:
+        return list(itertools.takewhile(lambda m: m.time <= time, stream))
+    finally:
+        stream.close()
 
 
 def _covered(tree, fixed_frame: str, waiting: _Decoded) -> int:
