@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import platform
 import subprocess
 import sys
@@ -12,6 +13,7 @@ import numba
 import numpy as np
 import pytest
 
+import occmap._jit  # noqa: F401  (loads TBB before anything below starts Numba's threading layer)
 import occmap._threads
 from occmap._threads import ThreadChoice, _tbb_library, read_ahead, run_jobs
 
@@ -49,8 +51,9 @@ def _run(choice: ThreadChoice, clock: _Clock, serial_s: float, parallel_s: float
 def test_the_cheaper_path_runs_and_a_change_in_load_is_followed(clock):
     choice = ThreadChoice(min_work=1.0)
     first = _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=40)
-    # each path measured once, then several threads, one thread tried again 8, then 16 calls later
-    assert [i for i, p in enumerate(first) if not p] == [1, 9, 25]
+    # a first call unmeasured, each path measured once, then several threads, one thread tried
+    # again 8, then 16 calls later
+    assert [i for i, p in enumerate(first) if not p] == [2, 10, 26]
     # the machine gets busy: several threads now cost more; within a few calls one thread runs
     after = _run(choice, clock, serial_s=0.001, parallel_s=0.006, calls=60)
     switched = after.index(False)
@@ -63,8 +66,8 @@ def test_the_cheaper_path_runs_and_a_change_in_load_is_followed(clock):
 def test_tries_of_the_slower_path_grow_rarer(clock):
     choice = ThreadChoice(min_work=1.0)
     chosen = _run(choice, clock, serial_s=0.001, parallel_s=0.002, calls=300)
-    tries = [i for i, p in enumerate(chosen) if p][1:]  # after the first measurement
-    assert tries == [9, 25, 57, 121, 249]  # 8, 16, 32, 64, 128 calls apart
+    tries = [i for i, p in enumerate(chosen) if p][2:]  # after the unmeasured call and the first measurement
+    assert tries == [10, 26, 58, 122, 250]  # 8, 16, 32, 64, 128 calls apart
 
 
 def test_small_work_takes_one_thread_unmeasured():
@@ -107,6 +110,41 @@ def test_processes_forked_after_a_parallel_kernel_work():
         with mp.get_context(method).Pool(2) as pool:
             result = pool.map_async(_child_integrates, range(4))
             assert result.get(timeout=240) == [expected] * 4, method
+
+
+_FORK_AFTER_OPENMP = """
+import multiprocessing as mp, numpy as np, numba
+from occmap.raster.edt import distance_transform
+import occmap._threads as T
+from occmap import OccupancyGrid2D
+
+def integrate(_):
+    grid = OccupancyGrid2D(0.05)
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    grid.insert_scan((0.0, 0.0, 0.0), np.full(720, 4.0), angles, max_range=10.0)
+    return T.thread_count(), int((grid.log_odds() > 0).sum())
+
+if __name__ == "__main__":
+    distance_transform(np.zeros((400, 400), bool) | (np.arange(400) == 7), parallel=True)
+    assert numba.threading_layer() == "omp"
+    parent = integrate(None)
+    with mp.get_context("fork").Pool(2) as pool:
+        children = pool.map_async(integrate, range(4)).get(timeout=120)
+    assert parent[0] == 2 and parent[1] > 0 and children == [(1, parent[1])] * 4, (parent, children)
+    print("ok")
+"""
+
+
+@two_threads
+def test_children_forked_after_openmp_kernels_take_one_thread(tmp_path):
+    """When Numba's kernels ran on GNU OpenMP in the parent (a caller started Numba before occmap
+    could load TBB; forced here), a forked child's parallel region would abort it: its calls take
+    one thread and it maps the same."""
+    script = tmp_path / "fork_after_omp.py"
+    script.write_text(_FORK_AFTER_OPENMP)
+    env = {**os.environ, "NUMBA_THREADING_LAYER": "omp"}
+    done = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
 
 
 def test_jobs_come_back_in_order_whichever_thread_ran_them():

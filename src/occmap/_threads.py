@@ -7,7 +7,8 @@ parallel kernel (``multiprocessing``'s default on Linux) keeps working, where GN
 other layer, aborts the child. The ``tbb`` wheel puts ``libtbb.so.12`` into the environment's
 ``lib`` folder, which the dynamic loader does not search: :func:`prefer_tbb` loads it by path before
 Numba picks its layer. ``NUMBA_THREADING_LAYER``, when the user sets it, wins. Without TBB,
-OpenMP's threads are told to wait passively (``OMP_WAIT_POLICY``, unless set).
+OpenMP's threads are told to wait passively (``OMP_WAIT_POLICY``, unless set); a child forked
+from a process whose kernels ran on OpenMP takes one thread (:func:`thread_count`).
 
 **Threads per call.** Robots stream one scan per call on computers where other processes compete
 for the cores: there a second thread waits for a core and a parallel call takes longer than one
@@ -91,7 +92,9 @@ class ThreadChoice:
     cost less per unit of work lately (an exponential average of the measured calls).
 
     Calls with less than ``min_work`` units of work, or with Numba limited to one thread, take
-    one thread and are not measured. The first measured calls try each path once; after that the
+    one thread and are not measured. The first call takes several threads unmeasured: it pays for
+    first-touch page faults and thread start-up (a grid's parallel path looked 3× slower than one
+    thread after it, where it is 1.6× faster). The next calls try each path once; after that the
     other path is tried again every few calls, from every 8th call up to every 256th while it
     stays the slower one, so that a change in the machine's load is noticed. Both paths must give
     the same result: only the time differs. Safe to share between threads (a race only blurs an
@@ -109,6 +112,7 @@ class ThreadChoice:
         self._cost = [math.nan, math.nan]  # seconds per unit of work: one thread, several
         self._since = 0
         self._interval = _FIRST_INTERVAL
+        self._warm = False
 
     @property
     def costs(self) -> tuple[float, float]:
@@ -121,6 +125,10 @@ class ThreadChoice:
         from it."""
         if not work >= self.min_work or thread_count() < 2:
             yield False
+            return
+        if not self._warm:  # the first call faults in fresh memory and starts Numba's threads: not a fair sample
+            self._warm = True
+            yield True
             return
         parallel, trying = self._pick()
         start = perf_counter()
@@ -151,14 +159,31 @@ class ThreadChoice:
 
 
 def thread_count() -> int:
-    """Threads a call may use: Numba's count for this thread (``numba.set_num_threads``)."""
+    """Threads a call may use: Numba's count for this thread (``numba.set_num_threads``); one in
+    a child forked from a process whose parallel kernels ran on OpenMP (see :func:`_forked`)."""
+    if _forked_from_openmp:
+        return 1
     from numba import get_num_threads
 
     return get_num_threads()
 
 
 _pools: dict[str, ThreadPoolExecutor] = {}
-os.register_at_fork(after_in_child=_pools.clear)  # the parent's pool threads do not exist in a child
+_forked_from_openmp = False
+
+
+def _forked() -> None:
+    """In a child made by ``fork``: the parent's pool threads do not exist here; and where the
+    parent ran parallel kernels on OpenMP (Numba started before occmap could load TBB, e.g. a
+    caller's own parallel code ran first), a parallel region would abort the child (GNU OpenMP),
+    so the child's calls take one thread."""
+    global _forked_from_openmp
+    _pools.clear()
+    layer = sys.modules.get("numba.np.ufunc.parallel")
+    _forked_from_openmp = _forked_from_openmp or getattr(layer, "_threading_layer", None) == "omp"
+
+
+os.register_at_fork(after_in_child=_forked)
 
 
 def pool(name: str, workers: int) -> ThreadPoolExecutor:
