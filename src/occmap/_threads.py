@@ -94,7 +94,7 @@ class ThreadChoice:
     Calls with less than ``min_work`` units of work, or with Numba limited to one thread, take
     one thread and are not measured. The first call takes several threads unmeasured: it pays for
     first-touch page faults and thread start-up (a grid's parallel path looked 3× slower than one
-    thread after it, where it is 1.6× faster). The next calls try each path once; after that the
+    thread after it, where it is 1.4–1.7× faster). The next calls try each path once; after that the
     other path is tried again every few calls, from every 8th call up to every 256th while it
     stays the slower one, so that a change in the machine's load is noticed. Both paths must give
     the same result: only the time differs. Safe to share between threads (a race only blurs an
