@@ -179,8 +179,11 @@ def _forked() -> None:
     so the child's calls take one thread."""
     global _forked_from_openmp
     _pools.clear()
-    layer = sys.modules.get("numba.np.ufunc.parallel")
-    _forked_from_openmp = _forked_from_openmp or getattr(layer, "_threading_layer", None) == "omp"
+    if "numba" in sys.modules and not _forked_from_openmp:
+        try:
+            _forked_from_openmp = sys.modules["numba"].threading_layer() == "omp"
+        except ValueError:  # no parallel kernel has run: no layer yet
+            pass
 
 
 os.register_at_fork(after_in_child=_forked)

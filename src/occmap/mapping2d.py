@@ -90,19 +90,28 @@ def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: fl
 FIRST_CHUNK = 25
 
 
-def _batches(items, size: int, first: int):
-    """Lists of the items in order: ``first`` items, then twice as many each time up to ``size``
-    (the last list shorter)."""
-    it = iter(items)
+def _sizes(size: int, first: int):
+    """``first``, then twice as many each time up to ``size``, for ever."""
     n = max(1, min(first, size))
-    while batch := list(itertools.islice(it, n)):
-        yield batch
+    while True:
+        yield n
         n = min(2 * n, size)
 
 
+def _batches(items, size: int, first: int):
+    """Lists of the items in order, as long as :func:`_sizes` says (the last shorter)."""
+    it = iter(items)
+    for n in _sizes(size, first):
+        batch = list(itertools.islice(it, n))
+        if not batch:
+            return
+        yield batch
+
+
 def _restacked(stacks, size: int, first: int):
-    """The scans of ``stacks`` in runs sized as :func:`_batches` sizes them."""
-    n = max(1, min(first, size))
+    """The scans of ``stacks`` in runs as long as :func:`_sizes` says (the last shorter)."""
+    sizes = _sizes(size, first)
+    n = next(sizes)
     held, count = [], 0
     for s in stacks:
         held.append(s)
@@ -111,7 +120,7 @@ def _restacked(stacks, size: int, first: int):
             run = concat_stacks(held)
             yield run.take(slice(None, n))
             held, count = [run.take(slice(n, None))], count - n
-            n = min(2 * n, size)
+            n = next(sizes)
     if count:
         yield concat_stacks(held)
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from ...errors import FormatError
 from ...scan import LaserScan, ScanStack, concat_stacks
-from .wire import Wire, by_layout, column
+from .wire import Wire, by_layout, column, stamps
 
 __all__ = ["ScanMessage", "ScanMessages", "decode_laser_scan", "decode_laser_scans"]
 
@@ -82,7 +82,6 @@ def _decode_alike(layout: _Layout, data: bytes, where) -> ScanMessages:
     """The scans of ``data``: messages of ``layout`` end to end."""
     o, size, n = layout.order, layout.size, layout.beams
     count = len(data) // size
-    sec, nsec = column(data, size, layout.stamp_at, o + "i4"), column(data, size, layout.stamp_at + 4, o + "u4")
     values = column(data, size, layout.values_at, o + "f4", 7)
     start, step, lowest, max_range = (values[:, c].astype(np.float64) for c in (0, 2, 5, 6))
     bad = ~(np.isfinite(max_range) & (max_range > 0))
@@ -101,7 +100,7 @@ def _decode_alike(layout: _Layout, data: bytes, where) -> ScanMessages:
         angles = beam_angles(float(start[0]), float(step[0]), n)
     else:
         angles = start[:, None] + step[:, None] * np.arange(n, dtype=np.float64)
-    stack = ScanStack(np.zeros((count, 3)), ranges, angles, max_range, sec[:, 0] + nsec[:, 0] * 1e-9)
+    stack = ScanStack(np.zeros((count, 3)), ranges, angles, max_range, stamps(data, size, layout.stamp_at, o))
     return ScanMessages(stack, np.full(count, n, np.intp), [layout.frame] * count)
 
 
@@ -121,8 +120,7 @@ class _Layout(NamedTuple):
 
 def _layout(raw, encoding: str, where: str) -> _Layout:
     w = Wire(raw, encoding, where)
-    stamp_at = w.pos if w.cdr else w.pos + 4  # ROS 1's header begins with a uint32 seq
-    frame = w.header()[1]
+    stamp_at, frame = w.header_at()
     frame_span = (stamp_at + 8, w.pos)
     w.values("7f", "angle_min..range_max")
     values_at = w.pos - 28

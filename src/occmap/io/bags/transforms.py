@@ -21,7 +21,7 @@ from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
 from .bag import Where
 from .definitions import TF_TYPES
-from .wire import Wire, by_layout, column, frame_name
+from .wire import Wire, by_layout, column, frame_name, stamps
 
 __all__ = ["Odometry", "TF_TYPES", "TransformFeed", "TransformsMessage", "decode_odometry", "decode_tf_message",
            "read_frame_tree", "read_odometry", "ros_poses"]
@@ -85,13 +85,12 @@ def _tf_samples(layout: _TFLayout, data: bytes) -> tuple[np.ndarray, np.ndarray]
     """Stamps (messages, transforms) in seconds and ``(x, y, z, qx, qy, qz, qw)`` (messages,
     transforms, 7) of the messages of ``layout`` in ``data``, end to end."""
     o, size, count = layout.order, layout.size, len(data) // layout.size
-    stamps = np.empty((count, len(layout.links)))
+    times = np.empty((count, len(layout.links)))
     values = np.empty((count, len(layout.links), 7))
     for t in range(len(layout.links)):
-        sec = column(data, size, layout.stamps_at[t], o + "i4")[:, 0]
-        stamps[:, t] = sec + column(data, size, layout.stamps_at[t] + 4, o + "u4")[:, 0] * 1e-9
+        times[:, t] = stamps(data, size, layout.stamps_at[t], o)
         values[:, t] = column(data, size, layout.values_at[t], o + "f8", 7)
-    return stamps, values
+    return times, values
 
 
 class _TFLayout(NamedTuple):
@@ -111,8 +110,7 @@ def _tf_layout(raw, encoding: str, where) -> _TFLayout:
     links, stamps_at, values_at = [], [], []
     for i in range(w.count("transforms", _TRANSFORM_BYTES)):
         field = f"transforms[{i}]"
-        stamp_at = w.pos if w.cdr else w.pos + 4  # a header follows a count or float64s: aligned; ROS 1's has a seq
-        parent = w.header(field + ".header")[1]
+        stamp_at, parent = w.header_at(field + ".header")
         child = frame_name(w.string(field, ".child_frame_id"))
         same.append((stamp_at + 8, w.pos))  # both frames
         w.values("7d", field, ".transform")
@@ -211,7 +209,8 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
         span = 0.0 if bag.start is None else bag.end - bag.start
         self.tree = FrameTree(cache_time=max(10.0, span + 1.0))
         self._waiting: dict[tuple[str, str, bool], list] = {}  # link -> [(order, stamps, values), ...]
-        self._pending, self._keys = [], []  # tf messages (None for odometry's) and their numbers on their topics
+        self._pending = []  # tf messages not decoded yet: (order of arrival, number on its topic, message)
+        self._arrived = 0  # messages added
         self._dynamic: set[tuple[str, str]] = set()  # links that have had a dynamic sample
         self._counts: dict[str, int] = {}
         self._odom_frames = None
@@ -219,12 +218,13 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
     def add(self, m) -> None:
         """Read one message (a :class:`~occmap.io.bags.Message` of :attr:`topics`)."""
         k = self._counts[m.topic] = self._counts.get(m.topic, -1) + 1
+        self._arrived += 1
         if m.topic == self.odom_topic:
             stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(self.path, m.topic, k, m.time))
             self._odom_frames = _same_frames(self.path, m.topic, m.time, self._odom_frames, pair)
-            self._wait(*pair, False, np.array([len(self._pending)]), np.array([stamp]), np.array([pose]))
-        self._pending.append(m if m.topic != self.odom_topic else None)
-        self._keys.append(k)
+            self._wait(*pair, False, np.array([self._arrived]), np.array([stamp]), np.array([pose]))
+        else:
+            self._pending.append((self._arrived, k, m))
 
     def _wait(self, parent: str, child: str, static: bool, order, stamps, values) -> None:
         """Samples of a link: their order of arrival, stamps (seconds) and ``(x, y, z, qx, qy, qz, qw)``."""
@@ -232,22 +232,21 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
 
     def _decode_pending(self) -> None:
         """The tf messages added since the last flush, decoded (those of one layout together)."""
-        for topic in {m.topic for m in self._pending if m is not None}:
-            at = [i for i, m in enumerate(self._pending) if m is not None and m.topic == topic]
-            raws = [self._pending[i].raw for i in at]
-            encoding = self._pending[at[0]].encoding
+        pending, self._pending = self._pending, []
+        for topic in dict.fromkeys(m.topic for _, _, m in pending):
+            mine = [p for p in pending if p[2].topic == topic]
+            raws = [m.raw for _, _, m in mine]
+            encoding, static = mine[0][2].encoding, topic.endswith("tf_static")
 
-            def where(j, at=at, topic=topic):
-                m = self._pending[at[j]]
-                return Where(self.path, topic, self._keys[at[j]], m.time)
+            def where(j, mine=mine):
+                _, k, m = mine[j]
+                return Where(self.path, m.topic, k, m.time)
 
-            static = topic.endswith("tf_static")
             for group, layout, data in by_layout(raws, lambda j: _tf_layout(raws[j], encoding, where(j))):
-                order = np.asarray(at)[group]
-                stamps, values = _tf_samples(layout, data)
+                order = np.array([mine[j][0] for j in group])
+                times, values = _tf_samples(layout, data)
                 for t, (parent, child) in enumerate(layout.links):
-                    self._wait(parent, child, static, order, stamps[:, t], values[:, t])
-        self._pending, self._keys = [], []
+                    self._wait(parent, child, static, order, times[:, t], values[:, t])
 
     def flush(self) -> FrameTree:
         """The tree, holding every sample added so far."""

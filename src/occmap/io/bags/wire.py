@@ -28,7 +28,7 @@ import numpy as np
 
 from ...errors import FormatError, InvalidArgumentError
 
-__all__ = ["ENCODINGS", "Wire", "by_layout", "column", "frame_name"]
+__all__ = ["ENCODINGS", "Wire", "by_layout", "column", "frame_name", "stamps"]
 
 ENCODINGS = ("ros1", "cdr")
 _U32 = {"<": struct.Struct("<I"), ">": struct.Struct(">I")}
@@ -78,6 +78,12 @@ def column(data: bytes, size: int, at: int, dtype: str, n: int = 1) -> np.ndarra
     of each ``size``-byte message of ``data`` (:func:`by_layout`), (messages, n): a view."""
     kind = np.dtype(dtype)
     return np.ndarray((len(data) // size, n), kind, data, at, (size, kind.itemsize))
+
+
+def stamps(data: bytes, size: int, at: int, order: str) -> np.ndarray:
+    """The header stamps in seconds whose ``sec`` starts at byte ``at`` (:meth:`Wire.header_at`)
+    of each ``size``-byte message of ``data``, in byte order ``order``, (messages,)."""
+    return column(data, size, at, order + "i4")[:, 0] + column(data, size, at + 4, order + "u4")[:, 0] * 1e-9
 
 
 def frame_name(frame_id: str) -> str:
@@ -165,6 +171,14 @@ class Wire:
     def header(self, field: str = "header") -> tuple[float, str]:
         """A ``std_msgs/Header``: its stamp in seconds and its frame (without ROS 1's leading
         slash)."""
+        at, frame = self.header_at(field)
+        sec, nanosec = _HEADER[True][self.order].unpack_from(self.raw, at)[:2]
+        return sec + nanosec * 1e-9, frame
+
+    def header_at(self, field: str = "header") -> tuple[int, str]:
+        """A ``std_msgs/Header`` as :meth:`header` reads it, but the byte where its stamp
+        (``sec``, ``nanosec``) starts in place of the stamp (for :func:`stamps`)."""
         layout = _HEADER[self.cdr][self.order]
-        sec, nanosec, n = layout.unpack_from(self.raw, self._take(field, layout.size, 4, ".stamp"))
-        return sec + nanosec * 1e-9, frame_name(self._text(n, field, ".frame_id"))
+        start = self._take(field, layout.size, 4, ".stamp")
+        n = layout.unpack_from(self.raw, start)[2]
+        return start + layout.size - 12, frame_name(self._text(n, field, ".frame_id"))
