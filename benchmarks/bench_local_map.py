@@ -98,7 +98,7 @@ def _visible_outline(x, y, heading, length, width, z, sensor, step=0.1):
         uv = a + f * (b - a)
         faces.append(np.column_stack([x + c * uv[:, 0] - s * uv[:, 1], y + s * uv[:, 0] + c * uv[:, 1],
                                       np.full(len(uv), z)]))
-    return np.concatenate(faces)
+    return np.concatenate(faces) if faces else np.zeros((0, 3))  # the sensor inside the box sees none
 
 
 def _paths_in_free_space(lm, origin, rng, duration):
