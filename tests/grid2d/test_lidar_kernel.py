@@ -86,18 +86,21 @@ def reference_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, g
     return used, dropped, maxed
 
 
-def _compare(L0, S0, scan0, poses, ranges, angles, max_range, ox, oy, res, offset=(0, 0)):
+def _compare(monkeypatch, L0, S0, scan0, poses, ranges, angles, max_range, ox, oy, res, offset=(0, 0)):
     args = (scan0, np.ascontiguousarray(poses, dtype=np.float64), np.ascontiguousarray(ranges, dtype=np.float64),
             np.ascontiguousarray(np.broadcast_to(angles, ranges.shape), dtype=np.float64), float(max_range),
             float(ox), float(oy), offset[0], offset[1], 1.0 / res, L_HIT, L_MISS, L_MIN, L_MAX)
     Lb, Sb = L0.copy(), S0.copy()
     want = reference_lidar(Lb, Sb, *args)
-    # one thread, the grid split in two parts (on two threads where Numba has them), the default
+    # one thread, the grid split in parts (on two threads where Numba has them), the default; the
+    # scans' beam ends held for all of them at once or for one scan at a time
     for split_min_cells in (-1, 0, None):
-        La, Sa = L0.copy(), S0.copy()
-        got = K.integrate_lidar(La, Sa, *args, split_min_cells=split_min_cells)
-        assert tuple(int(v) for v in got) == want
-        np.testing.assert_array_equal(Sa, Sb)
+        for block_beams in (K.BLOCK_BEAMS, 1):
+            monkeypatch.setattr(K, "BLOCK_BEAMS", block_beams)
+            La, Sa = L0.copy(), S0.copy()
+            got = K.integrate_lidar(La, Sa, *args, split_min_cells=split_min_cells)
+            assert tuple(int(v) for v in got) == want
+            np.testing.assert_array_equal(Sa, Sb)
         np.testing.assert_array_equal(La.view(np.int32), Lb.view(np.int32))  # bit-identical
 
 
@@ -113,7 +116,7 @@ def _initial(rng, H, W, fraction=0.3):
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_random_scans_inside_and_across_a_fixed_map(seed):
+def test_random_scans_inside_and_across_a_fixed_map(seed, monkeypatch):
     rng = np.random.default_rng(seed)
     H, W, res, ox, oy = 70, 90, 0.05, -2.0, -1.5
     n_scans, n_beams = 6, 300
@@ -129,11 +132,11 @@ def test_random_scans_inside_and_across_a_fixed_map(seed):
     ranges[(u >= 0.1) & (u < 0.12)] = 0.0
     ranges[(u >= 0.12) & (u < 0.2)] = 5.0  # exactly max range: cleared, not marked
     L, S = _initial(rng, H, W)
-    _compare(L, S, 3, poses, ranges, angles, 5.0, ox, oy, res)
+    _compare(monkeypatch, L, S, 3, poses, ranges, angles, 5.0, ox, oy, res)
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_many_overlapping_beams_per_scan_and_repeated_scans(seed):
+def test_many_overlapping_beams_per_scan_and_repeated_scans(seed, monkeypatch):
     """Dense 360° scans from nearby poses: most cells are crossed by several beams of a scan and
     by several scans; values run into both clamps."""
     rng = np.random.default_rng(100 + seed)
@@ -144,10 +147,10 @@ def test_many_overlapping_beams_per_scan_and_repeated_scans(seed):
     angles = np.linspace(-np.pi, np.pi, n_beams, endpoint=False)
     ranges = rng.choice([0.7, 1.1, 1.9, 2.5], (n_scans, n_beams)) + rng.uniform(-0.02, 0.02, (n_scans, n_beams))
     L, S = _initial(rng, H, W, 0.0)
-    _compare(L, S, 1, poses, ranges, angles, 2.2, 0.0, 0.0, res)
+    _compare(monkeypatch, L, S, 1, poses, ranges, angles, 2.2, 0.0, 0.0, res)
 
 
-def test_lattice_aligned_beams_through_cell_corners_and_along_edges():
+def test_lattice_aligned_beams_through_cell_corners_and_along_edges(monkeypatch):
     """Sensors on cell corners, edges and centres; beams along the axes and diagonals and at
     rational slopes, with ranges that end on cell boundaries: every tie of the traversal."""
     res = 0.25
@@ -163,12 +166,12 @@ def test_lattice_aligned_beams_through_cell_corners_and_along_edges():
     poses = np.array(poses)
     ranges = np.array(rows)
     L, S = _initial(np.random.default_rng(7), H, W, 0.0)
-    _compare(L, S, 1, poses, ranges, angles, 2.5, 0.0, 0.0, res)
+    _compare(monkeypatch, L, S, 1, poses, ranges, angles, 2.5, 0.0, 0.0, res)
     # the same with the origin off the world lattice and negative cells in play
-    _compare(L, S, 1, poses, ranges, angles, 2.5, 3.0, 3.0, res)
+    _compare(monkeypatch, L, S, 1, poses, ranges, angles, 2.5, 3.0, 3.0, res)
 
 
-def test_a_window_of_the_world_lattice_far_from_the_origin():
+def test_a_window_of_the_world_lattice_far_from_the_origin(monkeypatch):
     """A growing map's storage: a window at an integer cell offset of the world lattice (origin
     (0, 0)), here near x = 10 km, with beams leaving it on every side."""
     rng = np.random.default_rng(9)
@@ -179,10 +182,10 @@ def test_a_window_of_the_world_lattice_far_from_the_origin():
                              rng.uniform(-np.pi, np.pi, n_scans)])
     ranges = rng.uniform(0.05, 5.0, (n_scans, n_beams))
     L, S = _initial(rng, H, W)
-    _compare(L, S, 4, poses, ranges, rng.uniform(-np.pi, np.pi, (n_scans, n_beams)), 4.0, 0.0, 0.0, res, offset)
+    _compare(monkeypatch, L, S, 4, poses, ranges, rng.uniform(-np.pi, np.pi, (n_scans, n_beams)), 4.0, 0.0, 0.0, res, offset)
 
 
-def test_beams_along_and_outside_every_border_of_a_fixed_map():
+def test_beams_along_and_outside_every_border_of_a_fixed_map(monkeypatch):
     res = 0.1
     H, W = 20, 30
     # sensors just inside, on, and outside each border, looking along and across it
@@ -192,14 +195,14 @@ def test_beams_along_and_outside_every_border_of_a_fixed_map():
     angles = np.linspace(-np.pi, np.pi, 64, endpoint=False)
     ranges = np.tile(np.linspace(0.3, 5.0, 64), (len(pts), 1))
     L, S = _initial(np.random.default_rng(8), H, W)
-    _compare(L, S, 2, poses, ranges, angles, 4.0, 0.0, 0.0, res)
+    _compare(monkeypatch, L, S, 2, poses, ranges, angles, 4.0, 0.0, 0.0, res)
 
 
-def test_empty_inputs():
+def test_empty_inputs(monkeypatch):
     L = np.zeros((5, 5), np.float32)
     S = np.zeros((5, 5), np.uint16)
-    _compare(L, S, 1, np.zeros((0, 3)), np.zeros((0, 4)), np.zeros(4), 1.0, 0.0, 0.0, 0.1)
-    _compare(L, S, 1, np.zeros((2, 3)), np.zeros((2, 0)), np.zeros(0), 1.0, 0.0, 0.0, 0.1)
+    _compare(monkeypatch, L, S, 1, np.zeros((0, 3)), np.zeros((0, 4)), np.zeros(4), 1.0, 0.0, 0.0, 0.1)
+    _compare(monkeypatch, L, S, 1, np.zeros((2, 3)), np.zeros((2, 0)), np.zeros(0), 1.0, 0.0, 0.0, 0.1)
     # a map with no cells at all
-    _compare(np.zeros((0, 0), np.float32), np.zeros((0, 0), np.uint16), 1, np.zeros((1, 3)), np.ones((1, 3)),
-             np.zeros(3), 2.0, 0.0, 0.0, 0.1)
+    _compare(monkeypatch, np.zeros((0, 0), np.float32), np.zeros((0, 0), np.uint16), 1, np.zeros((1, 3)),
+             np.ones((1, 3)), np.zeros(3), 2.0, 0.0, 0.0, 0.1)

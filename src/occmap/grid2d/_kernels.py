@@ -30,6 +30,8 @@ from ..raster.walk2d import cell_of, dda_init, dda_step, miss_walk
 # grid, or strips of rows); each part goes through the scans in order, applies the hits that end
 # in it and walks every beam over its own cells only. Parts own disjoint cells, so they run on
 # separate threads without any synchronisation and still give the serial result bit for bit.
+# The beams' ends are found once for all parts (a sine and a cosine each: per part, that cost
+# about 10 % of one thread's time for every part added).
 
 
 @kernel
@@ -47,41 +49,78 @@ def beam_end(x0, y0, th, r, a, max_range):
 
 
 @kernel
-def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+def _scan_ends(poses, ranges, angles, max_range, k, kind, ex, ey, row):
+    """:func:`beam_end` of every beam of scan ``k`` into row ``row`` of ``kind``, ``ex``, ``ey``."""
+    x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
+    for b in range(ranges.shape[1]):
+        kind[row, b], ex[row, b], ey[row, b] = beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
+
+
+@kernel
+def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, kind, ex, ey, ox, oy, inv_res,
           l_hit, l_miss, l_min, l_max):
-    """All scans' updates of the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
+    """The updates of scans ``k0 ..`` (their beams' ends in the rows of ``kind``, ``ex``, ``ey``,
+    :func:`_scan_ends`) to the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
     first the scan's hits, then the free cells along each of its beams (stamps:
     :mod:`occmap.raster.update`). Cell ``(ix, iy)`` (the index rule with origin ``(ox, oy)``) is
     at ``base + iy·rs + ix`` of the flat arrays ``Lf`` and ``Sf``."""
-    n_scans, n_beams = ranges.shape
-    ex = np.empty(n_beams)
-    ey = np.empty(n_beams)
-    kind = np.empty(n_beams, dtype=np.int8)
-    for k in range(n_scans):
+    n_scans, n_beams = kind.shape
+    for j in range(n_scans):
+        k = k0 + j
         s = scan0 + k
-        x0, y0, th = poses[k, 0], poses[k, 1], poses[k, 2]
+        x0, y0 = poses[k, 0], poses[k, 1]
         for b in range(n_beams):
-            kind[b], ex[b], ey[b] = beam_end(x0, y0, th, ranges[k, b], angles[k, b], max_range)
-            if kind[b] == 1:
-                ix, iy = cell_of(ex[b], ey[b], ox, oy, inv_res)
+            if kind[j, b] == 1:
+                ix, iy = cell_of(ex[j, b], ey[j, b], ox, oy, inv_res)
                 i = base + iy * rs + ix
                 if x_lo <= ix < x_hi and y_lo <= iy < y_hi and Sf[i] != hit_stamp(s):
                     Sf[i] = hit_stamp(s)
                     Lf[i] = clamp_add(Lf[i], l_hit, l_min, l_max)
+        v0 = math.floor((y0 - oy) * inv_res)  # the rows of a walk, as dda_init finds them
         for b in range(n_beams):
-            if kind[b] != 0:
-                steps, state = dda_init(x0, y0, ex[b], ey[b], ox, oy, inv_res)
+            if kind[j, b] != 0:
+                v1 = math.floor((ey[j, b] - oy) * inv_res)
+                if max(v0, v1) < y_lo or min(v0, v1) >= y_hi:  # not a cell of this part's rows
+                    continue
+                steps, state = dda_init(x0, y0, ex[j, b], ey[j, b], ox, oy, inv_res)
                 miss_walk(Lf, Sf, base, 1, rs, steps, state, x_lo, x_hi, y_lo, y_hi, s, l_miss, l_min, l_max)
+
+
+@kernel
+def _serial(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+            l_hit, l_miss, l_min, l_max, block):
+    """All scans into the cells ``[x_lo, x_hi) × [y_lo, y_hi)`` on this thread, ``block`` scans
+    at a time (:func:`_scan_ends`, then :func:`_part`)."""
+    n_scans, n_beams = ranges.shape
+    kind = np.empty((min(block, n_scans), n_beams), dtype=np.int8)
+    ex = np.empty(kind.shape)
+    ey = np.empty(kind.shape)
+    for k0 in range(0, n_scans, block):
+        m = min(block, n_scans - k0)
+        for j in range(m):
+            _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
+        _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, kind[:m], ex[:m], ey[:m], ox, oy, inv_res,
+              l_hit, l_miss, l_min, l_max)
 
 
 @kernel_parallel
 def _parts(Lf, Sf, base, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-           l_hit, l_miss, l_min, l_max):
-    """:func:`_part` for each row ``(x_lo, x_hi, y_lo, y_hi)`` of ``parts`` (disjoint), one
-    thread each, with no synchronisation until all are done."""
-    for p in prange(parts.shape[0]):
-        _part(Lf, Sf, base, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, ranges, angles,
-              max_range, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
+           l_hit, l_miss, l_min, l_max, block):
+    """:func:`_serial` with the work shared between threads, ``block`` scans at a time: the
+    beams' ends side by side, then the parts (rows ``(x_lo, x_hi, y_lo, y_hi)`` of ``parts``,
+    disjoint) side by side, with no synchronisation until all are done. There are more parts than
+    threads, so that a thread the scheduler takes away leaves its parts to the others."""
+    n_scans, n_beams = ranges.shape
+    kind = np.empty((min(block, n_scans), n_beams), dtype=np.int8)
+    ex = np.empty(kind.shape)
+    ey = np.empty(kind.shape)
+    for k0 in range(0, n_scans, block):
+        m = min(block, n_scans - k0)
+        for j in prange(m):
+            _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
+        for p in prange(parts.shape[0]):
+            _part(Lf, Sf, base, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, k0, kind[:m],
+                  ex[:m], ey[:m], ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
 
 
 #: Beams looked at (evenly spread over the call's scans) to choose where to cut the grid.
@@ -136,6 +175,10 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H
 
 #: Calls with fewer cells to walk than this run on one thread.
 SPLIT_MIN_CELLS = 20_000
+#: Parts per thread of a call on several threads (see :func:`_parts`).
+PARTS_PER_THREAD = 2
+#: Beams whose ends are held at once (:func:`_serial`, :func:`_parts`): 17 bytes each.
+BLOCK_BEAMS = 1 << 16
 #: One thread or several, per call, by their measured cost per beam (calls of fewer beams than
 #: this take one thread).
 THREADS = ThreadChoice(min_work=256)
@@ -159,17 +202,18 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, g
 
     With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` when
     :data:`THREADS` chooses several threads, else never; negative: never) the grid is cut into
-    strips of rows, one per thread (at least two), updated side by side; the result is the same
-    either way."""
+    :data:`PARTS_PER_THREAD` strips of rows per thread (two threads at least), updated side by
+    side; the result is the same either way."""
     Lf, Sf = _flat(L, stamp)
     H, W = L.shape
-    max_parts = max(get_num_threads(), 2)
+    max_parts = PARTS_PER_THREAD * max(get_num_threads(), 2)
+    block = max(1, BLOCK_BEAMS // max(1, ranges.shape[1]))  # scans at a time
     if split_min_cells is not None:
         return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
-                                l_hit, l_miss, l_min, l_max, split_min_cells, max_parts)
+                                l_hit, l_miss, l_min, l_max, split_min_cells, max_parts, block)
     with THREADS.choose(ranges.size) as parallel:
         return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
-                                l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts)
+                                l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts, block)
 
 
 @kernel
@@ -192,17 +236,17 @@ def count_readings(ranges, max_range):
 
 @kernel
 def _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
-                     l_hit, l_miss, l_min, l_max, split_min_cells, max_parts):
+                     l_hit, l_miss, l_min, l_max, split_min_cells, max_parts, block):
     parts = np.empty((max_parts, 4), dtype=np.int64)
     n_parts = _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H, W, split_min_cells,
                             parts)
     base = -(gy0 * W + gx0)
     if n_parts == 1:
-        _part(Lf, Sf, base, W, gx0, gx0 + W, gy0, gy0 + H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-              l_hit, l_miss, l_min, l_max)
+        _serial(Lf, Sf, base, W, gx0, gx0 + W, gy0, gy0 + H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                l_hit, l_miss, l_min, l_max, block)
     else:
         _parts(Lf, Sf, base, W, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-               l_hit, l_miss, l_min, l_max)
+               l_hit, l_miss, l_min, l_max, block)
     return count_readings(ranges, max_range)
 
 
