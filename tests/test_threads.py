@@ -70,6 +70,24 @@ def test_tries_of_the_slower_path_grow_rarer(clock):
     assert tries == [10, 26, 58, 122, 250]  # 8, 16, 32, 64, 128 calls apart
 
 
+@two_threads
+def test_a_call_that_is_no_fair_sample_runs_the_chosen_path_unlearnt(clock):
+    choice = ThreadChoice(min_work=1.0)
+    _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=5)
+    costs = choice.costs
+    # a grid that just grew: its first call costs 50 times more, whichever path it takes
+    for _ in range(3):
+        with choice.choose(work=1.0, sample=False) as parallel:
+            clock.now += 0.05
+        assert parallel
+    assert choice.costs == costs
+    # learnt from, one such call turns the choice to one thread
+    with choice.choose(work=1.0) as parallel:
+        clock.now += 0.05
+    assert parallel and choice.costs[1] > choice.costs[0]
+    assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=1) == [False]
+
+
 def test_small_work_takes_one_thread_unmeasured():
     choice = ThreadChoice(min_work=100.0)
     with choice.choose(work=99.0) as parallel:

@@ -94,7 +94,9 @@ class ThreadChoice:
     Calls with less than ``min_work`` units of work, or with Numba limited to one thread, take
     one thread and are not measured. The first call takes several threads unmeasured: it pays for
     first-touch page faults and thread start-up (a grid's parallel path looked 3× slower than one
-    thread after it, where it is 1.4–1.7× faster). The next calls try each path once; after that the
+    thread after it, where it is 1.4–1.7× faster). So does a call that is not a fair ``sample``
+    (the caller knows it writes memory never touched before: a grid's first call after it grew
+    cost 5–15× more a cell walked). The next calls try each path once; after that the
     other path is tried again every few calls, from every 8th call up to every 256th while it
     stays the slower one, so that a change in the machine's load is noticed. Both paths must give
     the same result: only the time differs. Safe to share between threads (a race only blurs an
@@ -120,20 +122,25 @@ class ThreadChoice:
         return self._cost[0], self._cost[1]
 
     @contextmanager
-    def choose(self, work: float):
+    def choose(self, work: float, sample: bool = True):
         """Yields whether the block should run on several threads; times the block and learns
-        from it."""
+        from it (unless ``sample`` is false: the path chosen now, not timed)."""
         if not work >= self.min_work or thread_count() < 2:
             yield False
             return
-        if not self._warm:  # the first call faults in fresh memory and starts Numba's threads: not a fair sample
+        if not (self._warm and sample):  # the first call starts Numba's threads: not a fair sample either
             self._warm = True
-            yield True
+            yield self._best()
             return
         parallel, trying = self._pick()
         start = perf_counter()
         yield parallel
         self._learn(parallel, trying, (perf_counter() - start) / work)
+
+    def _best(self) -> bool:
+        """Several threads unless one has cost less lately (or no more)."""
+        serial, several = self._cost
+        return not serial <= several
 
     def _pick(self) -> tuple[bool, bool]:
         serial, several = self._cost
@@ -141,7 +148,7 @@ class ThreadChoice:
             return True, True
         if math.isnan(serial):
             return False, True
-        best = several < serial
+        best = self._best()
         self._since += 1
         if self._since >= self._interval:
             self._since = 0

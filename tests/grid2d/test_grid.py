@@ -127,6 +127,22 @@ def test_growing_map_keeps_content_and_alignment(rng):
     assert g.log_odds_at([[30.0 + 1.5, -20.0]])[0] == pytest.approx(L_HIT, rel=1e-6)
 
 
+def test_only_calls_into_storage_already_there_are_samples_of_the_kernels_cost(monkeypatch):
+    samples = []
+    choose = K.THREADS.choose
+
+    def recorded(work, sample=True):
+        samples.append(sample)
+        return choose(work, sample)
+
+    monkeypatch.setattr(K.THREADS, "choose", recorded)
+    g = OccupancyGrid2D(0.05)
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    for pose in ((0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (60.0, 0.0, 0.0), (60.5, 0.0, 0.0)):
+        g.insert_scan(pose, np.full(360, 3.0), angles)
+    assert samples == [False, True, False, True]  # the first call, and the one that grew the map, are not
+
+
 def test_fixed_map_ignores_ray_parts_outside():
     g = OccupancyGrid2D(0.1, size=(1.0, 1.0))
     counts = g.insert_scan((-5.0, 0.55, 0.0), [10.0], [0.0])  # starts outside, crosses, ends outside

@@ -179,9 +179,9 @@ SPLIT_MIN_CELLS = 20_000
 PARTS_PER_THREAD = 2
 #: Beams whose ends are held at once (:func:`_serial`, :func:`_parts`): 17 bytes each.
 BLOCK_BEAMS = 1 << 16
-#: One thread or several, per call, by their measured cost per beam (calls of fewer beams than
-#: this take one thread).
-THREADS = ThreadChoice(min_work=256)
+#: One thread or several, per call, by their measured cost per cell along the beams
+#: (:func:`beam_cells`; calls too small to split take one thread).
+THREADS = ThreadChoice(min_work=SPLIT_MIN_CELLS)
 
 
 def _flat(L, stamp):
@@ -193,7 +193,7 @@ def _flat(L, stamp):
 
 
 def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
-                    l_hit, l_miss, l_min, l_max, split_min_cells=None):
+                    l_hit, l_miss, l_min, l_max, split_min_cells=None, fresh=False):
     """Integrate scans ``k = 0..N-1`` (poses (N, 3), ranges (N, n), angles (N, n)) into the grid
     ``L`` (float32 log-odds), ``stamp`` (unsigned integers), both (H, W), with scan codes
     ``scan0 + k`` (see the module's docstring for what they must fit). ``L[r, c]`` is the cell
@@ -203,7 +203,8 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, g
     With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` when
     :data:`THREADS` chooses several threads, else never; negative: never) the grid is cut into
     :data:`PARTS_PER_THREAD` strips of rows per thread (two threads at least), updated side by
-    side; the result is the same either way."""
+    side; the result is the same either way. ``fresh``: the grid's storage is new (this call is
+    the first to touch its pages, so its time is no sample of the paths' costs)."""
     Lf, Sf = _flat(L, stamp)
     H, W = L.shape
     max_parts = PARTS_PER_THREAD * max(get_num_threads(), 2)
@@ -211,9 +212,22 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, g
     if split_min_cells is not None:
         return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
                                 l_hit, l_miss, l_min, l_max, split_min_cells, max_parts, block)
-    with THREADS.choose(ranges.size) as parallel:
+    with THREADS.choose(beam_cells(ranges, max_range, inv_res), sample=not fresh) as parallel:
         return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
                                 l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts, block)
+
+
+@kernel
+def beam_cells(ranges, max_range, inv_res):
+    """The length in cells of the usable beams of ranges (N, n), each up to ``max_range``: about
+    the cells a call walks (a walk's steps are its length in cells along x plus along y)."""
+    total = 0.0
+    for k in range(ranges.shape[0]):
+        for b in range(ranges.shape[1]):
+            r = ranges[k, b]
+            if r > 0.0:
+                total += min(r, max_range)
+    return total * inv_res
 
 
 @kernel

@@ -283,6 +283,7 @@ class OccupancyGrid2D(OneCallAtATime):
         """
         model = LidarModel() if model is None else model
         P, R, A, max_range = scan_arrays(poses, ranges, angles, max_range)
+        fresh = False  # new storage: this call touches its pages first
         if self.growing and len(P):
             def culprit(centre):
                 x, y = beam_points(P, R, A, max_range)
@@ -292,11 +293,12 @@ class OccupancyGrid2D(OneCallAtATime):
                 return (f"beam {j - 1} of scan {i} (poses[{i}] = {P[i].tolist()}, ranges[{i}, {j - 1}] = "
                         f"{float(R[i, j - 1])!r}) ending at ({float(x[i, j])!r}, {float(y[i, j])!r})")
 
-            self._grow_to(*K.beam_extent(P, R, A, float(max_range)), culprit)
+            fresh = self._grow_to(*K.beam_extent(P, R, A, float(max_range)), culprit)
         (ox, oy), (gx0, gy0) = self._anchor, self._offset
         used, dropped, maxed = self._in_runs(len(P), lambda i, j, code: K.integrate_lidar(
             self._L, self._stamp, code, P[i:j], R[i:j], A[i:j], float(max_range), float(ox), float(oy), gx0, gy0,
             1.0 / self.resolution, model.l_hit - self.l_prior, model.l_miss - self.l_prior, self.l_min, self.l_max,
+            fresh=fresh,
         ))
         return self._record(len(P), used, dropped, maxed)
 
@@ -416,12 +418,13 @@ class OccupancyGrid2D(OneCallAtATime):
             self.stats[key] += value
         return counts
 
-    def _grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float, culprit) -> None:
+    def _grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float, culprit) -> bool:
         """Extend the map to the lattice cells holding the world box (never shrink it), so that
         its extent is the union of the boxes it was given, whatever the calls. The storage grows
         with a margin proportional to its size (amortising the copies), never past
         ``max_extent``. Beyond it, raise naming ``culprit(centre)``: the point farthest from the
-        map's centre (``None`` for an empty map: from the call's first sensor position)."""
+        map's centre (``None`` for an empty map: from the call's first sensor position). Returns
+        whether the storage is new."""
         res = self.resolution
         if not math.isfinite(xmin + ymin + xmax + ymax):  # readings so long their ends overflow
             raise InvalidArgumentError(f"{culprit(None)} lies beyond any map (its coordinates overflow)")
@@ -442,7 +445,7 @@ class OccupancyGrid2D(OneCallAtATime):
         self._window = (x0, y0, x1, y1)
         (gx0, gy0), (H, W) = self._offset, self._L.shape
         if H and gx0 <= x0 and gy0 <= y0 and x1 <= gx0 + W and y1 <= gy0 + H:
-            return
+            return False
         # half the storage's size on a growing side, and half the box's size (at most
         # _FIRST_MARGIN_CELLS) round the first storage: a robot's first scans show much of the
         # place, so the map then grows rarely (each growth copies the map)
@@ -460,6 +463,7 @@ class OccupancyGrid2D(OneCallAtATime):
             L[box[1] - sy0:box[3] - sy0, box[0] - sx0:box[2] - sx0] = self._L[rows, cols]
             stamp[box[1] - sy0:box[3] - sy0, box[0] - sx0:box[2] - sx0] = self._stamp[rows, cols]
         self._L, self._stamp, self._offset = L, stamp, (sx0, sy0)
+        return True
 
     # ------------------------------------------------------------------ files
 
