@@ -88,14 +88,19 @@ def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, kind, ex, 
 
 
 @kernel
+def _ends_arrays(ranges, block):
+    """Room for the ends (:func:`_scan_ends`) of ``block`` scans of ranges (N, n): kind, x, y."""
+    shape = (min(block, ranges.shape[0]), ranges.shape[1])
+    return np.empty(shape, dtype=np.int8), np.empty(shape), np.empty(shape)
+
+
+@kernel
 def _serial(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
             l_hit, l_miss, l_min, l_max, block):
     """All scans into the cells ``[x_lo, x_hi) × [y_lo, y_hi)`` on this thread, ``block`` scans
     at a time (:func:`_scan_ends`, then :func:`_part`)."""
-    n_scans, n_beams = ranges.shape
-    kind = np.empty((min(block, n_scans), n_beams), dtype=np.int8)
-    ex = np.empty(kind.shape)
-    ey = np.empty(kind.shape)
+    n_scans = ranges.shape[0]
+    kind, ex, ey = _ends_arrays(ranges, block)
     for k0 in range(0, n_scans, block):
         m = min(block, n_scans - k0)
         for j in range(m):
@@ -112,10 +117,8 @@ def _parts(Lf, Sf, base, rs, parts, scan0, poses, ranges, angles, max_range, ox,
     disjoint) side by side, with no synchronisation until all are done. There are more parts than
     threads, so that a thread the scheduler takes away leaves its parts to the others (the caller
     sets Numba's chunk size to 1: the parts are handed out one at a time as threads come free)."""
-    n_scans, n_beams = ranges.shape
-    kind = np.empty((min(block, n_scans), n_beams), dtype=np.int8)
-    ex = np.empty(kind.shape)
-    ey = np.empty(kind.shape)
+    n_scans = ranges.shape[0]
+    kind, ex, ey = _ends_arrays(ranges, block)
     for k0 in range(0, n_scans, block):
         m = min(block, n_scans - k0)
         for j in prange(m):
