@@ -300,15 +300,15 @@ def test_doppler_narrows_a_tentative_person_s_speed_and_leaves_a_tentative_car_t
             assert updated == 0 and tracker.cov[0, 3, 3] == before
 
 
-def _coming_out(speed, until=0.4):
+def _coming_out(speed, until=0.4, sensor=(20.0, -10.0)):
     """Something moving +x at ``speed`` m/s out from behind an occluder that hides x < 0 from a
-    sensor ahead of it, at (20, −10): its visible part runs from x = 0 to its front (the clockwise
-    end, bare; the other end cut), one view every 0.1 s."""
+    ``sensor`` (by default ahead of it, at (20, −10)): its visible part runs from x = 0 to its
+    front (the clockwise end, bare; the other end cut), one view every 0.1 s."""
     tracker = Tracker()
     for k in range(1, int(round(until / 0.1)) + 1):
         front = 0.5 + speed * 0.1 * k
         tracker.update(0.1 * k, _box(0.5 * front, 0.0, front, 0.1, 20, cut=(False, True),
-                                     ends=[(front, 0.0), (0.0, 0.0)]), sensor=(20.0, -10.0))
+                                     ends=[(front, 0.0), (0.0, 0.0)]), sensor=sensor)
     return tracker
 
 
@@ -319,6 +319,16 @@ def test_a_car_coming_out_from_behind_something_takes_its_velocity_from_its_fron
     # a vehicle, however little shows: at least a car's size, its centre behind the front seen
     assert (tracker.size[0] >= tracker.params.vehicle_size).all()
     assert tracker.state[0, 0] == pytest.approx(0.5 + 4.0 - 0.5 * tracker.size[0, 0], abs=0.3)
+
+
+def test_a_car_coming_out_seen_from_behind_is_placed_behind_its_front_not_ahead_of_the_cut():
+    # the sensor behind where the car comes out: along the car, the end nearest to the sensor is
+    # the cut one (not the car's), so the centre lies half the car's length behind the bare front
+    tracker = _coming_out(10.0, until=0.2, sensor=(-5.0, -10.0))
+    assert len(tracker) == 1 and tracker.updates[0] == 1  # its velocity just set
+    front = 0.5 + 10.0 * 0.2
+    assert tracker.state[0, 0] == pytest.approx(front - 0.5 * tracker.size[0, 0], abs=0.1)
+    assert tracker.state[0, 3] == pytest.approx(10.0, abs=0.5)
 
 
 def test_a_slow_cut_box_waits_for_a_whole_view():
