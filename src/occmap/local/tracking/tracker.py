@@ -19,7 +19,7 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
    for ``init_span`` seconds its velocity is set from the displacement of its centre between whole
    views, or of a bare end when a vehicle comes out from behind something (see
    :meth:`Tracker._correct`). A tentative track is *confirmed* once it has been detected in
-   ``confirm_hits`` of its last ``confirm_window`` scans (a scan in which another track's box,
+   ``confirm_hits`` of its last ``confirm_window`` scans (a scan in which a confirmed track's box,
    nearer to the sensor, hid its centre counts: see :meth:`Tracker._shadowed`), has moved at least ``min_travel`` from
    where it started (walls and parked cars that leak into the detections do not move), knows its
    speed to ``confirm_speed_sigma`` and moves at ``confirm_speed`` at least. The speed is known
@@ -405,12 +405,13 @@ class Tracker:
         _turn_around(self.state, self.cov)
 
     def _shadowed(self, missed, sensor) -> None:
-        """Tracks ``missed`` by this scan (indices) whose centre lies behind another track's box
-        (predicted to this scan; its corners span the centre's bearing, within a half-turn of it,
-        and its centre is nearer), seen from ``sensor`` (x, y), count the scan as a hit: a car
+        """Tracks ``missed`` by this scan (indices) whose centre lies behind a confirmed track's
+        box (predicted to this scan; its corners span the centre's bearing, within a half-turn of
+        it, and its centre is nearer), seen from ``sensor`` (x, y), count the scan as a hit: a car
         hidden by another passing nearer is no evidence that it is not there. On the simulated
-        street a car waited, its speed known, for three new hits after three scans behind the car
-        it passed."""
+        street a car waited, its speed known, for new hits after three scans behind a nearer car.
+        Tentative tracks hide nothing: wall fragments hiding each other confirmed more tracks
+        (the raw Intel run at 0.05 m: 63 instead of 61)."""
         if not len(missed) or len(self) < 2:
             return
         d = self.state[missed, None, :2] - sensor  # (k, 1, 2) to each missed centre
@@ -422,7 +423,7 @@ class Tracker:
                          d[..., None, 0] * corners[None, ..., 0] + d[..., None, 1] * corners[None, ..., 1])
         spans = (rel.min(axis=-1) < 0.0) & (rel.max(axis=-1) > 0.0) & (np.abs(rel).max(axis=-1) < 0.5 * math.pi)
         nearer = np.hypot(self.state[None, :, 0] - sensor[0], self.state[None, :, 1] - sensor[1]) < r
-        behind = spans & nearer
+        behind = spans & nearer & (self.status == CONFIRMED)[None, :]
         behind[np.arange(len(missed)), missed] = False
         hidden = missed[behind.any(axis=1)]
         self.hit_bits[hidden] |= 1
