@@ -75,45 +75,91 @@ def _root(parent, i):
 def cluster_points(points, gap, labels):
     """Single-linkage clusters of points ``(N, 2)``: two points share a cluster when a chain of
     points at most ``gap`` apart joins them. ``labels[i]`` = cluster of point ``i``, numbered
-    ``0, 1, …`` in order of first point; returns the number of clusters. Points are binned into
-    cells of side ``gap`` and compared with the 3 × 3 cells around theirs."""
+    ``0, 1, …`` in order of first point; returns the number of clusters.
+
+    Points are binned into square cells of side just under ``gap / √2``, so the points of a cell
+    are all within ``gap`` of each other and join at once; cells are then joined to the cells up
+    to two away (the only ones that may hold points within ``gap``), a pair of cells compared
+    point by point only while they are apart, until the first pair within ``gap``, and only for
+    the points within ``gap`` of the other cell's bounding box. The cost grows with the number of
+    points, not with the square of a cell's (a 3D cloud's pole projects hundreds of returns into one
+    cell)."""
     n = points.shape[0]
-    inv = 1.0 / gap
+    if n == 0:
+        return 0
+    inv = math.sqrt(2.0) / gap * (1.0 + 1e-9)
     cx = np.empty(n, np.int64)
     cy = np.empty(n, np.int64)
     for i in range(n):
         cx[i] = np.int64(np.floor(points[i, 0] * inv))
         cy[i] = np.int64(np.floor(points[i, 1] * inv))
-    ox = cx.min() if n else 0
-    oy = cy.min() if n else 0
-    span = (cy.max() - oy + 3) if n else 1
-    key = (cx - ox + 1) * span + (cy - oy + 1)
-    order = np.argsort(key)
+    ox = cx.min()
+    span = cy.max() - cy.min() + 5
+    key = (cx - ox + 2) * span + (cy - cy.min() + 2)
+    order = np.argsort(key, kind="mergesort")
     skey = key[order]
-    parent = np.arange(n)
-    g2 = gap * gap
+    # cells: sorted keys, their runs in `order`, bounding boxes of their points
+    n_cells = 1
+    for a in range(1, n):
+        if skey[a] != skey[a - 1]:
+            n_cells += 1
+    ckey = np.empty(n_cells, np.int64)
+    first = np.empty(n_cells + 1, np.int64)
+    box = np.empty((n_cells, 4))
+    cell_of = np.empty(n, np.int64)
+    c = -1
     for a in range(n):
         i = order[a]
-        for dx in range(-1, 2):
-            for dy in range(-1, 2):
-                k = key[i] + dx * span + dy
-                lo = np.searchsorted(skey, k)
-                b = lo
-                while b < n and skey[b] == k:
-                    j = order[b]
-                    if j > i:
+        if a == 0 or skey[a] != skey[a - 1]:
+            c += 1
+            ckey[c] = skey[a]
+            first[c] = a
+            box[c, 0] = box[c, 1] = points[i, 0]
+            box[c, 2] = box[c, 3] = points[i, 1]
+        else:
+            box[c, 0] = min(box[c, 0], points[i, 0])
+            box[c, 1] = max(box[c, 1], points[i, 0])
+            box[c, 2] = min(box[c, 2], points[i, 1])
+            box[c, 3] = max(box[c, 3], points[i, 1])
+        cell_of[i] = c
+    first[n_cells] = n
+    parent = np.arange(n_cells)
+    g2 = gap * gap
+    for c in range(n_cells):
+        for dx in range(0, 3):
+            for dy in range(-2, 3):
+                if dx == 0 and dy <= 0:
+                    continue  # each pair of cells once
+                e = np.searchsorted(ckey, ckey[c] + dx * span + dy)
+                if e >= n_cells or ckey[e] != ckey[c] + dx * span + dy:
+                    continue
+                rc = _root(parent, c)
+                re = _root(parent, e)
+                if rc == re:
+                    continue
+                joined = False
+                for a in range(first[c], first[c + 1]):
+                    i = order[a]
+                    # distance from point i to cell e's bounding box
+                    ex = max(box[e, 0] - points[i, 0], 0.0, points[i, 0] - box[e, 1])
+                    ey = max(box[e, 2] - points[i, 1], 0.0, points[i, 1] - box[e, 3])
+                    if ex * ex + ey * ey > g2:
+                        continue
+                    for b in range(first[e], first[e + 1]):
+                        j = order[b]
                         ex = points[i, 0] - points[j, 0]
                         ey = points[i, 1] - points[j, 1]
                         if ex * ex + ey * ey <= g2:
-                            ri = _root(parent, i)
-                            rj = _root(parent, j)
-                            if ri != rj:
-                                parent[max(ri, rj)] = min(ri, rj)
-                    b += 1
+                            joined = True
+                            break
+                    if joined:
+                        break
+                if joined:
+                    parent[max(rc, re)] = min(rc, re)
     count = 0
-    number = np.full(n, -1, np.int64)
+    number = np.full(n_cells, -1, np.int64)
     for i in range(n):
-        r = _root(parent, i)
+        r = _root(parent, cell_of[i])
         if number[r] < 0:
             number[r] = count
             count += 1

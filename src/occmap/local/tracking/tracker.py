@@ -19,7 +19,8 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
    for ``init_span`` seconds its velocity is set from the displacement of its centre between whole
    views, or of a bare end when a vehicle comes out from behind something (see
    :meth:`Tracker._correct`). A tentative track is *confirmed* once it has been detected in
-   ``confirm_hits`` of its last ``confirm_window`` scans, has moved at least ``min_travel`` from
+   ``confirm_hits`` of its last ``confirm_window`` scans (a scan in which a confirmed track's box,
+   nearer to the sensor, hid its centre counts: see :meth:`Tracker._shadowed`), has moved at least ``min_travel`` from
    where it started (walls and parked cars that leak into the detections do not move), knows its
    speed to ``confirm_speed_sigma`` and moves at ``confirm_speed`` at least. The speed is known
    when the filter's covariance says so, or, for a round object (a person), when its own whole
@@ -392,6 +393,7 @@ class Tracker:
             rows, cols = self._assign(cost)
             if len(rows):
                 self._resize(*self._correct(rows, cols, z[rows, cols], R[rows, cols], detections), detections, sensor)
+        self._shadowed(np.setdiff1d(np.arange(n), rows), sensor)
         self._manage(rows)
         spawn = np.setdiff1d(np.arange(m), cols)
         if len(spawn) and len(self):
@@ -401,6 +403,30 @@ class Tracker:
         if len(spawn):
             self._spawn(detections, spawn)
         _turn_around(self.state, self.cov)
+
+    def _shadowed(self, missed, sensor) -> None:
+        """Tracks ``missed`` by this scan (indices) whose centre lies behind a confirmed track's
+        box (predicted to this scan; its corners span the centre's bearing, within a half-turn of
+        it, and its centre is nearer), seen from ``sensor`` (x, y), count the scan as a hit: a car
+        hidden by another passing nearer is no evidence that it is not there. On the simulated
+        street a car waited, its speed known, for new hits after three scans behind a nearer car.
+        Tentative tracks hide nothing: wall fragments hiding each other confirmed more tracks
+        (the raw Intel run at 0.05 m: 63 instead of 61)."""
+        if not len(missed) or len(self) < 2:
+            return
+        d = self.state[missed, None, :2] - sensor  # (k, 1, 2) to each missed centre
+        r = np.hypot(d[..., 0], d[..., 1])
+        corners = box_corners(self.state[:, 0], self.state[:, 1], self.state[:, 2], self.size[:, 0],
+                              self.size[:, 1]) - sensor  # (n, 4, 2)
+        # bearings of each box's corners relative to the direction of each missed centre
+        rel = np.arctan2(d[..., None, 1] * corners[None, ..., 0] - d[..., None, 0] * corners[None, ..., 1],
+                         d[..., None, 0] * corners[None, ..., 0] + d[..., None, 1] * corners[None, ..., 1])
+        spans = (rel.min(axis=-1) < 0.0) & (rel.max(axis=-1) > 0.0) & (np.abs(rel).max(axis=-1) < 0.5 * math.pi)
+        nearer = np.hypot(self.state[None, :, 0] - sensor[0], self.state[None, :, 1] - sensor[1]) < r
+        behind = spans & nearer & (self.status == CONFIRMED)[None, :]
+        behind[np.arange(len(missed)), missed] = False
+        hidden = missed[behind.any(axis=1)]
+        self.hit_bits[hidden] |= 1
 
     def _assign(self, cost: np.ndarray):
         """Confirmed tracks choose first; the others share the detections left."""
@@ -501,7 +527,8 @@ class Tracker:
         own axes and taken as at least ``vehicle_size`` until seen whole), and the face seen stays where it is:
         along an axis measured from one edge the centre moves away from it by half the growth.
         A track at its second detection has just got its heading: its size is what is seen now
-        along it, its centre measured anew."""
+        along it, its centre measured anew (a vehicle's from its bare end when the view is cut at
+        the other: :meth:`_from_bare_end`)."""
         p = self.params
         centres = np.stack([det.x[cols], det.y[cols]], -1)
         first = self.updates[rows] == 1
@@ -524,7 +551,33 @@ class Tracker:
         if first.any():
             centre, _, _, _ = self._measure(corners[first], axes[first], grown[first], sensor)
             self.state[rows[first], :2] = centre
+            k = first & car
+            self._from_bare_end(rows[k], cols[k], axes[k], grown[k], det, sensor)
         self.size[rows] = grown
+
+    def _from_bare_end(self, rows, cols, axes, size, det: Detections, sensor) -> None:
+        """In place: the centre of each vehicle track (``rows``) at its first measurement, from a
+        view (``cols``) cut at one angular end and bare at the other. Along the box axis more
+        across the line of sight (the one a cut shortens; ``axes`` ``(k, 2, 2)``, ``size``
+        ``(k, 2)`` m along them) the bare end is the vehicle's own, so the centre lies half the
+        size from it toward the cut end. Measured as a whole view, the cut end nearer to the sensor
+        along that axis would be taken for the vehicle's (on the simulated street a car turning in
+        beside parked cars, seen from behind, started 2.4 m ahead of itself, lost its speed and
+        was dropped)."""
+        one = (det.bare[cols].sum(axis=1) == 1) & (det.cut[cols].sum(axis=1) == 1)
+        if not one.any():
+            return
+        r, c, axes, size = rows[one], cols[one], axes[one], size[one]
+        k = np.arange(len(r))
+        bare_end = det.ends[c, np.argmax(det.bare[c], axis=1)]
+        cut_end = det.ends[c, np.argmax(det.cut[c], axis=1)]
+        mid = np.stack([det.x[c], det.y[c]], -1) - sensor
+        a = np.argmin(np.abs(np.einsum("kaj,kj->ka", axes, mid)), axis=1)
+        u = axes[k, a]
+        toward = np.sign(np.einsum("kj,kj->k", cut_end - bare_end, u))  # 0: ends side by side, left as it is
+        along = np.einsum("kj,kj->k", bare_end, u) + toward * 0.5 * size[k, a]
+        now = np.einsum("kj,kj->k", self.state[r, :2], u)
+        self.state[r, :2] += (np.abs(toward) * (along - now))[:, None] * u
 
     def _measured_speed_known(self) -> np.ndarray:
         """Per track: whether a round object's (a person's) own measurements say its velocity is
