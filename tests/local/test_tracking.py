@@ -280,6 +280,20 @@ def test_a_track_not_seen_for_longer_than_max_coast_is_dropped():
     assert len(tracker) == 0 and tracker.stats["tracks_dropped"] == 1
 
 
+@pytest.mark.parametrize("t0", [0.0, 0.5, 7.0, 1_733_400_000.5])
+def test_a_tentative_track_missed_for_exactly_tentative_coast_lives_whatever_the_stamps(t0):
+    # three missed 0.1 s scans come out as 0.30000000000000016 s from 0, 0.29999999999999893 s
+    # from 7: whether the track lives must not depend on where the clock stands
+    tracker = Tracker()
+    for k in range(10):
+        tracker.update(t0 + 0.1 * k, _detection(3.0, 3.0), sensor=(0.0, 0.0))
+    for k in (10, 11, 12):
+        tracker.update(t0 + 0.1 * k, Detections.empty(), sensor=(0.0, 0.0))
+    assert len(tracker) == 1
+    tracker.update(t0 + 1.3, Detections.empty(), sensor=(0.0, 0.0))
+    assert len(tracker) == 0
+
+
 def test_doppler_narrows_a_tentative_person_s_speed_and_leaves_a_tentative_car_to_the_lidar():
     person = _walker(Tracker(), until=0.4)  # its velocity from 0.2 s of displacement: not confirmed yet
     car = Tracker()

@@ -56,6 +56,9 @@ TENTATIVE, CONFIRMED = 0, 1
 MIN_VEHICLE_LENGTH = 1.0
 #: A line of returns at least this long (m) gives a direction.
 MIN_FACE_LENGTH = 1.0
+#: Durations (s) closer than this are equal: stamps of ROS time (about 1.7·10⁹ s) are float64s
+#: 2.4·10⁻⁷ s apart, and a gap of three 0.1 s scans comes out as 0.3 ± 10⁻⁷ s.
+STAMP_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -635,7 +638,7 @@ class Tracker:
         self.stats["tracks_confirmed"] += int(promote.sum())
         idle = self.time - self.last_hit
         limit = np.where(self.status == CONFIRMED, p.max_coast, p.tentative_coast)
-        lost = (idle > limit) | (np.sqrt(self.cov[:, 0, 0] + self.cov[:, 1, 1]) > p.max_position_sigma)
+        lost = (idle > limit + STAMP_TOLERANCE) | (np.sqrt(self.cov[:, 0, 0] + self.cov[:, 1, 1]) > p.max_position_sigma)
         if lost.any():
             self.stats["tracks_dropped"] += int(lost.sum())
             self._keep(~lost)
@@ -682,7 +685,7 @@ class Tracker:
     def tracks(self) -> Tracks:
         """The tracks alive at the last update (tentative ones included; see ``confirmed``)."""
         s = self.state
-        lost = self.time - self.last_hit > self.params.lost_after
+        lost = self.time - self.last_hit > self.params.lost_after + STAMP_TOLERANCE
         return Tracks(self.id.copy(), s[:, 0].copy(), s[:, 1].copy(), s[:, 3] * np.cos(s[:, 2]),
                       s[:, 3] * np.sin(s[:, 2]), s[:, 2].copy(), self.size[:, 0].copy(), self.size[:, 1].copy(),
                       (self.status == CONFIRMED) & ~lost, (self.status == CONFIRMED) & lost, self.cov.copy())
