@@ -47,8 +47,7 @@ def _add_if(op: str, doc: str):
 
         def codegen(context, builder, signature, args):
             t, bound, g = args
-            step = builder.select(builder.fcmp_ordered(op, t, bound), g, ir.Constant(ir.DoubleType(), 0.0))
-            return builder.fadd(t, step)
+            return builder.select(builder.fcmp_ordered(op, t, bound), builder.fadd(t, g), t)
 
         return types.float64(t, bound, g), codegen
 

@@ -248,7 +248,8 @@ def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
 def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatch):
     """The cube phase (slabs along each ray's major axis, x, y and z all among them, ties of
     directions along diagonals, rays ending inside and beyond the cube) against OctoMap's plain
-    step-by-step walk (``ray_voxels``), voxel for voxel, hits included; also with a scan that
+    step-by-step walk (``ray_voxels``), voxel for voxel, hits included, and without hits (the end
+    voxels that slabs reaching the end's column must leave unmarked); also with a scan that
     lies on one side of its sensor (+x, +y, −z), which moves the cube to that side; on one
     thread and on two (taking runs of rays in turn). The calling thread's cube serves its
     markings in turn: each leaves it zeroed for the next."""
@@ -273,13 +274,16 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         np.testing.assert_array_equal(shift, [0, 0, 15])
     else:  # centred (within a block): at 0.2 m every ray lies in the centred cube
         assert np.all(np.abs(shift - 8) <= 1)
-    ref_keys, ref_hit = marking.ray_voxels(origin[None], ends, hit, res)
-    unique, inverse = np.unique(ref_keys, return_inverse=True)
-    unique_hit = np.zeros(len(unique), bool)
-    np.logical_or.at(unique_hit, inverse, ref_hit)
     monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
-    # keys local to a shift (the tiled maps' 64-bit key space) are the same voxels, less the shift
-    for shift, threads in [(none, False), (none, True), (np.array([8 * 300, -8 * 1000, 8], np.int64), True)]:
+    # keys local to a shift (the tiled maps' 64-bit key space) are the same voxels, less the shift;
+    # and rays without hits (as cut at a max range): no end voxel marked unless another ray crosses it
+    no_hits = np.zeros_like(hit)
+    for shift, threads, hit in [(none, False, hit), (none, True, hit),
+                                (np.array([8 * 300, -8 * 1000, 8], np.int64), True, hit), (none, False, no_hits)]:
+        ref_keys, ref_hit = marking.ray_voxels(origin[None], ends, hit, res)
+        unique, inverse = np.unique(ref_keys, return_inverse=True)
+        unique_hit = np.zeros(len(unique), bool)
+        np.logical_or.at(unique_hit, inverse, ref_hit)
         keys, depths, is_hit = blocks.block_voxels(*insertion.mark(origin, ends, hit, res, shift, True, threads),
                                                    np.empty((0, 3), np.int64), False)
         assert np.all(depths == 16)

@@ -321,16 +321,41 @@ def _room(local, step):
 def _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
     """How many slabs (:func:`_cube_slabs`) a walk at the start of a slab (just past a major-axis
     step, or in the sensor's voxel) can take without checks: every voxel of them, and the one
-    after, stays in the cube (the minor axes step at most once a slab), short of the end voxel's
-    major coordinate (so none is the end voxel) and with the major axis's next crossing within
-    ``length`` (so the walk's range test cannot stop it; one slab of margin for the rounding of
-    the sums). (Selects, no branch: it runs in :func:`mark_scan`'s vectorised loop too.)"""
+    after, stays in the cube (:func:`_slabs_in_room`); every voxel of them lies short of the end
+    voxel's major coordinate (so none is the end voxel) and before the major axis's crossing at
+    the start of the last slab, which lies within ``length`` (so the walk's range test cannot stop
+    them). The voxel after them may be the end voxel or beyond the range: the walk tests it as it
+    tests a step's. (Selects, no branch: it runs in :func:`mark_scan`'s vectorised loop too.)"""
     lx, ly, lz = unpack(key - corner)
-    n = min(_room(lx, sx), _room(ly, sy), _room(lz, sz))
     t = tx if major == 0 else (ty if major == 1 else tz)
-    g = gx if major == 0 else (gy if major == 1 else gz)
-    n = min(n, abs(field(end_key, major) - field(key, major)) - 1)
-    return min(n, np.int64((length - t) / g) - 1) if t < length else 0
+    per_g = 1.0 / (gx if major == 0 else (gy if major == 1 else gz))  # (one division, not four)
+    n = min(_slabs_in_room(_room(lx, sx), tx, gx, t, per_g, major == 0),
+            _slabs_in_room(_room(ly, sy), ty, gy, t, per_g, major == 1),
+            _slabs_in_room(_room(lz, sz), tz, gz, t, per_g, major == 2),
+            np.float64(abs(field(end_key, major) - field(key, major))), _slabs_before(length, t, per_g))
+    return np.int64(n) if t < length else 0
+
+
+#: Slabs given up to rounding: of the sums of ``t`` (the walk's, against the products that bound
+#: them) and of the bounds' own arithmetic, a few ulps a step, far below this.
+_ROUNDING = 1e-6
+
+
+@inline_kernel
+def _slabs_before(bound, t, per_g):
+    """Slabs (a float) whose major-axis crossings at their ends, ``t``, ``t + g``, …, all lie
+    below ``bound``, by :data:`_ROUNDING` of a slab at least (``per_g`` = 1 / g)."""
+    return (bound - t) * per_g + 1.0 - _ROUNDING
+
+
+@inline_kernel
+def _slabs_in_room(room, ta, ga, t, per_g, is_major):
+    """Slabs that keep an axis with ``room`` steps left in the cube (:func:`_room`), as a float:
+    the major axis steps once a slab; a minor axis, whose borders lie at ``ta``, ``ta + ga``, …,
+    steps at most once a slab, when its next border comes first: at most ``room`` times while the
+    slabs' major-axis crossings lie before ``ta + room·ga`` (infinite for an axis that does not
+    move)."""
+    return np.float64(room) if is_major else _slabs_before(ta + room * ga, t, per_g)
 
 
 @inline_kernel
@@ -442,6 +467,11 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                                                       False, False)
                     key = _cube_key(idx, corner)
                     n = 0
+                    axis = major  # (the slabs' last step)
+                    if key == end_key or min(tx, ty, tz) > length:
+                        key = end_key
+                        done = True
+                        break
                 cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
                 axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
                 key += dk[axis]
