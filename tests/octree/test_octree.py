@@ -434,6 +434,24 @@ def test_discretized_rays_are_one_per_voxel_in_first_point_order():
     assert non_finite == len(pts) - len(finite) and outside == 0
 
 
+def test_updates_in_any_order_with_repeats_match_octomap():
+    """update_nodes, OctoMap's updateNode point after point, where consecutive points fall in
+    one voxel or in its siblings (the updates that take a sibling's parent without a walk), in
+    runs that reach the clamps, prune parents and expand them again: OctoMap's tree after each
+    batch."""
+    octomap = _octomap()
+    rng = np.random.default_rng(21)
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    for _ in range(6):
+        voxels = rng.integers(-3, 3, size=(rng.integers(1, 40), 3))  # a few parents' children, around 0
+        pts = (np.repeat(voxels, rng.integers(1, 6, len(voxels)), axis=0) + 0.5) * 0.1
+        occupied = np.repeat(rng.random(len(pts) // 3 + 1) < 0.5, 3)[:len(pts)]
+        ours.update_nodes(pts, occupied)
+        for p, o in zip(pts, occupied):
+            ref.updateNode(p, bool(o))
+        assert encode_ot(ours) == ref.write()
+
+
 def test_lazy_insertion_then_update_and_prune_matches_octomap():
     """Lazy scans leave inner nodes stale and nothing pruned, as OctoMap's lazy_eval; updating the
     inner nodes gives OctoMap's lazy tree, and pruning then gives the eagerly built one."""
