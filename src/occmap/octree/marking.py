@@ -394,8 +394,9 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
     Within a block, bit ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates
     (lx, ly, lz). Voxels in the cube at ``corner`` (from :func:`cube_corner`; −1: none) are
     marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`), ``cube_box``
-    widened to hold them: a walk moves each key one way, so the box of the sensor's voxel, the
-    last voxel a walk marks in the cube and its hit holds all it marks. Keys are local: OctoMap's
+    widened to hold them: a walk moves each key one way, so the box of the sensor's voxel and the
+    rays' ends, clamped to the cube, holds all they mark there (widened a run of rays at a time,
+    in the loop that computes their walk states, not a ray at a time). Keys are local: OctoMap's
     less ``shift``."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
@@ -416,6 +417,7 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
     hi = np.empty(3, np.int64)
     lo[:] = cube_box[0]
     hi[:] = cube_box[1]
+    cx, cy, cz = unpack(corner)
     if corner >= 0:
         _widen(lo, hi, _cube_index(origin_key, corner))
     for i in range(start, stop):
@@ -424,16 +426,24 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
             m = min(_RUN, stop - i)
             for j in range(m):
                 e[0, j], e[1, j], e[2, j] = ends[i + j, 0], ends[i + j, 1], ends[i + j, 2]
+            # the box of the cube's marks: the sensor's voxel and the ends, clamped to the cube
+            # (a walk moves each key one way)
+            b0, b1, b2, b3, b4, b5 = CUBE, CUBE, CUBE, -1, -1, -1
             for j in range(m):
                 ex, ey, ez = e[0, j], e[1, j], e[2, j]
-                ek = pack(coord_to_key(ex, inv_res) - s0, coord_to_key(ey, inv_res) - s1,
-                          coord_to_key(ez, inv_res) - s2)
+                kx, ky, kz = coord_to_key(ex, inv_res) - s0, coord_to_key(ey, inv_res) - s1, coord_to_key(ez, inv_res) - s2
+                ek = pack(kx, ky, kz)
+                x, y, z = min(max(kx - cx, 0), CUBE - 1), min(max(ky - cy, 0), CUBE - 1), min(max(kz - cz, 0), CUBE - 1)
+                b0, b1, b2, b3, b4, b5 = min(b0, x), min(b1, y), min(b2, z), max(b3, x), max(b4, y), max(b5, z)
                 length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
                 ints[0, j], ints[1, j], ints[2, j], ints[3, j] = ek, sx, sy, sz
                 floats[0, j], floats[1, j], floats[2, j], floats[3, j] = length, tx, ty, tz
                 floats[4, j], floats[5, j], floats[6, j] = gx, gy, gz
                 ints[4, j], ints[5, j], ints[6, j] = _slab_plan(origin_key, corner, ek, sx, sy, sz, tx, ty, tz,
                                                                 gx, gy, gz, length)
+            if corner >= 0:
+                lo[0], lo[1], lo[2] = min(lo[0], b0), min(lo[1], b1), min(lo[2], b2)
+                hi[0], hi[1], hi[2] = max(hi[0], b3), max(hi[1], b4), max(hi[2], b5)
         end_key = ints[0, r]
         ray = rays and end_key != origin_key
         if ray:
@@ -485,12 +495,10 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                 if later and axis == major:
                     later = False
                     n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
-            _widen(lo, hi, idx - di[axis])  # the last voxel marked
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
             j = _cube_index(end_key, corner)
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
-            _widen(lo, hi, j)
             continue
         # the block phase: local coordinates on entering a block, per axis
         wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7
