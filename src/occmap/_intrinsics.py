@@ -55,7 +55,8 @@ def _add_if(op: str, doc: str):
     return add_if
 
 
-# The compare and the select in one basic block let LLVM emit a compare mask and an ``and``
-# (cmplesd/andpd); written in Python, the same select becomes a branch.
+# The compare and the select in one basic block let LLVM emit a compare mask and a masked move
+# of t + g over t (the sum does not wait for the compare); written in Python, the same select
+# becomes a branch.
 add_if_le = _add_if("<=", "``t + g`` where ``t <= bound``, else ``t``: no branch.")
 add_if_lt = _add_if("<", "``t + g`` where ``t < bound``, else ``t``: no branch.")
