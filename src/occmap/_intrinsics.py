@@ -47,8 +47,7 @@ def _add_if(op: str, doc: str):
 
         def codegen(context, builder, signature, args):
             t, bound, g = args
-            step = builder.select(builder.fcmp_ordered(op, t, bound), g, ir.Constant(ir.DoubleType(), 0.0))
-            return builder.fadd(t, step)
+            return builder.select(builder.fcmp_ordered(op, t, bound), builder.fadd(t, g), t)
 
         return types.float64(t, bound, g), codegen
 
@@ -56,7 +55,8 @@ def _add_if(op: str, doc: str):
     return add_if
 
 
-# The compare and the select in one basic block let LLVM emit a compare mask and an ``and``
-# (cmplesd/andpd); written in Python, the same select becomes a branch.
+# The compare and the select in one basic block let LLVM emit a compare mask and a masked move
+# of t + g over t (the sum does not wait for the compare); written in Python, the same select
+# becomes a branch.
 add_if_le = _add_if("<=", "``t + g`` where ``t <= bound``, else ``t``: no branch.")
 add_if_lt = _add_if("<", "``t + g`` where ``t < bound``, else ``t``: no branch.")

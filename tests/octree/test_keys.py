@@ -51,3 +51,21 @@ def test_packed_keys_are_linear_and_blocks_and_morton():
     assert K.in_block(K.pack(17, 9, 65535)) == 1 + 8 * 1 + 64 * 7
     assert [K.morton(*v, 1) for v in ((1, 0, 0), (0, 1, 0), (0, 0, 1))] == [1, 2, 4]
     assert K.morton(2, 0, 3, 2) == (1 << 3) + 4 + (4 << 3)
+
+
+def test_block_masks_relaid_in_morton_order_bit_for_bit():
+    """A block's mask words (word lz, bit lx + 8·ly) → Morton-ordered words (voxel m at bit m & 63
+    of word m >> 6), against keys.morton voxel by voxel, from empty to full blocks and each plane
+    alone (the sign bit among them)."""
+    from occmap.octree.blocks import morton_words
+
+    rng = np.random.default_rng(3)
+    voxel = np.arange(512)
+    target = np.array([K.morton.py_func(i & 7, (i >> 3) & 7, i >> 6, 3) for i in voxel])
+    cases = [rng.random(512) < p for p in np.linspace(0.0, 1.0, 41)] + [voxel >> 6 == z for z in range(8)]
+    out = np.empty(8, np.int64)
+    for bits in cases:
+        words = np.packbits(bits.reshape(8, 64), axis=1, bitorder="little").view("<i8").ravel()
+        morton_words(words, out)
+        got = np.unpackbits(out.view(np.uint8), bitorder="little").astype(bool)
+        np.testing.assert_array_equal(got[target], bits)

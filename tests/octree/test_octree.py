@@ -248,7 +248,8 @@ def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
 def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatch):
     """The cube phase (slabs along each ray's major axis, x, y and z all among them, ties of
     directions along diagonals, rays ending inside and beyond the cube) against OctoMap's plain
-    step-by-step walk (``ray_voxels``), voxel for voxel, hits included; also with a scan that
+    step-by-step walk (``ray_voxels``), voxel for voxel, hits included, and without hits (the end
+    voxels that slabs reaching the end's column must leave unmarked); also with a scan that
     lies on one side of its sensor (+x, +y, −z), which moves the cube to that side; on one
     thread and on two (taking runs of rays in turn). The calling thread's cube serves its
     markings in turn: each leaves it zeroed for the next."""
@@ -273,13 +274,16 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         np.testing.assert_array_equal(shift, [0, 0, 15])
     else:  # centred (within a block): at 0.2 m every ray lies in the centred cube
         assert np.all(np.abs(shift - 8) <= 1)
-    ref_keys, ref_hit = marking.ray_voxels(origin[None], ends, hit, res)
-    unique, inverse = np.unique(ref_keys, return_inverse=True)
-    unique_hit = np.zeros(len(unique), bool)
-    np.logical_or.at(unique_hit, inverse, ref_hit)
     monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
-    # keys local to a shift (the tiled maps' 64-bit key space) are the same voxels, less the shift
-    for shift, threads in [(none, False), (none, True), (np.array([8 * 300, -8 * 1000, 8], np.int64), True)]:
+    # keys local to a shift (the tiled maps' 64-bit key space) are the same voxels, less the shift;
+    # and rays without hits (as cut at a max range): no end voxel marked unless another ray crosses it
+    no_hits = np.zeros_like(hit)
+    for shift, threads, hit in [(none, False, hit), (none, True, hit),
+                                (np.array([8 * 300, -8 * 1000, 8], np.int64), True, hit), (none, False, no_hits)]:
+        ref_keys, ref_hit = marking.ray_voxels(origin[None], ends, hit, res)
+        unique, inverse = np.unique(ref_keys, return_inverse=True)
+        unique_hit = np.zeros(len(unique), bool)
+        np.logical_or.at(unique_hit, inverse, ref_hit)
         keys, depths, is_hit = blocks.block_voxels(*insertion.mark(origin, ends, hit, res, shift, True, threads),
                                                    np.empty((0, 3), np.int64), False)
         assert np.all(depths == 16)
@@ -428,6 +432,24 @@ def test_discretized_rays_are_one_per_voxel_in_first_point_order():
     _, first = np.unique(keys, axis=0, return_index=True)
     np.testing.assert_array_equal(centres, (keys[np.sort(first)] + 0.5) * 0.2)
     assert non_finite == len(pts) - len(finite) and outside == 0
+
+
+def test_updates_in_any_order_with_repeats_match_octomap():
+    """update_nodes, OctoMap's updateNode point after point, where consecutive points fall in
+    one voxel or in its siblings (the updates that take a sibling's parent without a walk), in
+    runs that reach the clamps, prune parents and expand them again: OctoMap's tree after each
+    batch."""
+    octomap = _octomap()
+    rng = np.random.default_rng(21)
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    for _ in range(6):
+        voxels = rng.integers(-3, 3, size=(rng.integers(1, 40), 3))  # a few parents' children, around 0
+        pts = (np.repeat(voxels, rng.integers(1, 6, len(voxels)), axis=0) + 0.5) * 0.1
+        occupied = np.repeat(rng.random(len(pts) // 3 + 1) < 0.5, 3)[:len(pts)]
+        ours.update_nodes(pts, occupied)
+        for p, o in zip(pts, occupied):
+            ref.updateNode(p, bool(o))
+        assert encode_ot(ours) == ref.write()
 
 
 def test_lazy_insertion_then_update_and_prune_matches_octomap():

@@ -98,10 +98,45 @@ def merge_blocks(codes, hits, frees):
     return c2[:m + 1], h2[:m + 1], f2[:m + 1]
 
 
-#: A block's voxels in Morton order: voxel ``lx + 8·ly + 64·lz`` is the ``_TO_MORTON[·]``-th, and
-#: the ``z``-th lies ``_MORTON_OFFSET[z]`` (a packed key) from the block's first voxel.
-_TO_MORTON = np.array([morton.py_func(i & 7, (i >> 3) & 7, i >> 6, 3) for i in range(512)], np.int64)
-_MORTON_OFFSET = np.array([pack.py_func(i & 7, (i >> 3) & 7, i >> 6) for i in np.argsort(_TO_MORTON)], np.int64)
+#: A block's voxels in Morton order: the ``z``-th lies ``_MORTON_OFFSET[z]`` (a packed key) from the
+#: block's first voxel.
+_MORTON_OFFSET = np.array([pack.py_func(i & 7, (i >> 3) & 7, i >> 6)
+                           for i in np.argsort([morton.py_func(i & 7, (i >> 3) & 7, i >> 6, 3) for i in range(512)])],
+                          np.int64)
+
+
+def _bits(test) -> np.int64:
+    """The int64 word whose bit ``p`` (0..63) is set where ``test(p)``."""
+    return np.array(sum(1 << p for p in range(64) if test(p)), np.uint64).view(np.int64)[()]
+
+
+#: Bits of a plane of a block (bit ``x + 8·y``, bits of its index x0 x1 x2 y0 y1 y2) that trade
+#: places with the bit 6 above (index bits 1 and 3 swapped: x1 and y0).
+_SWAP = _bits(lambda p: p & 2 and not p & 8)
+#: The bits of a word whose index bits 2 and 5 are ``q & 1`` and ``q >> 1``.
+_QUARTERS = np.array([_bits(lambda p, q=q: (p >> 2 & 1) == q & 1 and (p >> 5 & 1) == q >> 1) for q in range(4)],
+                     np.int64)
+
+
+@kernel
+def morton_words(words, out):
+    """A block's eight mask words (word ``lz``, bit ``lx + 8·ly``) re-laid in Morton order into
+    ``out``: voxel ``m`` (:func:`.keys.morton` of lx, ly, lz over 3 bits) at bit ``m & 63`` of
+    word ``m >> 6``. Per plane, without a loop over its bits: swapping index bits x1 and y0 (a
+    delta swap) leaves x0 y0 . x1 y1 . at bits 0, 1, 3, 4 of the index, so each quarter of the
+    plane (x2, y2) is its Morton bits at once, moved to word x2 + 2·y2 + 4·z2 with z0 and z1 at
+    index bits 2 and 5 instead of x2 and y2."""
+    out[:] = 0
+    for z in range(8):
+        w = words[z]
+        t = (w ^ (w >> 6)) & _SWAP  # (bits 6 above those of _SWAP, none of them the sign)
+        w ^= t ^ (t << 6)
+        z01 = (z & 1) + 2 * ((z >> 1) & 1)
+        for q in range(4):
+            d = 4 * ((z01 & 1) - (q & 1)) + 32 * ((z01 >> 1) - (q >> 1))
+            v = w & _QUARTERS[q]
+            v = v << d if d >= 0 else v >> -d
+            out[q + 4 * (z >> 2)] |= v & _QUARTERS[z01]
 
 
 @kernel
@@ -138,21 +173,15 @@ def block_voxels(codes, hits, frees, kbox, merge):
     keys = np.empty(n, np.int64)
     depths = np.empty(n, np.int8)
     is_hit = np.empty(n, np.bool_)
+    either = np.empty(8, np.int64)
     marked = np.empty(8, np.int64)  # the block's marked and hit bits re-laid in Morton order
     hit = np.empty(8, np.int64)
     n = 0
     for b in range(codes.shape[0]):
-        marked[:] = 0
-        hit[:] = 0
         for w in range(8):
-            h = hits[b, w]
-            word = h | frees[b, w]
-            while word != 0:
-                bit = trailing_zeros(word)
-                word &= word - 1
-                z = _TO_MORTON[(w << 6) | bit]
-                marked[z >> 6] |= np.int64(1) << (z & 63)
-                hit[z >> 6] |= ((h >> bit) & 1) << (z & 63)
+            either[w] = hits[b, w] | frees[b, w]
+        morton_words(either, marked)
+        morton_words(hits[b], hit)
         base = block_key(codes[b])
         if merge and _inside(kbox, base, 8):
             whole = True

@@ -321,16 +321,41 @@ def _room(local, step):
 def _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length):
     """How many slabs (:func:`_cube_slabs`) a walk at the start of a slab (just past a major-axis
     step, or in the sensor's voxel) can take without checks: every voxel of them, and the one
-    after, stays in the cube (the minor axes step at most once a slab), short of the end voxel's
-    major coordinate (so none is the end voxel) and with the major axis's next crossing within
-    ``length`` (so the walk's range test cannot stop it; one slab of margin for the rounding of
-    the sums). (Selects, no branch: it runs in :func:`mark_scan`'s vectorised loop too.)"""
+    after, stays in the cube (:func:`_slabs_in_room`); every voxel of them lies short of the end
+    voxel's major coordinate (so none is the end voxel) and before the major axis's crossing at
+    the start of the last slab, which lies within ``length`` (so the walk's range test cannot stop
+    them). The voxel after them may be the end voxel or beyond the range: the walk tests it as it
+    tests a step's. (Selects, no branch: it runs in :func:`mark_scan`'s vectorised loop too.)"""
     lx, ly, lz = unpack(key - corner)
-    n = min(_room(lx, sx), _room(ly, sy), _room(lz, sz))
     t = tx if major == 0 else (ty if major == 1 else tz)
-    g = gx if major == 0 else (gy if major == 1 else gz)
-    n = min(n, abs(field(end_key, major) - field(key, major)) - 1)
-    return min(n, np.int64((length - t) / g) - 1) if t < length else 0
+    per_g = 1.0 / (gx if major == 0 else (gy if major == 1 else gz))  # (one division, not four)
+    n = min(_slabs_in_room(_room(lx, sx), tx, gx, t, per_g, major == 0),
+            _slabs_in_room(_room(ly, sy), ty, gy, t, per_g, major == 1),
+            _slabs_in_room(_room(lz, sz), tz, gz, t, per_g, major == 2),
+            np.float64(abs(field(end_key, major) - field(key, major))), _slabs_before(length, t, per_g))
+    return np.int64(n) if t < length else 0
+
+
+#: Slabs given up to rounding: of the sums of ``t`` (the walk's, against the products that bound
+#: them) and of the bounds' own arithmetic, a few ulps a step, far below this.
+_ROUNDING = 1e-6
+
+
+@inline_kernel
+def _slabs_before(bound, t, per_g):
+    """Slabs (a float) whose major-axis crossings at their ends, ``t``, ``t + g``, …, all lie
+    below ``bound``, by :data:`_ROUNDING` of a slab at least (``per_g`` = 1 / g)."""
+    return (bound - t) * per_g + 1.0 - _ROUNDING
+
+
+@inline_kernel
+def _slabs_in_room(room, ta, ga, t, per_g, is_major):
+    """Slabs that keep an axis with ``room`` steps left in the cube (:func:`_room`), as a float:
+    the major axis steps once a slab; a minor axis, whose borders lie at ``ta``, ``ta + ga``, …,
+    steps at most once a slab, when its next border comes first: at most ``room`` times while the
+    slabs' major-axis crossings lie before ``ta + room·ga`` (infinite for an axis that does not
+    move)."""
+    return np.float64(room) if is_major else _slabs_before(ta + room * ga, t, per_g)
 
 
 @inline_kernel
@@ -369,8 +394,9 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
     Within a block, bit ``lx + 8·ly + 64·lz`` stands for the voxel at local coordinates
     (lx, ly, lz). Voxels in the cube at ``corner`` (from :func:`cube_corner`; −1: none) are
     marked in ``cube_hits`` and ``cube_frees`` instead (see :func:`cube_blocks`), ``cube_box``
-    widened to hold them: a walk moves each key one way, so the box of the sensor's voxel, the
-    last voxel a walk marks in the cube and its hit holds all it marks. Keys are local: OctoMap's
+    widened to hold them: a walk moves each key one way, so the box of the sensor's voxel and the
+    rays' ends, clamped to the cube, holds all they mark there (widened a run of rays at a time,
+    in the loop that computes their walk states, not a ray at a time). Keys are local: OctoMap's
     less ``shift``."""
     inv_res = 1.0 / res
     ox, oy, oz = origin[0], origin[1], origin[2]
@@ -391,6 +417,7 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
     hi = np.empty(3, np.int64)
     lo[:] = cube_box[0]
     hi[:] = cube_box[1]
+    cx, cy, cz = unpack(corner)
     if corner >= 0:
         _widen(lo, hi, _cube_index(origin_key, corner))
     for i in range(start, stop):
@@ -399,16 +426,24 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
             m = min(_RUN, stop - i)
             for j in range(m):
                 e[0, j], e[1, j], e[2, j] = ends[i + j, 0], ends[i + j, 1], ends[i + j, 2]
+            # the box of the cube's marks: the sensor's voxel and the ends, clamped to the cube
+            # (a walk moves each key one way)
+            b0, b1, b2, b3, b4, b5 = CUBE, CUBE, CUBE, -1, -1, -1
             for j in range(m):
                 ex, ey, ez = e[0, j], e[1, j], e[2, j]
-                ek = pack(coord_to_key(ex, inv_res) - s0, coord_to_key(ey, inv_res) - s1,
-                          coord_to_key(ez, inv_res) - s2)
+                kx, ky, kz = coord_to_key(ex, inv_res) - s0, coord_to_key(ey, inv_res) - s1, coord_to_key(ez, inv_res) - s2
+                ek = pack(kx, ky, kz)
+                x, y, z = min(max(kx - cx, 0), CUBE - 1), min(max(ky - cy, 0), CUBE - 1), min(max(kz - cz, 0), CUBE - 1)
+                b0, b1, b2, b3, b4, b5 = min(b0, x), min(b1, y), min(b2, z), max(b3, x), max(b4, y), max(b5, z)
                 length, sx, sy, sz, tx, ty, tz, gx, gy, gz = _walk_start(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
                 ints[0, j], ints[1, j], ints[2, j], ints[3, j] = ek, sx, sy, sz
                 floats[0, j], floats[1, j], floats[2, j], floats[3, j] = length, tx, ty, tz
                 floats[4, j], floats[5, j], floats[6, j] = gx, gy, gz
                 ints[4, j], ints[5, j], ints[6, j] = _slab_plan(origin_key, corner, ek, sx, sy, sz, tx, ty, tz,
                                                                 gx, gy, gz, length)
+            if corner >= 0:
+                lo[0], lo[1], lo[2] = min(lo[0], b0), min(lo[1], b1), min(lo[2], b2)
+                hi[0], hi[1], hi[2] = max(hi[0], b3), max(hi[1], b4), max(hi[2], b5)
         end_key = ints[0, r]
         ray = rays and end_key != origin_key
         if ray:
@@ -442,6 +477,11 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                                                       False, False)
                     key = _cube_key(idx, corner)
                     n = 0
+                    axis = major  # (the slabs' last step)
+                    if key == end_key or min(tx, ty, tz) > length:
+                        key = end_key
+                        done = True
+                        break
                 cube_frees[np.uint64(idx)] = 1  # (unsigned: no wrap-around test)
                 axis, tx, ty, tz = raywalk.step(tx, ty, tz, gx, gy, gz)
                 key += dk[axis]
@@ -455,12 +495,10 @@ def mark_scan(origin, ends, hit, res, shift, rays, start, stop, table, slots, co
                 if later and axis == major:
                     later = False
                     n = _slab_count(key, corner, end_key, major, sx, sy, sz, tx, ty, tz, gx, gy, gz, length)
-            _widen(lo, hi, idx - di[axis])  # the last voxel marked
         is_hit = done  # the end voxel comes last, after the ray's free voxels
         if is_hit and hit[i] and corner >= 0 and not ((end_key - corner) & _OUTSIDE):
             j = _cube_index(end_key, corner)
             cube_hits[j >> 6] |= np.int64(1) << (j & 63)
-            _widen(lo, hi, j)
             continue
         # the block phase: local coordinates on entering a block, per axis
         wx, wy, wz = 0 if sx > 0 else 7, 0 if sy > 0 else 7, 0 if sz > 0 else 7
