@@ -1,7 +1,7 @@
 """2D occupancy grid throughput, against the hand-written NumPy mapper users write today.
 
 Rows: 10 m beams at 0.05 m (beams per second; with Numba's default threads, which cut the grid
-into strips of rows updated side by side, two per thread, and on one thread), the Intel Research Lab corrected log end
+into strips of rows updated side by side, one per thread, and on one thread), the Intel Research Lab corrected log end
 to end after warm-up (default maximum range, and capped at 30 m), and ``occmap map2d`` on that
 log from a cold start (a fresh process, reading the file included). On a shared machine the
 two-thread figures depend on the second core being free. Then one scan per call, as a robot

@@ -10,10 +10,9 @@ record did (5–7 % faster on the benchmark's 10 m beams, medians of alternating
 from __future__ import annotations
 
 import math
-from contextlib import nullcontext
 
 import numpy as np
-from numba import get_num_threads, parallel_chunksize, prange
+from numba import get_num_threads, prange
 
 from .._jit import kernel, kernel_parallel
 from .._threads import ThreadChoice
@@ -114,9 +113,7 @@ def _parts(Lf, Sf, base, rs, parts, scan0, poses, ranges, angles, max_range, ox,
            l_hit, l_miss, l_min, l_max, block):
     """:func:`_serial` with the work shared between threads, ``block`` scans at a time: the
     beams' ends side by side, then the parts (rows ``(x_lo, x_hi, y_lo, y_hi)`` of ``parts``,
-    disjoint) side by side, with no synchronisation until all are done. There are more parts than
-    threads, so that a thread the scheduler takes away leaves its parts to the others (the caller
-    sets Numba's chunk size to 1: the parts are handed out one at a time as threads come free)."""
+    disjoint) side by side, with no synchronisation until all are done."""
     n_scans = ranges.shape[0]
     kind, ex, ey = _ends_arrays(ranges, block)
     for k0 in range(0, n_scans, block):
@@ -180,8 +177,6 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H
 
 #: Calls with fewer cells to walk than this run on one thread.
 SPLIT_MIN_CELLS = 20_000
-#: Parts per thread of a call on several threads (see :func:`_parts`).
-PARTS_PER_THREAD = 2
 #: Beams whose ends are held at once (:func:`_serial`, :func:`_parts`): 17 bytes each.
 BLOCK_BEAMS = 1 << 16
 #: One thread or several, per call, by their measured cost per cell along the beams
@@ -207,23 +202,19 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, g
 
     With at least ``split_min_cells`` cells to walk (default :data:`SPLIT_MIN_CELLS` when
     :data:`THREADS` chooses several threads, else never; negative: never) the grid is cut into
-    :data:`PARTS_PER_THREAD` strips of rows per thread (two threads at least), updated side by
-    side; the result is the same either way. ``fresh``: the grid's storage is new (this call is
+    strips of rows, one per thread (at least two), updated side by side; the result is the same
+    either way. ``fresh``: the grid's storage is new (this call is
     the first to touch its pages, so its time is no sample of the paths' costs)."""
     Lf, Sf = _flat(L, stamp)
     H, W = L.shape
-    max_parts = PARTS_PER_THREAD * max(get_num_threads(), 2)
+    max_parts = max(get_num_threads(), 2)
     block = max(1, BLOCK_BEAMS // max(1, ranges.shape[1]))  # scans at a time
-
-    def run(split):
-        with parallel_chunksize(1) if split >= 0 else nullcontext():
-            return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0,
-                                    inv_res, l_hit, l_miss, l_min, l_max, split, max_parts, block)
-
     if split_min_cells is not None:
-        return run(split_min_cells)
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
+                                l_hit, l_miss, l_min, l_max, split_min_cells, max_parts, block)
     with THREADS.choose(beam_cells(ranges, max_range, inv_res), sample=not fresh) as parallel:
-        return run(SPLIT_MIN_CELLS if parallel else -1)
+        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
+                                l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts, block)
 
 
 @kernel
