@@ -57,15 +57,15 @@ def _scan_ends(poses, ranges, angles, max_range, k, kind, ex, ey, row):
 
 
 @kernel
-def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, kind, ex, ey, ox, oy, inv_res,
+def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, m, kind, ex, ey, ox, oy, inv_res,
           l_hit, l_miss, l_min, l_max):
-    """The updates of scans ``k0 ..`` (their beams' ends in the rows of ``kind``, ``ex``, ``ey``,
-    :func:`_scan_ends`) to the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
+    """The updates of scans ``k0 .. k0 + m − 1`` (their beams' ends in the first ``m`` rows of
+    ``kind``, ``ex``, ``ey``, :func:`_scan_ends`) to the cells in part ``[x_lo, x_hi) × [y_lo, y_hi)``, scan after scan:
     first the scan's hits, then the free cells along each of its beams (stamps:
     :mod:`occmap.raster.update`). Cell ``(ix, iy)`` (the index rule with origin ``(ox, oy)``) is
     at ``base + iy·rs + ix`` of the flat arrays ``Lf`` and ``Sf``."""
-    n_scans, n_beams = kind.shape
-    for j in range(n_scans):
+    n_beams = kind.shape[1]
+    for j in range(m):
         k = k0 + j
         s = scan0 + k
         x0, y0 = poses[k, 0], poses[k, 1]
@@ -104,7 +104,7 @@ def _serial(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angl
         m = min(block, n_scans - k0)
         for j in range(m):
             _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
-        _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, kind[:m], ex[:m], ey[:m], ox, oy, inv_res,
+        _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, m, kind, ex, ey, ox, oy, inv_res,
               l_hit, l_miss, l_min, l_max)
 
 
@@ -121,8 +121,8 @@ def _parts(Lf, Sf, base, rs, parts, scan0, poses, ranges, angles, max_range, ox,
         for j in prange(m):
             _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
         for p in prange(parts.shape[0]):
-            _part(Lf, Sf, base, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, k0, kind[:m],
-                  ex[:m], ey[:m], ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
+            _part(Lf, Sf, base, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, k0, m, kind,
+                  ex, ey, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
 
 
 #: Beams looked at (evenly spread over the call's scans) to choose where to cut the grid.
