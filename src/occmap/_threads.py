@@ -138,7 +138,8 @@ class ThreadChoice:
         self._learn(parallel, trying, (perf_counter() - start) / work)
 
     def _best(self) -> bool:
-        """Several threads unless one has cost less lately (or no more)."""
+        """Whether several threads have cost less than one lately (several while either path is
+        unmeasured)."""
         serial, several = self._cost
         return not serial <= several
 
