@@ -86,43 +86,17 @@ def _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, m, kind, e
                 miss_walk(Lf, Sf, base, 1, rs, steps, state, x_lo, x_hi, y_lo, y_hi, s, l_miss, l_min, l_max)
 
 
-@kernel
-def _ends_arrays(ranges, block):
-    """Room for the ends (:func:`_scan_ends`) of ``block`` scans of ranges (N, n): kind, x, y."""
-    shape = (min(block, ranges.shape[0]), ranges.shape[1])
-    return np.empty(shape, dtype=np.int8), np.empty(shape), np.empty(shape)
-
-
-@kernel
-def _serial(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-            l_hit, l_miss, l_min, l_max, block):
-    """All scans into the cells ``[x_lo, x_hi) × [y_lo, y_hi)`` on this thread, ``block`` scans
-    at a time (:func:`_scan_ends`, then :func:`_part`)."""
-    n_scans = ranges.shape[0]
-    kind, ex, ey = _ends_arrays(ranges, block)
-    for k0 in range(0, n_scans, block):
-        m = min(block, n_scans - k0)
-        for j in range(m):
-            _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
-        _part(Lf, Sf, base, rs, x_lo, x_hi, y_lo, y_hi, scan0, poses, k0, m, kind, ex, ey, ox, oy, inv_res,
-              l_hit, l_miss, l_min, l_max)
-
-
 @kernel_parallel
 def _parts(Lf, Sf, base, rs, parts, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-           l_hit, l_miss, l_min, l_max, block):
-    """:func:`_serial` with the work shared between threads, ``block`` scans at a time: the
-    beams' ends side by side, then the parts (rows ``(x_lo, x_hi, y_lo, y_hi)`` of ``parts``,
-    disjoint) side by side, with no synchronisation until all are done."""
-    n_scans = ranges.shape[0]
-    kind, ex, ey = _ends_arrays(ranges, block)
-    for k0 in range(0, n_scans, block):
-        m = min(block, n_scans - k0)
-        for j in prange(m):
-            _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
-        for p in prange(parts.shape[0]):
-            _part(Lf, Sf, base, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, k0, m, kind,
-                  ex, ey, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
+           l_hit, l_miss, l_min, l_max, k0, m, kind, ex, ey):
+    """Scans ``k0 .. k0 + m − 1`` with the work shared between threads: their beams' ends
+    (:func:`_scan_ends`) side by side, then the parts (rows ``(x_lo, x_hi, y_lo, y_hi)`` of
+    ``parts``, disjoint, :func:`_part`) side by side, with no synchronisation until all are done."""
+    for j in prange(m):
+        _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
+    for p in prange(parts.shape[0]):
+        _part(Lf, Sf, base, rs, parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3], scan0, poses, k0, m, kind,
+              ex, ey, ox, oy, inv_res, l_hit, l_miss, l_min, l_max)
 
 
 #: Beams looked at (evenly spread over the call's scans) to choose where to cut the grid.
@@ -177,10 +151,10 @@ def _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H
 
 #: Calls with fewer cells to walk than this run on one thread.
 SPLIT_MIN_CELLS = 20_000
-#: Beams whose ends are held at once (:func:`_serial`, :func:`_parts`): 17 bytes each.
+#: Beams whose ends are held at once (:func:`_integrate_lidar`): 17 bytes each.
 BLOCK_BEAMS = 1 << 16
 #: One thread or several, per call, by their measured cost per cell along the beams
-#: (:func:`beam_cells`; calls too small to split take one thread).
+#: (:func:`count_readings`; calls too small to split take one thread).
 THREADS = ThreadChoice(min_work=SPLIT_MIN_CELLS)
 
 
@@ -209,33 +183,26 @@ def integrate_lidar(L, stamp, scan0, poses, ranges, angles, max_range, ox, oy, g
     H, W = L.shape
     max_parts = max(get_num_threads(), 2)
     block = max(1, BLOCK_BEAMS // max(1, ranges.shape[1]))  # scans at a time
-    if split_min_cells is not None:
-        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
-                                l_hit, l_miss, l_min, l_max, split_min_cells, max_parts, block)
-    with THREADS.choose(beam_cells(ranges, max_range, inv_res), sample=not fresh) as parallel:
-        return _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
-                                l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts, block)
-
-
-@kernel
-def beam_cells(ranges, max_range, inv_res):
-    """The length in cells of the usable beams of ranges (N, n), each up to ``max_range``: about
-    the cells a call walks (a walk's steps are its length in cells along x plus along y)."""
-    total = 0.0
-    for k in range(ranges.shape[0]):
-        for b in range(ranges.shape[1]):
-            r = ranges[k, b]
-            if r > 0.0:
-                total += min(r, max_range)
-    return total * inv_res
+    used, dropped, maxed, length = count_readings(ranges, max_range)
+    if split_min_cells is None:
+        with THREADS.choose(length * inv_res, sample=not fresh) as parallel:
+            _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
+                             l_hit, l_miss, l_min, l_max, SPLIT_MIN_CELLS if parallel else -1, max_parts, block)
+    else:
+        _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res,
+                         l_hit, l_miss, l_min, l_max, split_min_cells, max_parts, block)
+    return used, dropped, maxed
 
 
 @kernel
 def count_readings(ranges, max_range):
-    """(readings used, dropped as NaN/≤ 0, at or beyond ``max_range``) of ranges (N, n)."""
+    """(readings used, dropped as NaN/≤ 0, at or beyond ``max_range``, the used beams' length in
+    metres, each up to ``max_range``) of ranges (N, n). The length in cells is about the cells
+    the beams walk (a walk's steps are its length in cells along x plus along y)."""
     used = 0
     dropped = 0
     maxed = 0
+    length = 0.0
     for k in range(ranges.shape[0]):
         for b in range(ranges.shape[1]):
             r = ranges[k, b]
@@ -243,9 +210,10 @@ def count_readings(ranges, max_range):
                 dropped += 1
             else:
                 used += 1
+                length += min(r, max_range)
                 if not (r < max_range):
                     maxed += 1
-    return used, dropped, maxed
+    return used, dropped, maxed, length
 
 
 @kernel
@@ -255,13 +223,20 @@ def _integrate_lidar(Lf, Sf, H, W, scan0, poses, ranges, angles, max_range, ox, 
     n_parts = _choose_parts(poses, ranges, angles, max_range, ox, oy, gx0, gy0, inv_res, H, W, split_min_cells,
                             parts)
     base = -(gy0 * W + gx0)
-    if n_parts == 1:
-        _serial(Lf, Sf, base, W, gx0, gx0 + W, gy0, gy0 + H, scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-                l_hit, l_miss, l_min, l_max, block)
-    else:
-        _parts(Lf, Sf, base, W, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
-               l_hit, l_miss, l_min, l_max, block)
-    return count_readings(ranges, max_range)
+    n_scans = ranges.shape[0]
+    kind = np.empty((min(block, n_scans), ranges.shape[1]), dtype=np.int8)  # the ends of a block's beams
+    ex = np.empty(kind.shape)
+    ey = np.empty(kind.shape)
+    for k0 in range(0, n_scans, block):  # ``block`` scans at a time: their ends, then their updates
+        m = min(block, n_scans - k0)
+        if n_parts == 1:
+            for j in range(m):
+                _scan_ends(poses, ranges, angles, max_range, k0 + j, kind, ex, ey, j)
+            _part(Lf, Sf, base, W, gx0, gx0 + W, gy0, gy0 + H, scan0, poses, k0, m, kind, ex, ey, ox, oy, inv_res,
+                  l_hit, l_miss, l_min, l_max)
+        else:
+            _parts(Lf, Sf, base, W, parts[:n_parts], scan0, poses, ranges, angles, max_range, ox, oy, inv_res,
+                   l_hit, l_miss, l_min, l_max, k0, m, kind, ex, ey)
 
 
 @kernel

@@ -170,7 +170,7 @@ class TiledGrid2D(StoredMap):
                 s = slice(j, min(j + _RUN_SCANS, i + k))
                 self._insert_run(P[s], *_beam_ends(P[s], R[s], A[s], max_range), code + j - i, d)
             i += k
-        used, dropped, maxed = count_readings(R, max_range)
+        used, dropped, maxed, _ = count_readings(R, max_range)
         counts = {"scans": N, "points": int(used), "dropped": int(dropped), "beyond_max_range": int(maxed)}
         for key, value in counts.items():
             self.stats[key] += value
