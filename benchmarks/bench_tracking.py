@@ -13,7 +13,11 @@ mode:
 * tracks on nothing (confirmed, no moving object within 2.5 m) and on parked cars (target 0);
 * identity switches: the track ids minus one, summed over objects (the passing cars: target 0);
 * coverage: of the scans in which an object shows 3 or more lidar returns, from one second after
-  the first such scan, the share with a confirmed track on it (target 95 %);
+  it came into view, the share with a confirmed track on it (target 95 %). An object unseen for
+  more than a second (hidden, or out of range) comes into view anew when it shows again: no
+  tracker can be asked to cover the first second of a pedestrian stepping out from behind parked
+  cars it went behind 4 s earlier. The strict figure, from one second after the object's first
+  such scan whatever happened since, is printed beside it;
 * IoU of each confirmed track's footprint predicted 1 s ahead with the object's then (target 0.6);
 * time of one cycle (scan in, tracks updated; radar sweep too where used), median.
 
@@ -65,7 +69,10 @@ def replay(street: Street, seed: int, radar: bool) -> dict:
     kinds = {m.ident: m.kind for m in street.movers}
     rows, ious, cycle = [], [], []
     seen_since: dict[int, float] = {}
+    first_seen: dict[int, float] = {}
+    last_seen: dict[int, float] = {}
     visible, covered = 0, 0
+    strict_visible, strict_covered = 0, 0
     ids: dict[int, set] = {}
     for t in np.arange(0.0, street.duration + 1e-9, RATE):
         t = round(float(t), 1)
@@ -94,7 +101,7 @@ def replay(street: Street, seed: int, radar: bool) -> dict:
             ids.setdefault(int(truth.id[j]), set()).add(int(tracks.id[i]))
             dh = abs(math.remainder(truth.heading[j] - tracks.heading[i], 2 * math.pi))
             rows.append((truth.kind[j], d[j], math.hypot(truth.vx[j] - tracks.vx[i], truth.vy[j] - tracks.vy[i]), dh))
-        # coverage: objects with 3+ lidar returns, from their second second on
+        # coverage: objects with 3+ lidar returns, from their second second in view on
         ranges = np.where(np.isfinite(scan.ranges) & (scan.ranges < 30.0), scan.ranges, np.nan)
         ok = np.isfinite(ranges)
         a = scan.pose[2] + scan.angles[ok]
@@ -103,10 +110,16 @@ def replay(street: Street, seed: int, radar: bool) -> dict:
         for ident, n in zip(labels, counts):
             if ident < 0 or n < 3 or kinds[int(ident)] == PARKED:
                 continue
-            first = seen_since.setdefault(int(ident), t)
-            if t - first >= 1.0:
+            ident = int(ident)
+            if t - last_seen.get(ident, -math.inf) > 1.0 + 1e-9:
+                seen_since[ident] = t
+            last_seen[ident] = t
+            if t - seen_since[ident] >= 1.0 - 1e-9:
                 visible += 1
-                covered += int(on.get(int(ident), False))
+                covered += int(on.get(ident, False))
+            if t - first_seen.setdefault(ident, t) >= 1.0 - 1e-9:
+                strict_visible += 1
+                strict_covered += int(on.get(ident, False))
         if t + 1.0 <= street.duration and round(t * 10) % 5 == 0:
             track_ids, states, _, sizes = lm.objects.tracker.predicted(t + 1.0)
             ahead = street.objects(t + 1.0)
@@ -122,6 +135,7 @@ def replay(street: Street, seed: int, radar: bool) -> dict:
     rows, ious = np.array(rows), np.array(ious)
     out = {"nothing": int((rows[:, 0] == -1).sum()), "parked": int((rows[:, 0] == PARKED).sum()),
            "switches": sum(len(v) - 1 for v in ids.values()), "coverage": covered / max(visible, 1),
+           "strict": strict_covered / max(strict_visible, 1),
            "cycle": float(np.median(cycle))}
     for kind, name in ((CAR, "cars"), (PEDESTRIAN, "people")):
         m = rows[:, 0] == kind
@@ -142,7 +156,7 @@ def main() -> None:
         runs = [replay(street, seed, radar) for seed in range(args.seeds)]
         for seed, r in enumerate(runs):
             print(f"{'lidar + radar' if radar else 'lidar'} seed {seed}: cars {np.round(r['cars'][:3], 3)}, people "
-                  f"{np.round(r['people'][:3], 3)}, coverage {r['coverage']:.3f}, IoU cars {r['cars_iou']:.2f} people "
+                  f"{np.round(r['people'][:3], 3)}, coverage {r['coverage']:.3f} (strict {r['strict']:.3f}), IoU cars {r['cars_iou']:.2f} people "
                   f"{r['people_iou']:.2f}, on nothing {r['nothing']}, parked {r['parked']}, switches {r['switches']}, "
                   f"cycle {1e3 * r['cycle']:.1f} ms", flush=True)
 
@@ -154,7 +168,7 @@ def main() -> None:
         for kind in ("cars", "people"):
             rows.append(f"| {name} | {kind} | {span(lambda r: r[kind][0])} m | {span(lambda r: r[kind][1])} m/s | "
                         f"{span(lambda r: r[kind][2], '{:.1f}')}° | {span(lambda r: r[kind + '_iou'], '{:.2f}')} | "
-                        f"{span(lambda r: r['coverage'], '{:.3f}')} | {span(lambda r: r['nothing'] + r['parked'], '{}')} | "
+                        f"{span(lambda r: r['coverage'], '{:.3f}')} | {span(lambda r: r['strict'], '{:.3f}')} | {span(lambda r: r['nothing'] + r['parked'], '{}')} | "
                         f"{span(lambda r: r['switches'], '{}')} | {span(lambda r: 1e3 * r['cycle'], '{:.1f}')} ms |")
     body = "\n".join([
         "## Tracking moving objects (simulated street)",
@@ -162,13 +176,16 @@ def main() -> None:
         f"`python benchmarks/bench_tracking.py`: the street through `LocalMap((60, 60), 0.1, tracking=True)`, seeds "
         f"0–{args.seeds - 1} (range over seeds); confirmed tracks against the nearest moving object within {MATCH} m.",
         "",
-        "| sensors | objects | position RMSE | speed RMSE | heading RMSE | IoU 1 s ahead | coverage | tracks on nothing or "
-        "parked cars (track-scans) | identity switches | cycle (median) |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| sensors | objects | position RMSE | speed RMSE | heading RMSE | IoU 1 s ahead | coverage | coverage from "
+        "first sight | tracks on nothing or parked cars (track-scans) | identity switches | cycle (median) |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         *rows,
         "",
         "Targets: 0.15 m, 0.3 m/s, 5°; IoU ≥ 0.6; coverage ≥ 0.95; no tracks on parked cars or walls; no identity "
-        "switch for cars passing ≥ 1 m apart. Coverage and the two last columns are per run, not per kind.",
+        "switch for cars passing ≥ 1 m apart. Coverage: of the scans showing an object (3 or more lidar returns) from "
+        "one second after it came into view (anew after more than a second unseen), the share with a confirmed "
+        "track on it; from first sight: from one second after its first such scan, whatever happened since. The "
+        "coverage columns and the three last are per run, not per kind.",
     ])
     if args.no_write:
         print(body)

@@ -60,6 +60,15 @@ class Detections(NamedTuple):
         """Per detection: an end of it is cut, so its extent may be cut short."""
         return self.cut.any(axis=1)
 
+    @property
+    def bare_end(self) -> np.ndarray:
+        """Per detection ``(M, 2)``: the bare end of a view cut at its other end (the object's own
+        edge, whatever hides the rest: :meth:`~.tracker.Tracker._measure` measures the centre from
+        it), NaN for the others."""
+        one = (self.bare.sum(axis=1) == 1) & (self.cut.sum(axis=1) == 1)
+        end = self.ends[np.arange(len(self)), np.argmax(self.bare, axis=1)]
+        return np.where(one[:, None], end, np.nan)
+
     @staticmethod
     def empty() -> Detections:
         f = np.empty(0)

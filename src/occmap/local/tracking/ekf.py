@@ -14,9 +14,10 @@ noise of one heading measurement dies out instead of turning a track seen only f
 
 Measurements (each returns the innovation ``y``, its Jacobian ``H`` and the caller gives ``R``):
 
-- :func:`pose_innovation`: a detected footprint's centre ``(x, y)`` and, for L-shaped views (two faces seen),
-  its heading. A box's heading is known only modulo π, so the heading innovation is wrapped to
-  ``(−π/2, π/2]``.
+- :func:`pose_innovation`: a point of a detected footprint ``(x, y)`` — its centre, or a point at a
+  fixed offset in the object's frame (an edge or a corner seen) — and, for L-shaped views (two faces
+  seen), its heading. A box's heading is known only modulo π, so the heading innovation is wrapped
+  to ``(−π/2, π/2]``.
 - :func:`radial_velocity_innovation`: a Doppler radar's radial velocity of the object, ego motion
   removed, along a world bearing ``φ``: ``h(s) = v·cos(θ − φ)``.
 
@@ -90,16 +91,26 @@ def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: f
     return out, 0.5 * (P + P.transpose(0, 2, 1))
 
 
-def pose_innovation(states: np.ndarray, z: np.ndarray, with_heading: bool):
-    """Innovation ``(N, m)`` and Jacobian ``(N, m, 5)`` of centre measurements ``z`` ``(N, 2)``,
-    or centre and heading ``(N, 3)`` when ``with_heading`` (``m`` = 2 or 3)."""
+def pose_innovation(states: np.ndarray, z: np.ndarray, with_heading: bool, offset=None):
+    """Innovation ``(N, m)`` and Jacobian ``(N, m, 5)`` of measurements ``z`` ``(N, 2)`` of the point
+    at ``offset`` ``(N, 2)`` (m, in the object's frame: along its heading and to its left; None:
+    the centre), or of that point and the heading ``(N, 3)`` when ``with_heading`` (``m`` = 2 or
+    3): ``h(s) = (x, y) + Rot(θ)·offset``. A point off the centre ties the heading to where it is
+    seen: a heading error swings it about the centre."""
     m = 3 if with_heading else 2
     y = z[:, :m] - states[:, :m]
-    if with_heading:
-        y[:, 2] = wrap_angle(2.0 * y[:, 2]) / 2.0  # a box's heading is known modulo π
     H = np.zeros((states.shape[0], m, 5))
     for k in range(m):
         H[:, k, k] = 1.0
+    if offset is not None:
+        c, s = np.cos(states[:, 2]), np.sin(states[:, 2])
+        ox, oy = offset[:, 0], offset[:, 1]
+        y[:, 0] -= c * ox - s * oy
+        y[:, 1] -= s * ox + c * oy
+        H[:, 0, 2] = -s * ox - c * oy
+        H[:, 1, 2] = c * ox - s * oy
+    if with_heading:
+        y[:, 2] = wrap_angle(2.0 * y[:, 2]) / 2.0  # a box's heading is known modulo π
     return y, H
 
 
