@@ -27,14 +27,18 @@ for a message type a topic does not hold, raises :class:`~occmap.errors.InvalidA
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 from typing import Iterable, Iterator, NamedTuple
 
+import numpy as np
+
 from ...errors import FormatError, InvalidArgumentError, MissingFileError
 from .definitions import check_definition, standard_store
+from .records import Raws, chunk_records
 from .ros1_chunks import Ros1Chunks
 
-__all__ = ["Bag", "Message", "Topic", "Where", "is_bag", "open_bag"]
+__all__ = ["Bag", "Message", "Run", "Topic", "Where", "is_bag", "open_bag"]
 
 _ROS1_MAGIC = b"#ROSBAG V"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -59,10 +63,16 @@ class Message:
     (the standard ones once :meth:`Bag.require_standard` has passed the topic: the same layout).
     """
 
-    __slots__ = ("topic", "msgtype", "time", "raw", "encoding", "_bag")
+    __slots__ = ("topic", "msgtype", "time_ns", "raw", "encoding", "_bag")
 
-    def __init__(self, topic: str, msgtype: str, time: float, raw, encoding: str, bag: Bag):
-        self.topic, self.msgtype, self.time, self.raw, self.encoding, self._bag = topic, msgtype, time, raw, encoding, bag
+    def __init__(self, topic: str, msgtype: str, time_ns: int, raw, encoding: str, bag: Bag):
+        self.topic, self.msgtype, self.time_ns, self.raw, self.encoding, self._bag = \
+            topic, msgtype, time_ns, raw, encoding, bag
+
+    @property
+    def time(self) -> float:
+        """When the message was recorded, seconds since the epoch (:attr:`time_ns`: nanoseconds)."""
+        return self.time_ns / 1e9
 
     @property
     def msg(self) -> object:
@@ -78,6 +88,23 @@ class Message:
 
     def __repr__(self) -> str:
         return f"Message({self.topic!r}, {self.msgtype}, {self.time:.9f} s, {len(self.raw)} bytes {self.encoding})"
+
+
+class Run(NamedTuple):
+    """Messages of a bag that were read together (a chunk's, :meth:`Bag.runs`), in time order:
+    message ``i`` is on ``topics[which[i]]``, recorded at ``times_ns[i]`` (int64 nanoseconds),
+    its bytes ``raws[i]``."""
+
+    topics: tuple[str, ...]
+    which: np.ndarray
+    times_ns: np.ndarray
+    raws: Raws
+
+    def __len__(self) -> int:
+        return len(self.which)
+
+    def take(self, rows) -> Run:
+        return Run(self.topics, self.which[rows], self.times_ns[rows], self.raws.take(rows))
 
 
 class Where:
@@ -108,6 +135,8 @@ class Bag:
     kind : str
         ``"ROS 1"``, ``"ROS 2 sqlite3"`` or ``"ROS 2 MCAP"`` (a ROS 2 bag folder or a lone file
         of that storage).
+    encoding : str
+        How its messages are serialised: ``"ros1"`` or ``"cdr"`` (see :mod:`.wire`).
     note : str
         Empty, or how the bag was read when the usual way failed (a ROS 1 index ``rosbags``
         rejects).
@@ -132,6 +161,7 @@ class Bag:
             if suffix is not None and self.path.suffix != suffix:
                 raise FormatError(self.path, f"holds {self.kind} data; name it *{suffix} to read it")
             self._source = _Rosbags(_lone_mcap(self.path) or self.path, self.kind)
+        self.encoding = self._source.encoding
         try:
             self.topics = dict(sorted((t.name, t) for t in self._source.topics()))
             self.start, self.end = self._source.span()
@@ -156,6 +186,13 @@ class Bag:
             if msgtype is not None and topic.msgtype != msgtype:
                 raise InvalidArgumentError(f"{self.path}: topic {name!r} holds {topic.msgtype}, not {msgtype}")
         return self._stream(set(names))
+
+    def runs(self, topics: Iterable[str]) -> Iterator[Run]:
+        """The messages of ``topics`` (names the bag has) as :meth:`messages` gives them, in
+        runs: the messages of a chunk together for a ROS 1 or MCAP bag whose chunks follow one
+        another in time (listed by :func:`~.records.chunk_records`, with no Python per message),
+        else in runs of up to 64 messages (or a megabyte) as :meth:`messages` reads them."""
+        return self._source.runs(set(topics))
 
     def require_standard(self, topics: str | Iterable[str]) -> None:
         """Raise :class:`FormatError` (naming the bag, the topic, the type and what differs) when
@@ -184,7 +221,7 @@ class Bag:
     def _stream(self, names: set[str]) -> Iterator[Message]:
         encoding = self._source.encoding
         for topic, kind, time_ns, raw in self._source.raw(names):
-            yield Message(topic, kind, time_ns / 1e9, raw, encoding, self)
+            yield Message(topic, kind, time_ns, raw, encoding, self)
 
     def close(self) -> None:
         self._source.close()
@@ -280,6 +317,65 @@ class _Rosbags:
         except Exception as e:
             raise FormatError(self.path, f"cannot read the messages ({_describe(e)})") from e
 
+    def runs(self, topics: set[str]) -> Iterator[Run]:
+        connections = [c for c in self._reader.connections if c.topic in topics]
+        if not connections:
+            return
+        chunks = self._chunks({c.id for c in connections})
+        if chunks is None:
+            yield from _runs_of((topic, time_ns, raw) for topic, _, time_ns, raw in self.raw(topics))
+            return
+        topic_of = {c.id: c.topic for c in connections}
+        kind = "ros1" if self.kind == "ROS 1" else "mcap"
+        for where, read in chunks:
+            try:
+                data = read()
+            except Exception as e:  # rosbags' decompressors and checks raise their own errors
+                raise FormatError(self.path, f"{where}: cannot read it ({_describe(e)})") from e
+            run = _chunk_run(data, chunk_records(data, kind, self.path, where), topic_of, sort=True)
+            if len(run):
+                yield run
+
+    def _chunks(self, ids: set[int]) -> list | None:
+        """``(where, read)`` of each chunk holding messages of connections ``ids`` in file order,
+        ``read()`` its unpacked bytes; None when the bag is not read by chunks (ROS 2 sqlite3,
+        a bag folder of several files, an MCAP without chunks) or when chunks overlap in time (then
+        ``rosbags`` merges their messages)."""
+        if self.kind == "ROS 1":
+            reader = self._reader
+            infos = sorted((c for c in reader.chunk_infos if ids.intersection(c.connection_counts)), key=lambda c: c.pos)
+            if any(a.end_time - 1 > b.start_time for a, b in zip(infos, infos[1:])):  # rosbags' end: last + 1 ns
+                return None
+            return [(f"chunk at byte {c.pos}", partial(self._ros1_chunk, c.pos)) for c in infos]
+        from rosbags.rosbag2.storage_mcap import McapReader
+
+        storage = getattr(self._reader, "storage", None)
+        if not isinstance(storage, McapReader) or not storage.chunks:
+            return None
+        infos = sorted((c for c in storage.chunks if any(c.channel_count.get(i) for i in ids)),
+                       key=lambda c: c.chunk_start_offset)
+        if any(a.message_end_time > b.message_start_time for a, b in zip(infos, infos[1:])):
+            return None
+        return [(f"chunk at byte {c.chunk_start_offset}", partial(self._mcap_chunk, storage, c)) for c in infos]
+
+    def _ros1_chunk(self, pos: int) -> bytes:
+        chunk = self._reader.chunks[pos]
+        self._reader.bio.seek(chunk.datapos)
+        return chunk.decompressor(_read_exact(self._reader.bio, chunk.datasize))
+
+    @staticmethod
+    def _mcap_chunk(storage, chunk) -> bytes:
+        """The records of an MCAP chunk record (opcode, length, start and end times, size; the
+        CRC at byte 33, then the compression's name and the compressed records), unpacked and
+        checked by ``rosbags``."""
+        from rosbags.rosbag2.storage_mcap import decompress
+
+        storage.bio.seek(chunk.chunk_start_offset + 9 + 24)
+        crc = int.from_bytes(_read_exact(storage.bio, 4), "little")
+        storage.bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
+        data = _read_exact(storage.bio, chunk.compressed_size)
+        return decompress(data, chunk.compression, chunk.uncompressed_size, crc)
+
     def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
         """``(topic, type, digest, "msg" | "idl" | "", definition)`` of each connection of ``topics``."""
         for c in self._reader.connections:
@@ -363,6 +459,13 @@ class _Ros1FromChunks:
         for conn, time_ns, raw in self._bag.messages(set(conns)):
             yield conns[conn].topic, self._types[conn], time_ns, raw
 
+    def runs(self, topics: set[str]) -> Iterator[Run]:
+        topic_of = {c.id: c.topic for c in self._bag.connections.values() if c.topic in topics}
+        for data, records in self._bag.chunks_of(set(topic_of)):
+            run = _chunk_run(data, records, topic_of, sort=False)
+            if len(run):
+                yield run
+
     def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
         for c in self._bag.connections.values():
             if c.topic in topics:
@@ -373,6 +476,48 @@ class _Ros1FromChunks:
 
     def close(self) -> None:
         self._file.close()
+
+
+#: Largest runs :meth:`Bag.runs` makes of messages read one by one: messages, bytes
+_RUN_MESSAGES, _RUN_BYTES = 64, 1 << 20
+
+
+def _runs_of(messages) -> Iterator[Run]:
+    """``(topic, time_ns, raw)`` in runs of :data:`_RUN_MESSAGES` (fewer past :data:`_RUN_BYTES`)."""
+    slots: dict[str, int] = {}
+    which, times, raws, held = [], [], [], 0
+    for topic, time_ns, raw in messages:
+        which.append(slots.setdefault(topic, len(slots)))
+        times.append(time_ns)
+        raws.append(raw)
+        held += len(raw)
+        if len(raws) == _RUN_MESSAGES or held >= _RUN_BYTES:
+            yield Run(tuple(slots), np.array(which, np.intp), np.array(times, np.int64), Raws.of(raws))
+            which, times, raws, held = [], [], [], 0
+    if raws:
+        yield Run(tuple(slots), np.array(which, np.intp), np.array(times, np.int64), Raws.of(raws))
+
+
+def _chunk_run(data, records, topic_of: dict[int, str], sort: bool) -> Run:
+    """The messages of a chunk (``data``, its :class:`~.records.Records`) on the connections
+    ``topic_of`` names, in the order recorded or, when ``sort``, by time (ties in the order
+    recorded, as ``rosbags`` gives them)."""
+    topics = tuple(dict.fromkeys(topic_of.values()))
+    ids = np.array(sorted(topic_of), dtype=np.int64)
+    slots = np.array([topics.index(topic_of[i]) for i in ids.tolist()], dtype=np.intp)
+    at = np.minimum(np.searchsorted(ids, records.conn), len(ids) - 1)
+    rows = np.flatnonzero(ids[at] == records.conn)
+    if sort:
+        rows = rows[np.argsort(records.time_ns[rows], kind="stable")]
+    return Run(topics, slots[at[rows]], records.time_ns[rows],
+               Raws(np.frombuffer(data, np.uint8), records.start[rows], records.size[rows]))
+
+
+def _read_exact(file, n: int) -> bytes:
+    data = file.read(n)
+    if len(data) != n:
+        raise EOFError(f"the file ends {n - len(data)} bytes early")
+    return data
 
 
 def _ros2_name(msgtype: str) -> str:
