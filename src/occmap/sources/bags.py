@@ -22,7 +22,7 @@ stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming bot
 time. A topic (the scans', tf, odometry) whose connection defines its type otherwise than ROS does
 is refused with a :class:`~occmap.errors.FormatError` saying what differs
 (:mod:`occmap.io.bags.definitions`). Memory holds the frame tree and the messages waiting for tf
-(one, or a batch of up to 200 laser scans, decoded and placed together), and, from opening to the
+(one, or a batch of up to 400 laser scans, decoded and placed together), and, from opening to the
 first iteration, what opening read (see below; at most :data:`HEAD_BYTES`), which that
 iteration goes on from rather than reading it again.
 
@@ -72,7 +72,7 @@ class _BagSource:
     MSGTYPE = ""
     FALLBACK_FRAME = ""
     BATCH = 1  # messages decoded before their poses are looked up together, at most
-    FIRST_BATCH = 1  # ... in the first batch (the batches double up to BATCH)
+    FIRST_BATCH = 1  # ... in the first batch (the next ones grow 16-fold up to BATCH)
 
     def __init__(self, path, topic: str | None = None, fixed_frame: str | None = None,
                  odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1,
@@ -109,7 +109,7 @@ class _BagSource:
         of the run, :meth:`~occmap.io.bags.Bag.runs`, that held the last). Past :data:`HEAD_BYTES`
         (point clouds), nothing is held: the first message and tf are read in passes of their own."""
         feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
-        self.sensor_frame, first, held, rest = "", None, 0, None
+        self.sensor_frame, first, held, rest, head = "", None, 0, None, []
         stream = bag.runs(self._topics(feed)) if self.count else iter(())
         for run in stream:
             mine = _on(run, self.topic)
@@ -122,28 +122,30 @@ class _BagSource:
             if first is not None:
                 stop[at:] |= (not root) | (run.times_ns[at:] / 1e9 > first[0] + ROOT_HORIZON)
             cut = int(np.argmax(stop)) + 1 if stop.any() else len(run)
-            self._head += self._messages(run.take(slice(None, cut)), bag)
+            head.append(run.take(slice(None, cut)))
             held = int(ends[cut - 1])
             if stop.any():
                 rest = run.take(slice(cut, None))
                 break
-        if held > HEAD_BYTES:
+        if held > HEAD_BYTES:  # the head is not kept: tf up to the horizon read again, without the messages
             stream.close()
             stream, rest = None, None
             if first is None:
                 m = _first(bag.messages(self.topic))
                 first = m.time, m.raw
-            self._head = _before(bag.messages(feed.topics), first[0] + ROOT_HORIZON) if root else []
+            head = _before(bag.runs(feed.topics), first[0] + ROOT_HORIZON) if root else []
         if first is not None:
             where = Where(bag.path, self.topic, 0, first[0])
             self.sensor_frame = Wire(first[1], bag.encoding, where).header()[1]
         if root:
-            if first is not None:
-                feed.add(_run_of([m for m in self._head if m.topic != self.topic and m.time <= first[0] + ROOT_HORIZON]))
+            for run in head:
+                if first is not None:
+                    feed.add(run.take(np.flatnonzero(~_on(run, self.topic)
+                                                     & (run.times_ns / 1e9 <= first[0] + ROOT_HORIZON))))
             self.fixed_frame = _root(feed.flush(), self.sensor_frame) or self.FALLBACK_FRAME
-        if stream is None:
-            self._head = []
-        self._stream = stream if rest is None else itertools.chain([rest], stream)
+        if stream is not None:
+            self._head = [m for run in head for m in self._messages(run, bag)]
+            self._stream = stream if rest is None else itertools.chain([rest], stream)
 
     def _messages(self, run, bag) -> list[Message]:
         """The messages of ``run`` one by one."""
@@ -200,8 +202,9 @@ class _BagSource:
                 k += len(at)
                 if self.every > 1:
                     at, ks = at[ks % self.every == 0], ks[ks % self.every == 0]
-                others = np.flatnonzero(mine == 0)  # tf's messages
-                fed = taken = 0  # of others and of at
+                if not whole:  # tf's messages: the run's all at once (a chunk: the messages read with them)
+                    feed.add(run.take(np.flatnonzero(~mine)))
+                taken = 0  # of at
                 while taken < len(at):
                     sizes = run.raws.sizes[at[taken:]]
                     # the message that fills the batch: its count, or BATCH_BYTES
@@ -214,14 +217,10 @@ class _BagSource:
                         count, held = count + len(sizes), held + int(sizes.sum())
                         break
                     end = taken + cut + 1
-                    if not whole:  # tf recorded before that message
-                        upto = int(np.searchsorted(others, at[end - 1]))
-                        feed.add(run.take(others[fed:upto]))
-                        fed = max(fed, upto)
                     pending.append((ks[taken:end], run.take(at[taken:end])))
                     taken = end
                     waiting = self._joined(waiting, self._decoded(pending, bag))
-                    pending, batch, count, held = [], min(4 * batch, self.BATCH), 0, 0
+                    pending, batch, count, held = [], min(16 * batch, self.BATCH), 0, 0
                     if not whole:
                         tree = feed.flush()
                         if len(waiting.ks) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
@@ -231,8 +230,6 @@ class _BagSource:
                     if n:
                         yield from self._placed(self._part(waiting, slice(None, n)), tree)
                         waiting = self._part(waiting, slice(n, None))
-                if not whole:
-                    feed.add(run.take(others[fed:]))
             if not whole:
                 tree = feed.flush()
             if pending:
@@ -342,7 +339,7 @@ class BagScans(_BagSource):
 
     MSGTYPE = "sensor_msgs/msg/LaserScan"
     FALLBACK_FRAME = "odom"
-    BATCH = 400  # a batch costs about 0.2 ms beside its messages (tf brought up to date, lookups)
+    BATCH = 400  # a batch costs about 0.5 ms beside its messages (tf brought up to date, lookups)
     FIRST_BATCH = 25  # the first run a grid takes (map_scan_stream's first chunk)
 
     def __init__(self, path, *args, max_range: float | None = None, **kwargs):
@@ -350,8 +347,9 @@ class BagScans(_BagSource):
         self.max_range = None if max_range is None else float(max_range)
 
     def stacks(self) -> Iterator[ScanStack]:
-        """The scans as :class:`~occmap.scan.ScanStack` runs, in order: batches of 25, 50, 100,
-        then 200 (more while tf lags behind them), rows NaN-padded to the widest scan of a run."""
+        """The scans as :class:`~occmap.scan.ScanStack` runs, in order: batches of 25, then 400 or
+        :data:`BATCH_BYTES` of messages (more while tf lags behind them), rows NaN-padded to the
+        widest scan of a run."""
         for stack, _ in self._chunks():
             yield stack
 
@@ -467,12 +465,20 @@ def _first(stream):
         stream.close()
 
 
-def _before(stream, time: float) -> list:
-    """The messages of ``stream`` recorded at or before ``time``; the stream is then closed."""
+def _before(runs, time: float) -> list:
+    """The messages of ``runs`` (an iterator of :class:`Run`) recorded at or before ``time``, in
+    runs; the iterator is then closed."""
+    kept = []
     try:
-        return list(itertools.takewhile(lambda m: m.time <= time, stream))
+        for run in runs:
+            late = np.flatnonzero(run.times_ns / 1e9 > time)
+            if len(late):
+                kept.append(run.take(slice(None, int(late[0]))))
+                break
+            kept.append(run)
     finally:
-        stream.close()
+        runs.close()
+    return kept
 
 
 def _run_of(messages) -> Run:

@@ -90,15 +90,15 @@ class Message:
         return f"Message({self.topic!r}, {self.msgtype}, {self.time:.9f} s, {len(self.raw)} bytes {self.encoding})"
 
 
-class Run(NamedTuple):
+class Run:
     """Messages of a bag that were read together (a chunk's, :meth:`Bag.runs`), in time order:
     message ``i`` is on ``topics[which[i]]``, recorded at ``times_ns[i]`` (int64 nanoseconds),
-    its bytes ``raws[i]``."""
+    its bytes ``raws[i]`` (a :class:`~.records.Raws`)."""
 
-    topics: tuple[str, ...]
-    which: np.ndarray
-    times_ns: np.ndarray
-    raws: Raws
+    __slots__ = ("topics", "which", "times_ns", "raws")
+
+    def __init__(self, topics: tuple[str, ...], which: np.ndarray, times_ns: np.ndarray, raws: Raws):
+        self.topics, self.which, self.times_ns, self.raws = topics, which, times_ns, raws
 
     def __len__(self) -> int:
         return len(self.which)

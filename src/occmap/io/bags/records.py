@@ -98,7 +98,9 @@ class Raws:
         sizes = np.concatenate([p.sizes for p in parts])
         starts = np.zeros(len(sizes), np.int64)
         np.cumsum(sizes[:-1], out=starts[1:])
-        return cls(np.concatenate(whole) if whole else np.zeros(0, np.uint8), starts, sizes)
+        buf = np.concatenate(whole)
+        buf.setflags(write=False)  # as a chunk's: the kernels see one array type
+        return cls(buf, starts, sizes)
 
     def __len__(self) -> int:
         return len(self.sizes)

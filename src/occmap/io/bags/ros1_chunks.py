@@ -22,8 +22,9 @@ The index section at ``index_pos`` holds the connection records and one chunk in
 ``rosbags`` also reads the index data records after each chunk and rejects a bag whose index data
 length disagrees with its count (the shared ``laser_scan_matcher_demo.bag`` says 5,560 bytes for
 278 entries of 12). This reader needs only the index section: it finds each chunk from its chunk
-info, unpacks it, and walks the message records inside, so it yields messages in the order they
-were recorded, one chunk in memory at a time. Integers are little-endian.
+info, unpacks it, and lists the message records inside (:func:`~.records.chunk_records`, the
+kernel the indexed path uses too), so it yields messages in the order they were recorded, one
+chunk in memory at a time. Integers are little-endian.
 """
 
 from __future__ import annotations
