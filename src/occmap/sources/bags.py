@@ -10,7 +10,8 @@ Where each message was taken comes, in this order, from:
   header stamp, interpolated between tf samples. An odometry topic (``nav_msgs/Odometry``) joins
   the tree as the link ``header.frame_id → child_frame_id`` of its messages, so odometry serves
   where a bag has no tf, or only a static sensor mount. tf is read in the same pass as the
-  messages (:class:`~occmap.io.bags.transforms.TransformFeed`), and a message waits until tf has
+  messages (:class:`~occmap.io.bags.transforms.TransformFeed`; the tf of a run of messages read
+  together, :meth:`~occmap.io.bags.Bag.runs`, goes in at once), and a message waits until tf has
   passed its stamp, as tf2's message filters make a node wait; if tf lags so far behind that
   :data:`WAIT_LIMIT` batches wait, or never joins the sensor frame, the bag's whole tf is read in a
   pass of its own. With tf recorded in stamp order, the poses are those the whole bag's tf gives.
