@@ -2,13 +2,15 @@
 
 Kinds, told apart by their first bytes (a folder by its ``metadata.yaml``):
 
-* ROS 1 ``.bag`` (format 2.0), read with ``rosbags``; when ``rosbags`` rejects the bag's index,
-  with :class:`~occmap.io.bags.ros1_chunks.Ros1Chunks`, which reads the chunks without it;
+* ROS 1 ``.bag`` (format 2.0): its index section (connections, chunk infos) read by
+  :class:`~occmap.io.bags.ros1_chunks.Ros1Chunks`, its messages one by one by ``rosbags`` (opened
+  when first needed), or by ``Ros1Chunks`` when ``rosbags`` rejects the bag's index;
 * ROS 2 bag folders (``metadata.yaml`` beside ``.db3`` or ``.mcap`` files), and a lone ``.db3``
   (SQLite) or ``.mcap`` file.
 
-A message comes as its bytes, which occmap's decoders read for the types it maps from
-(:mod:`.wire`), and deserialised by ``rosbags`` on demand (:attr:`Message.msg`) with the type
+:meth:`Bag.runs` gives the messages a chunk at a time for the sources (ROS 1 and MCAP chunks
+listed by the kernel of :mod:`.records`, no Python per message). A message comes as its bytes,
+which occmap's decoders read for the types it maps from (:mod:`.wire`), and deserialised by ``rosbags`` on demand (:attr:`Message.msg`) with the type
 definitions the bag carries (ROS 1 connections, MCAP schemas, ROS 2 metadata); a ROS 2 bag
 without them is deserialised with the standard ROS 2 types ``rosbags`` knows, and so are the
 topics :meth:`Bag.require_standard` has found to define their types as ROS does. Type names are in
@@ -137,9 +139,6 @@ class Bag:
         of that storage).
     encoding : str
         How its messages are serialised: ``"ros1"`` or ``"cdr"`` (see :mod:`.wire`).
-    note : str
-        Empty, or how the bag was read when the usual way failed (a ROS 1 index ``rosbags``
-        rejects).
     topics : dict[str, Topic]
         Every topic, by name, sorted by name.
     start, end : float or None
@@ -148,15 +147,10 @@ class Bag:
 
     def __init__(self, path):
         self.path = Path(path)
-        self.note = ""
         self._standard: set[str] = set()  # topics that require_standard passed
         self.kind, suffix = _kind(self.path)
         if self.kind == "ROS 1":
-            try:
-                self._source = _Rosbags(self.path, self.kind)
-            except FormatError as e:
-                self._source = _Ros1FromChunks(self.path)
-                self.note = f"rosbags rejects its index ({_describe(e.__cause__)}); read from its chunk records"
+            self._source = _Ros1(self.path)
         else:
             if suffix is not None and self.path.suffix != suffix:
                 raise FormatError(self.path, f"holds {self.kind} data; name it *{suffix} to read it")
@@ -168,6 +162,12 @@ class Bag:
         except BaseException:
             self._source.close()
             raise
+
+    @property
+    def note(self) -> str:
+        """Empty, or how the bag was read when the usual way failed (a ROS 1 index ``rosbags``
+        rejects; asking opens ``rosbags``' reader of a ROS 1 bag, see :class:`_Ros1`)."""
+        return getattr(self._source, "note", "")
 
     def messages(self, topics: str | Iterable[str] | None = None, msgtype: str | None = None) -> Iterator[Message]:
         """The messages of ``topics`` (a name, several, or None for all) in time order (in
@@ -326,27 +326,20 @@ class _Rosbags:
             yield from _runs_of((topic, time_ns, raw) for topic, _, time_ns, raw in self.raw(topics))
             return
         topic_of = {c.id: c.topic for c in connections}
-        kind = "ros1" if self.kind == "ROS 1" else "mcap"
         for where, read in chunks:
             try:
                 data = read()
             except Exception as e:  # rosbags' decompressors and checks raise their own errors
                 raise FormatError(self.path, f"{where}: cannot read it ({_describe(e)})") from e
-            run = _chunk_run(data, chunk_records(data, kind, self.path, where), topic_of, sort=True)
+            run = _chunk_run(data, chunk_records(data, "mcap", self.path, where), topic_of, sort=True)
             if len(run):
                 yield run
 
     def _chunks(self, ids: set[int]) -> list | None:
-        """``(where, read)`` of each chunk holding messages of connections ``ids`` in file order,
-        ``read()`` its unpacked bytes; None when the bag is not read by chunks (ROS 2 sqlite3,
-        a bag folder of several files, an MCAP without chunks) or when chunks overlap in time (then
-        ``rosbags`` merges their messages)."""
-        if self.kind == "ROS 1":
-            reader = self._reader
-            infos = sorted((c for c in reader.chunk_infos if ids.intersection(c.connection_counts)), key=lambda c: c.pos)
-            if any(a.end_time - 1 > b.start_time for a, b in zip(infos, infos[1:])):  # rosbags' end: last + 1 ns
-                return None
-            return [(f"chunk at byte {c.pos}", partial(self._ros1_chunk, c.pos)) for c in infos]
+        """``(where, read)`` of each chunk of an MCAP file holding messages of channels ``ids``, in
+        file order, ``read()`` its unpacked bytes; None when the bag is not read by chunks (ROS 2
+        sqlite3, a bag folder of several files, an MCAP without chunks; ROS 1: :class:`_Ros1`) or
+        when chunks overlap in time (then ``rosbags`` merges their messages)."""
         from rosbags.rosbag2.storage_mcap import McapReader
 
         storage = getattr(self._reader, "storage", None)
@@ -357,11 +350,6 @@ class _Rosbags:
         if any(a.message_end_time > b.message_start_time for a, b in zip(infos, infos[1:])):
             return None
         return [(f"chunk at byte {c.chunk_start_offset}", partial(self._mcap_chunk, storage, c)) for c in infos]
-
-    def _ros1_chunk(self, pos: int) -> bytes:
-        chunk = self._reader.chunks[pos]
-        self._reader.bio.seek(chunk.datapos)
-        return chunk.decompressor(_read_exact(self._reader.bio, chunk.datasize))
 
     @staticmethod
     def _mcap_chunk(storage, chunk) -> bytes:
@@ -406,37 +394,44 @@ class _Rosbags:
         self._reader.close()
 
 
-class _Ros1FromChunks:
-    """A ROS 1 bag read by :class:`Ros1Chunks`, its types from the connections' definitions."""
+class _Ros1:
+    """A ROS 1 bag: its index section read by :class:`Ros1Chunks` (connections, and where each
+    chunk is and what it holds), its chunks listed by :func:`~.records.chunk_records` for
+    :meth:`Bag.runs`. ``rosbags``' reader, whose opening reads every message's index entry (1.5 ms
+    for 1,820 messages, a list entry each), opens only for what needs it: the messages one by one
+    (:meth:`Bag.messages`), the bag's types, runs of chunks that overlap in time (which ``rosbags``
+    merges), and :attr:`note`. When ``rosbags`` rejects the index, :class:`_Ros1FromChunks` does
+    those instead, and :attr:`note` says so."""
 
     encoding = "ros1"
 
     def __init__(self, path: Path):
-        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
         self.path = path
         self._file = open(path, "rb")
         try:
             self._bag = Ros1Chunks(path, self._file)
-            self._types: dict[int, str] = {}
-            defined = {}
-            for conn in self._bag.connections.values():
-                kind = _ros2_name(conn.msgtype)
-                self._types[conn.id] = kind
-                try:
-                    defined.update(get_types_from_msg(conn.definition, kind))
-                except Exception as e:
-                    raise FormatError(path, f"connection {conn.id} ({conn.topic!r}): the definition of "
-                                      f"{conn.msgtype} does not parse ({_describe(e)})") from e
-            # Bags from before ROS C Turtle (2010) define Header as roslib/Header; "Header" in a
-            # definition means std_msgs/Header to rosbags.
-            if "roslib/msg/Header" in defined:
-                defined.setdefault("std_msgs/msg/Header", defined["roslib/msg/Header"])
-            self._typestore = get_typestore(Stores.EMPTY)
-            self._typestore.register(defined)
         except BaseException:
             self._file.close()
             raise
+        self._types = {conn.id: _ros2_name(conn.msgtype) for conn in self._bag.connections.values()}
+        self._reader = None  # _Rosbags, or _Ros1FromChunks when rosbags rejects the index
+        self._note = ""
+
+    @property
+    def reader(self):
+        """What reads the messages one by one and deserialises them, opened on first use."""
+        if self._reader is None:
+            try:
+                self._reader = _Rosbags(self.path, "ROS 1")
+            except FormatError as e:
+                self._reader = _Ros1FromChunks(self.path, self._bag, self._types)
+                self._note = f"rosbags rejects its index ({_describe(e.__cause__)}); read from its chunk records"
+        return self._reader
+
+    @property
+    def note(self) -> str:
+        self.reader
+        return self._note
 
     def topics(self) -> list[Topic]:
         counts = self._bag.counts()
@@ -454,6 +449,59 @@ class _Ros1FromChunks:
             return None, None
         return min(c.start for c in chunks) / 1e9, max(c.end for c in chunks) / 1e9
 
+    def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
+        for c in self._bag.connections.values():
+            if c.topic in topics:
+                yield c.topic, self._types[c.id], c.md5sum, "msg", c.definition
+
+    def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
+        return self.reader.raw(topics)
+
+    def decode(self, raw, msgtype: str) -> object:
+        return self.reader.decode(raw, msgtype)
+
+    def runs(self, topics: set[str]) -> Iterator[Run]:
+        topic_of = {c.id: c.topic for c in self._bag.connections.values() if c.topic in topics}
+        chunks = sorted((c for c in self._bag.chunks if not set(topic_of).isdisjoint(c.counts)),
+                        key=lambda c: c.position)
+        if any(a.end > b.start for a, b in zip(chunks, chunks[1:])):
+            yield from self.reader.runs(topics)
+            return
+        for data, records in self._bag.records_of(chunks):
+            run = _chunk_run(data, records, topic_of, sort=True)
+            if len(run):
+                yield run
+
+    def close(self) -> None:
+        if self._reader is not None:
+            self._reader.close()
+        self._file.close()
+
+
+class _Ros1FromChunks:
+    """The messages of a ROS 1 bag whose index ``rosbags`` rejects, read from its chunks
+    (:class:`Ros1Chunks`, in the order recorded), and its types from the connections' definitions."""
+
+    encoding = "ros1"
+
+    def __init__(self, path: Path, chunks: Ros1Chunks, types: dict[int, str]):
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        self.path, self._bag, self._types = path, chunks, types
+        defined = {}
+        for conn in self._bag.connections.values():
+            try:
+                defined.update(get_types_from_msg(conn.definition, types[conn.id]))
+            except Exception as e:
+                raise FormatError(path, f"connection {conn.id} ({conn.topic!r}): the definition of "
+                                  f"{conn.msgtype} does not parse ({_describe(e)})") from e
+        # Bags from before ROS C Turtle (2010) define Header as roslib/Header; "Header" in a
+        # definition means std_msgs/Header to rosbags.
+        if "roslib/msg/Header" in defined:
+            defined.setdefault("std_msgs/msg/Header", defined["roslib/msg/Header"])
+        self._typestore = get_typestore(Stores.EMPTY)
+        self._typestore.register(defined)
+
     def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
         conns = {c.id: c for c in self._bag.connections.values() if c.topic in topics}
         for conn, time_ns, raw in self._bag.messages(set(conns)):
@@ -466,16 +514,17 @@ class _Ros1FromChunks:
             if len(run):
                 yield run
 
-    def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
-        for c in self._bag.connections.values():
-            if c.topic in topics:
-                yield c.topic, self._types[c.id], c.md5sum, "msg", c.definition
-
-    def decode(self, raw: bytes, msgtype: str) -> object:
+    def decode(self, raw, msgtype: str) -> object:
         return self._typestore.deserialize_ros1(raw, msgtype)
 
     def close(self) -> None:
-        self._file.close()
+        pass  # the file is _Ros1's
+
+
+def _ros2_name(msgtype: str) -> str:
+    """``pkg/Name`` → ``pkg/msg/Name`` (ROS 1 names in the ROS 2 form rosbags uses)."""
+    parts = msgtype.split("/")
+    return "/".join((parts[0], "msg", parts[1])) if len(parts) == 2 else msgtype
 
 
 #: Largest runs :meth:`Bag.runs` makes of messages read one by one: messages, bytes
@@ -518,12 +567,6 @@ def _read_exact(file, n: int) -> bytes:
     if len(data) != n:
         raise EOFError(f"the file ends {n - len(data)} bytes early")
     return data
-
-
-def _ros2_name(msgtype: str) -> str:
-    """``pkg/Name`` → ``pkg/msg/Name`` (ROS 1 names in the ROS 2 form rosbags uses)."""
-    parts = msgtype.split("/")
-    return "/".join((parts[0], "msg", parts[1])) if len(parts) == 2 else msgtype
 
 
 def _describe(e: BaseException | None) -> str:

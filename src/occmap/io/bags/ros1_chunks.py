@@ -131,12 +131,15 @@ class Ros1Chunks:
 
     def chunks_of(self, connections: set[int]) -> Iterator[tuple[bytes, Records]]:
         """``(unpacked chunk, its message records)`` of each chunk holding messages of
-        ``connections`` (and maybe others), in time order; the records by
+        ``connections`` (and maybe others), in time order (:meth:`records_of`)."""
+        return self.records_of([c for c in self.chunks if connections.intersection(c.counts)])
+
+    def records_of(self, chunks: list[ChunkInfo]) -> Iterator[tuple[bytes, Records]]:
+        """``(unpacked chunk, its message records)`` of each of ``chunks``, the records listed by
         :func:`~.records.chunk_records`."""
-        for chunk in self.chunks:
-            if connections.intersection(chunk.counts):
-                data = self._unpack(chunk.position)
-                yield data, chunk_records(data, "ros1", self.path, f"chunk at byte {chunk.position}")
+        for chunk in chunks:
+            data = self._unpack(chunk.position)
+            yield data, chunk_records(data, "ros1", self.path, f"chunk at byte {chunk.position}")
 
     # ------------------------------------------------------------------ records
 
