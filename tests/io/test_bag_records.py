@@ -170,3 +170,6 @@ def test_raws_take_join_and_concat():
     assert raws.take(slice(1, 3)).joined().base is not None  # in a row already: a view
     both = Raws.concat([picked, raws.take(slice(0, 1))])
     assert [both[i].tobytes() for i in range(len(both))] == [b"f", b"ab", b"cde", b"ab"]
+    own = raws.take(slice(2, 4)).compact()  # in a buffer of its own: the chunk's can go
+    assert [own[i].tobytes() for i in range(2)] == [b"cde", b"f"] and len(own.buf) == 4
+    assert not np.shares_memory(own.buf, raws.buf)

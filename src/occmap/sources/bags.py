@@ -468,15 +468,15 @@ def _first(stream):
 
 def _before(runs, time: float) -> list:
     """The messages of ``runs`` (an iterator of :class:`Run`) recorded at or before ``time``, in
-    runs; the iterator is then closed."""
+    runs holding their own bytes (not their chunks'); the iterator is then closed."""
     kept = []
     try:
         for run in runs:
             late = np.flatnonzero(run.times_ns / 1e9 > time)
+            part = run.take(slice(None, int(late[0]))) if len(late) else run
+            kept.append(Run(part.topics, part.which, part.times_ns, part.raws.compact()))
             if len(late):
-                kept.append(run.take(slice(None, int(late[0]))))
                 break
-            kept.append(run)
     finally:
         runs.close()
     return kept

@@ -112,6 +112,14 @@ class Raws:
     def take(self, rows) -> Raws:
         return Raws(self.buf, self.starts[rows], self.sizes[rows])
 
+    def compact(self) -> Raws:
+        """The messages in a buffer of their own, which lets go of a chunk's buffer."""
+        buf = self.joined().copy()
+        buf.setflags(write=False)
+        starts = np.zeros(len(self.sizes), np.int64)
+        np.cumsum(self.sizes[:-1], out=starts[1:])
+        return Raws(buf, starts, self.sizes)
+
     def joined(self) -> np.ndarray:
         """The messages end to end, a uint8 array (a view when they already are)."""
         n = len(self.sizes)
