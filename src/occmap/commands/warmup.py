@@ -347,7 +347,47 @@ def city(folder: Path) -> None:
     drive.city.occupied(cloud.world_points())
 
 
-JOBS = (geometry, grids, local_map, localization, scan_matching, octree, world, city)
+def bags(folder: Path) -> None:
+    """A ROS 1 bag and an MCAP file of laser scans and tf, written by rosbags and streamed: the
+    kernel that lists a chunk's records, and the one that gathers messages."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    from ..sources import BagScans
+
+    for ros1 in (True, False):
+        ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.LATEST)
+        if ros1:
+            ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
+        T = ts.types
+        path = folder / ("warm.bag" if ros1 else "warm")
+        writer = Writer1(path) if ros1 else Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP)
+        serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+        with writer:
+            tf = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+            scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
+            for k in range(30):
+                header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=k + 1, nanosec=0),
+                                                  frame_id="laser", **({"seq": 0} if ros1 else {}))
+                vector = T["geometry_msgs/msg/Vector3"](x=0.1 * k, y=0.0, z=0.0)
+                transform = T["geometry_msgs/msg/Transform"](
+                    translation=vector, rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
+                stamped = T["geometry_msgs/msg/TransformStamped"](
+                    header=T["std_msgs/msg/Header"](stamp=header.stamp, frame_id="odom", **({"seq": 0} if ros1 else {})),
+                    child_frame_id="laser", transform=transform)
+                writer.write(tf, (k + 1) * 10**9, serialize(T["tf2_msgs/msg/TFMessage"](transforms=[stamped]),
+                                                            "tf2_msgs/msg/TFMessage"))
+                message = T["sensor_msgs/msg/LaserScan"](
+                    header=header, angle_min=-1.0, angle_max=1.0, angle_increment=0.02, time_increment=0.0,
+                    scan_time=0.0, range_min=0.0, range_max=10.0, ranges=np.full(101, 2.0, np.float32),
+                    intensities=np.zeros(0, np.float32))
+                writer.write(scan, (k + 1) * 10**9, serialize(message, "sensor_msgs/msg/LaserScan"))
+        for _ in BagScans(path).stacks():
+            pass
+
+
+JOBS = (geometry, grids, local_map, localization, scan_matching, octree, world, city, bags)
 
 
 def run(args) -> int:

@@ -10,7 +10,8 @@ Where each message was taken comes, in this order, from:
   header stamp, interpolated between tf samples. An odometry topic (``nav_msgs/Odometry``) joins
   the tree as the link ``header.frame_id → child_frame_id`` of its messages, so odometry serves
   where a bag has no tf, or only a static sensor mount. tf is read in the same pass as the
-  messages (:class:`~occmap.io.bags.transforms.TransformFeed`), and a message waits until tf has
+  messages (:class:`~occmap.io.bags.transforms.TransformFeed`; the tf of a run of messages read
+  together, :meth:`~occmap.io.bags.Bag.runs`, goes in at once), and a message waits until tf has
   passed its stamp, as tf2's message filters make a node wait; if tf lags so far behind that
   :data:`WAIT_LIMIT` batches wait, or never joins the sensor frame, the bag's whole tf is read in a
   pass of its own. With tf recorded in stamp order, the poses are those the whole bag's tf gives.
@@ -22,7 +23,7 @@ stops the stream with an :class:`~occmap.errors.InvalidArgumentError` naming bot
 time. A topic (the scans', tf, odometry) whose connection defines its type otherwise than ROS does
 is refused with a :class:`~occmap.errors.FormatError` saying what differs
 (:mod:`occmap.io.bags.definitions`). Memory holds the frame tree and the messages waiting for tf
-(one, or a batch of up to 200 laser scans, decoded and placed together), and, from opening to the
+(one, or a batch of up to 400 laser scans, decoded and placed together), and, from opening to the
 first iteration, what opening read (see below; at most :data:`HEAD_BYTES`), which that
 iteration goes on from rather than reading it again.
 
@@ -43,7 +44,8 @@ import numpy as np
 from ..cloud import PointCloud
 from ..errors import ConnectivityError, ExtrapolationError, InvalidArgumentError, TransformError, UnknownFrameError
 from ..io.bags import decode_point_cloud2, open_bag, read_frame_tree
-from ..io.bags.bag import Where
+from ..io.bags.bag import Message, Run, Where
+from ..io.bags.records import Raws
 from ..io.bags.laserscan import decode_laser_scans
 from ..io.bags.transforms import ODOMETRY, TransformFeed
 from ..io.bags.wire import Wire
@@ -71,7 +73,7 @@ class _BagSource:
     MSGTYPE = ""
     FALLBACK_FRAME = ""
     BATCH = 1  # messages decoded before their poses are looked up together, at most
-    FIRST_BATCH = 1  # ... in the first batch (the batches double up to BATCH)
+    FIRST_BATCH = 1  # ... in the first batch (the next ones grow 16-fold up to BATCH)
 
     def __init__(self, path, topic: str | None = None, fixed_frame: str | None = None,
                  odom_topic: str | None = None, poses=None, tolerance: float = 0.05, every: int = 1,
@@ -104,34 +106,53 @@ class _BagSource:
     def _read_head(self, bag, root: bool) -> None:
         """Read the stream up to the topic's first message (its frame is the sensor's) or, for
         the ``root`` of the sensor frame's tf tree (the default fixed frame), :data:`ROOT_HORIZON`
-        seconds past it; the first iteration goes on from there. Past :data:`HEAD_BYTES` (point
-        clouds), nothing is held: the first message and tf are read in passes of their own."""
+        seconds past it; the first iteration goes on from there (the messages read, then the rest
+        of the run, :meth:`~occmap.io.bags.Bag.runs`, that held the last). Past :data:`HEAD_BYTES`
+        (point clouds), nothing is held: the first message and tf are read in passes of their own."""
         feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
-        self.sensor_frame, first, held = "", None, 0
-        stream = bag.messages(self._topics(feed)) if self.count else iter(())
-        for m in stream:
-            self._head.append(m)
-            held += len(m.raw)
-            first = first or (m if m.topic == self.topic else None)
-            if held > HEAD_BYTES or (first is not None and (not root or m.time > first.time + ROOT_HORIZON)):
+        self.sensor_frame, first, held, rest, head = "", None, 0, None, []
+        stream = bag.runs(self._topics(feed)) if self.count else iter(())
+        for run in stream:
+            mine = _on(run, self.topic)
+            ends = held + np.cumsum(run.raws.sizes)  # bytes held with each message
+            stop = ends > HEAD_BYTES
+            at = 0  # where the messages from the topic's first on start in this run
+            if first is None and mine.any():
+                at = int(np.argmax(mine))
+                first = float(run.times_ns[at]) / 1e9, run.raws[at]
+            if first is not None:
+                stop[at:] |= (not root) | (run.times_ns[at:] / 1e9 > first[0] + ROOT_HORIZON)
+            cut = int(np.argmax(stop)) + 1 if stop.any() else len(run)
+            head.append(run.take(slice(None, cut)))
+            held = int(ends[cut - 1])
+            if stop.any():
+                rest = run.take(slice(cut, None))
                 break
-        if held > HEAD_BYTES:
+        if held > HEAD_BYTES:  # the head is not kept: tf up to the horizon read again, without the messages
             stream.close()
-            stream = None
+            stream, rest = None, None
             if first is None:
-                first = _first(bag.messages(self.topic))
-            self._head = _before(bag.messages(feed.topics), first.time + ROOT_HORIZON) if root else []
+                m = _first(bag.messages(self.topic))
+                first = m.time, m.raw
+            head = _before(bag.runs(feed.topics), first[0] + ROOT_HORIZON) if root else []
         if first is not None:
-            where = Where(bag.path, self.topic, 0, first.time)
-            self.sensor_frame = Wire(first.raw, first.encoding, where).header()[1]
+            where = Where(bag.path, self.topic, 0, first[0])
+            self.sensor_frame = Wire(first[1], bag.encoding, where).header()[1]
         if root:
-            for m in self._head:
-                if m.topic != self.topic and first is not None and m.time <= first.time + ROOT_HORIZON:
-                    feed.add(m)
+            for run in head:
+                if first is not None:
+                    feed.add(run.take(np.flatnonzero(~_on(run, self.topic)
+                                                     & (run.times_ns / 1e9 <= first[0] + ROOT_HORIZON))))
             self.fixed_frame = _root(feed.flush(), self.sensor_frame) or self.FALLBACK_FRAME
-        if stream is None:
-            self._head = []
-        self._stream = stream
+        if stream is not None:
+            self._head = [m for run in head for m in self._messages(run, bag)]
+            self._stream = stream if rest is None else itertools.chain([rest], stream)
+
+    def _messages(self, run, bag) -> list[Message]:
+        """The messages of ``run`` one by one."""
+        msgtypes = [bag.topics[t].msgtype for t in run.topics]
+        return [Message(run.topics[w], msgtypes[w], t, run.raws[i].tobytes(), bag.encoding, bag)
+                for i, (w, t) in enumerate(zip(run.which.tolist(), run.times_ns.tolist()))]
 
     def _topics(self, feed) -> list[str]:
         """The topics an iteration reads: the messages' and, to place them, tf's."""
@@ -170,46 +191,61 @@ class _BagSource:
         with bag:
             feed = TransformFeed(bag, odom_topic=self.odom_topic) if self._by_tf else None
             if stream is None:
-                stream = bag.messages(self._topics(feed))
+                stream = bag.runs(self._topics(feed))
             tree, whole = None, feed is None  # whole: the tree holds all of the bag's tf (or none is used)
-            pending = []  # (k, message) not yet decoded
+            pending = []  # (numbers on the topic, Run) of the topic's messages not yet decoded
             waiting = None  # decoded messages waiting for tf to pass their stamps (a _Decoded)
-            k, batch, held = -1, self.FIRST_BATCH, 0
-            for m in itertools.chain(head, stream):
-                if m.topic != self.topic:
+            k, batch, count, held = 0, self.FIRST_BATCH, 0, 0  # count, held: pending's messages and bytes
+            for run in itertools.chain([_run_of(head)] if head else [], stream):
+                mine = _on(run, self.topic)
+                at = np.flatnonzero(mine)  # the topic's messages in the run, then those the stream takes
+                ks = k + np.arange(len(at))
+                k += len(at)
+                if self.every > 1:
+                    at, ks = at[ks % self.every == 0], ks[ks % self.every == 0]
+                if not whole:  # tf's messages: the run's all at once (a chunk: the messages read with them)
+                    feed.add(run.take(np.flatnonzero(~mine)))
+                taken = 0  # of at
+                while taken < len(at):
+                    sizes = run.raws.sizes[at[taken:]]
+                    # the message that fills the batch: its count, or BATCH_BYTES
+                    cut = batch - count - 1
+                    full = np.flatnonzero(held + np.cumsum(sizes) >= BATCH_BYTES)
+                    if len(full):
+                        cut = min(cut, int(full[0]))
+                    if cut >= len(sizes):
+                        pending.append((ks[taken:], run.take(at[taken:])))
+                        count, held = count + len(sizes), held + int(sizes.sum())
+                        break
+                    end = taken + cut + 1
+                    pending.append((ks[taken:end], run.take(at[taken:end])))
+                    taken = end
+                    waiting = self._joined(waiting, self._decoded(pending, bag))
+                    pending, batch, count, held = [], min(16 * batch, self.BATCH), 0, 0
                     if not whole:
-                        feed.add(m)
-                    continue
-                k += 1
-                if k % self.every:
-                    continue
-                pending.append((k, m))
-                held += len(m.raw)
-                if len(pending) < batch and held < BATCH_BYTES:
-                    continue
-                waiting = self._joined(waiting, self._decoded(pending))
-                pending, batch, held = [], min(2 * batch, self.BATCH), 0
-                if not whole:
-                    tree = feed.flush()
-                    if len(waiting.ks) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
-                        with open_bag(self.path) as again:
-                            tree, whole = read_frame_tree(again, odom_topic=self.odom_topic), True
-                n = len(waiting.ks) if whole else _covered(tree, self.fixed_frame, waiting)
-                if n:
-                    yield from self._placed(self._part(waiting, slice(None, n)), tree)
-                    waiting = self._part(waiting, slice(n, None))
+                        tree = feed.flush()
+                        if len(waiting.ks) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
+                            with open_bag(self.path) as again:
+                                tree, whole = read_frame_tree(again, odom_topic=self.odom_topic), True
+                    n = len(waiting.ks) if whole else _covered(tree, self.fixed_frame, waiting)
+                    if n:
+                        yield from self._placed(self._part(waiting, slice(None, n)), tree)
+                        waiting = self._part(waiting, slice(n, None))
             if not whole:
                 tree = feed.flush()
             if pending:
-                waiting = self._joined(waiting, self._decoded(pending))
+                waiting = self._joined(waiting, self._decoded(pending, bag))
             if waiting is not None and len(waiting.ks):
                 yield from self._placed(waiting, tree)
 
-    def _decoded(self, batch) -> _Decoded:
-        """The messages ``batch`` (``(k, message)``) decoded, those that hold nothing dropped and counted."""
-        ks = np.array([k for k, _ in batch], dtype=np.intp)
-        times = np.array([m.time for _, m in batch], dtype=np.float64)
-        records, frames, stamps, keep = self._decode([m for _, m in batch],
+    def _decoded(self, batch, bag) -> _Decoded:
+        """The messages ``batch`` (``(numbers on the topic, Run)``) decoded, those that hold
+        nothing dropped and counted."""
+        ks = np.concatenate([k for k, _ in batch])
+        times_ns = np.concatenate([run.times_ns for _, run in batch])
+        times = times_ns / 1e9
+        raws = Raws.concat([run.raws for _, run in batch])
+        records, frames, stamps, keep = self._decode(raws, times_ns, bag,
                                                      lambda i: Where(self.path, self.topic, int(ks[i]), times[i]))
         if keep is None:
             return _Decoded(ks, times, records, frames, stamps)
@@ -304,7 +340,7 @@ class BagScans(_BagSource):
 
     MSGTYPE = "sensor_msgs/msg/LaserScan"
     FALLBACK_FRAME = "odom"
-    BATCH = 200  # a batch costs about 0.2 ms beside its messages (tf brought up to date, lookups)
+    BATCH = 400  # a batch costs about 0.5 ms beside its messages (tf brought up to date, lookups)
     FIRST_BATCH = 25  # the first run a grid takes (map_scan_stream's first chunk)
 
     def __init__(self, path, *args, max_range: float | None = None, **kwargs):
@@ -312,8 +348,9 @@ class BagScans(_BagSource):
         self.max_range = None if max_range is None else float(max_range)
 
     def stacks(self) -> Iterator[ScanStack]:
-        """The scans as :class:`~occmap.scan.ScanStack` runs, in order: batches of 25, 50, 100,
-        then 200 (more while tf lags behind them), rows NaN-padded to the widest scan of a run."""
+        """The scans as :class:`~occmap.scan.ScanStack` runs, in order: batches of 25, then 400 or
+        :data:`BATCH_BYTES` of messages (more while tf lags behind them), rows NaN-padded to the
+        widest scan of a run."""
         for stack, _ in self._chunks():
             yield stack
 
@@ -325,10 +362,10 @@ class BagScans(_BagSource):
             yield LaserScan(stack.poses[i], stack.ranges[i, :b], stack.angles[:b] if shared else stack.angles[i, :b],
                             float(stack.max_ranges[i]), float(stack.stamps[i]))
 
-    def _decode(self, messages, where):
-        """``(records, frames, stamps, keep)`` of ``messages``: records ``(ScanStack, beams)``; keep
-        None or the mask of the scans that have beams."""
-        stack, beams, frames = decode_laser_scans([m.raw for m in messages], messages[0].encoding, where)
+    def _decode(self, raws, times_ns, bag, where):
+        """``(records, frames, stamps, keep)`` of the messages ``raws`` (a :class:`Raws`, recorded
+        at ``times_ns``): records ``(ScanStack, beams)``; keep None or the mask of the scans that have beams."""
+        stack, beams, frames = decode_laser_scans(raws, bag.encoding, where)
         if self.max_range is not None:
             stack = stack._replace(max_ranges=np.full(len(beams), self.max_range))
         keep = beams > 0
@@ -372,9 +409,13 @@ class BagClouds(_BagSource):
     def _items(self, chunk):
         return chunk
 
-    def _decode(self, messages, where):
-        """``(records, frames, stamps, keep)`` of ``messages``: records a list of clouds in their own frames."""
-        clouds = [decode_point_cloud2(m.msg, where=where(i)) for i, m in enumerate(messages)]
+    def _decode(self, raws, times_ns, bag, where):
+        """``(records, frames, stamps, keep)`` of the messages ``raws`` (a :class:`Raws`, recorded
+        at ``times_ns``): records a list of clouds in their own frames."""
+        clouds = []
+        for i in range(len(raws)):
+            m = Message(self.topic, self.MSGTYPE, int(times_ns[i]), raws[i], bag.encoding, bag)
+            clouds.append(decode_point_cloud2(m.msg, where=where(i)))
         keep = np.array([len(c.points) > 0 for c in clouds], dtype=bool)
         for c in clouds:
             if not len(c.points):
@@ -425,12 +466,33 @@ def _first(stream):
         stream.close()
 
 
-def _before(stream, time: float) -> list:
-    """The messages of ``stream`` recorded at or before ``time``; the stream is then closed."""
+def _before(runs, time: float) -> list:
+    """The messages of ``runs`` (an iterator of :class:`Run`) recorded at or before ``time``, in
+    runs holding their own bytes (not their chunks'); the iterator is then closed."""
+    kept = []
     try:
-        return list(itertools.takewhile(lambda m: m.time <= time, stream))
+        for run in runs:
+            late = np.flatnonzero(run.times_ns / 1e9 > time)
+            part = run.take(slice(None, int(late[0]))) if len(late) else run
+            kept.append(Run(part.topics, part.which, part.times_ns, part.raws.compact()))
+            if len(late):
+                break
     finally:
-        stream.close()
+        runs.close()
+    return kept
+
+
+def _run_of(messages) -> Run:
+    """The messages (:class:`~occmap.io.bags.Message`) in one run."""
+    slots = {}
+    which = np.array([slots.setdefault(m.topic, len(slots)) for m in messages], np.intp)
+    return Run(tuple(slots), which, np.array([m.time_ns for m in messages], np.int64),
+               Raws.of([m.raw for m in messages]))
+
+
+def _on(run, topic: str) -> np.ndarray:
+    """Which messages of ``run`` are on ``topic``: bool (messages,)."""
+    return np.array([t == topic for t in run.topics] + [False])[run.which]
 
 
 def _covered(tree, fixed_frame: str, waiting: _Decoded) -> int:

@@ -2,13 +2,15 @@
 
 Kinds, told apart by their first bytes (a folder by its ``metadata.yaml``):
 
-* ROS 1 ``.bag`` (format 2.0), read with ``rosbags``; when ``rosbags`` rejects the bag's index,
-  with :class:`~occmap.io.bags.ros1_chunks.Ros1Chunks`, which reads the chunks without it;
+* ROS 1 ``.bag`` (format 2.0): its index section (connections, chunk infos) read by
+  :class:`~occmap.io.bags.ros1_chunks.Ros1Chunks`, its messages one by one by ``rosbags`` (opened
+  when first needed), or by ``Ros1Chunks`` when ``rosbags`` rejects the bag's index;
 * ROS 2 bag folders (``metadata.yaml`` beside ``.db3`` or ``.mcap`` files), and a lone ``.db3``
   (SQLite) or ``.mcap`` file.
 
-A message comes as its bytes, which occmap's decoders read for the types it maps from
-(:mod:`.wire`), and deserialised by ``rosbags`` on demand (:attr:`Message.msg`) with the type
+:meth:`Bag.runs` gives the messages a chunk at a time for the sources (ROS 1 and MCAP chunks
+listed by the kernel of :mod:`.records`, no Python per message). A message comes as its bytes,
+which occmap's decoders read for the types it maps from (:mod:`.wire`), and deserialised by ``rosbags`` on demand (:attr:`Message.msg`) with the type
 definitions the bag carries (ROS 1 connections, MCAP schemas, ROS 2 metadata); a ROS 2 bag
 without them is deserialised with the standard ROS 2 types ``rosbags`` knows, and so are the
 topics :meth:`Bag.require_standard` has found to define their types as ROS does. Type names are in
@@ -27,14 +29,18 @@ for a message type a topic does not hold, raises :class:`~occmap.errors.InvalidA
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 from typing import Iterable, Iterator, NamedTuple
 
+import numpy as np
+
 from ...errors import FormatError, InvalidArgumentError, MissingFileError
 from .definitions import check_definition, standard_store
+from .records import Raws, chunk_records
 from .ros1_chunks import Ros1Chunks
 
-__all__ = ["Bag", "Message", "Topic", "Where", "is_bag", "open_bag"]
+__all__ = ["Bag", "Message", "Run", "Topic", "Where", "is_bag", "open_bag"]
 
 _ROS1_MAGIC = b"#ROSBAG V"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -59,10 +65,16 @@ class Message:
     (the standard ones once :meth:`Bag.require_standard` has passed the topic: the same layout).
     """
 
-    __slots__ = ("topic", "msgtype", "time", "raw", "encoding", "_bag")
+    __slots__ = ("topic", "msgtype", "time_ns", "raw", "encoding", "_bag")
 
-    def __init__(self, topic: str, msgtype: str, time: float, raw, encoding: str, bag: Bag):
-        self.topic, self.msgtype, self.time, self.raw, self.encoding, self._bag = topic, msgtype, time, raw, encoding, bag
+    def __init__(self, topic: str, msgtype: str, time_ns: int, raw, encoding: str, bag: Bag):
+        self.topic, self.msgtype, self.time_ns, self.raw, self.encoding, self._bag = \
+            topic, msgtype, time_ns, raw, encoding, bag
+
+    @property
+    def time(self) -> float:
+        """When the message was recorded, seconds since the epoch (:attr:`time_ns`: nanoseconds)."""
+        return self.time_ns / 1e9
 
     @property
     def msg(self) -> object:
@@ -78,6 +90,23 @@ class Message:
 
     def __repr__(self) -> str:
         return f"Message({self.topic!r}, {self.msgtype}, {self.time:.9f} s, {len(self.raw)} bytes {self.encoding})"
+
+
+class Run:
+    """Messages of a bag that were read together (a chunk's, :meth:`Bag.runs`), in time order:
+    message ``i`` is on ``topics[which[i]]``, recorded at ``times_ns[i]`` (int64 nanoseconds),
+    its bytes ``raws[i]`` (a :class:`~.records.Raws`)."""
+
+    __slots__ = ("topics", "which", "times_ns", "raws")
+
+    def __init__(self, topics: tuple[str, ...], which: np.ndarray, times_ns: np.ndarray, raws: Raws):
+        self.topics, self.which, self.times_ns, self.raws = topics, which, times_ns, raws
+
+    def __len__(self) -> int:
+        return len(self.which)
+
+    def take(self, rows) -> Run:
+        return Run(self.topics, self.which[rows], self.times_ns[rows], self.raws.take(rows))
 
 
 class Where:
@@ -108,9 +137,8 @@ class Bag:
     kind : str
         ``"ROS 1"``, ``"ROS 2 sqlite3"`` or ``"ROS 2 MCAP"`` (a ROS 2 bag folder or a lone file
         of that storage).
-    note : str
-        Empty, or how the bag was read when the usual way failed (a ROS 1 index ``rosbags``
-        rejects).
+    encoding : str
+        How its messages are serialised: ``"ros1"`` or ``"cdr"`` (see :mod:`.wire`).
     topics : dict[str, Topic]
         Every topic, by name, sorted by name.
     start, end : float or None
@@ -119,25 +147,27 @@ class Bag:
 
     def __init__(self, path):
         self.path = Path(path)
-        self.note = ""
         self._standard: set[str] = set()  # topics that require_standard passed
         self.kind, suffix = _kind(self.path)
         if self.kind == "ROS 1":
-            try:
-                self._source = _Rosbags(self.path, self.kind)
-            except FormatError as e:
-                self._source = _Ros1FromChunks(self.path)
-                self.note = f"rosbags rejects its index ({_describe(e.__cause__)}); read from its chunk records"
+            self._source = _Ros1(self.path)
         else:
             if suffix is not None and self.path.suffix != suffix:
                 raise FormatError(self.path, f"holds {self.kind} data; name it *{suffix} to read it")
             self._source = _Rosbags(_lone_mcap(self.path) or self.path, self.kind)
+        self.encoding = self._source.encoding
         try:
             self.topics = dict(sorted((t.name, t) for t in self._source.topics()))
             self.start, self.end = self._source.span()
         except BaseException:
             self._source.close()
             raise
+
+    @property
+    def note(self) -> str:
+        """Empty, or how the bag was read when the usual way failed (a ROS 1 index ``rosbags``
+        rejects; asking opens ``rosbags``' reader of a ROS 1 bag, see :class:`_Ros1`)."""
+        return getattr(self._source, "note", "")
 
     def messages(self, topics: str | Iterable[str] | None = None, msgtype: str | None = None) -> Iterator[Message]:
         """The messages of ``topics`` (a name, several, or None for all) in time order (in
@@ -156,6 +186,13 @@ class Bag:
             if msgtype is not None and topic.msgtype != msgtype:
                 raise InvalidArgumentError(f"{self.path}: topic {name!r} holds {topic.msgtype}, not {msgtype}")
         return self._stream(set(names))
+
+    def runs(self, topics: Iterable[str]) -> Iterator[Run]:
+        """The messages of ``topics`` (names the bag has) as :meth:`messages` gives them, in
+        runs: the messages of a chunk together for a ROS 1 or MCAP bag whose chunks follow one
+        another in time (listed by :func:`~.records.chunk_records`, with no Python per message),
+        else in runs of up to 64 messages (or a megabyte) as :meth:`messages` reads them."""
+        return self._source.runs(set(topics))
 
     def require_standard(self, topics: str | Iterable[str]) -> None:
         """Raise :class:`FormatError` (naming the bag, the topic, the type and what differs) when
@@ -184,7 +221,7 @@ class Bag:
     def _stream(self, names: set[str]) -> Iterator[Message]:
         encoding = self._source.encoding
         for topic, kind, time_ns, raw in self._source.raw(names):
-            yield Message(topic, kind, time_ns / 1e9, raw, encoding, self)
+            yield Message(topic, kind, time_ns, raw, encoding, self)
 
     def close(self) -> None:
         self._source.close()
@@ -280,6 +317,53 @@ class _Rosbags:
         except Exception as e:
             raise FormatError(self.path, f"cannot read the messages ({_describe(e)})") from e
 
+    def runs(self, topics: set[str]) -> Iterator[Run]:
+        connections = [c for c in self._reader.connections if c.topic in topics]
+        if not connections:
+            return
+        chunks = self._chunks({c.id for c in connections})
+        if chunks is None:
+            yield from _runs_of((topic, time_ns, raw) for topic, _, time_ns, raw in self.raw(topics))
+            return
+        topic_of = {c.id: c.topic for c in connections}
+        for where, read in chunks:
+            try:
+                data = read()
+            except Exception as e:  # rosbags' decompressors and checks raise their own errors
+                raise FormatError(self.path, f"{where}: cannot read it ({_describe(e)})") from e
+            run = _chunk_run(data, chunk_records(data, "mcap", self.path, where), topic_of, sort=True)
+            if len(run):
+                yield run
+
+    def _chunks(self, ids: set[int]) -> list | None:
+        """``(where, read)`` of each chunk of an MCAP file holding messages of channels ``ids``, in
+        file order, ``read()`` its unpacked bytes; None when the bag is not read by chunks (ROS 2
+        sqlite3, a bag folder of several files, an MCAP without chunks; ROS 1: :class:`_Ros1`) or
+        when chunks overlap in time (then ``rosbags`` merges their messages)."""
+        from rosbags.rosbag2.storage_mcap import McapReader
+
+        storage = getattr(self._reader, "storage", None)
+        if not isinstance(storage, McapReader) or not storage.chunks:
+            return None
+        infos = sorted((c for c in storage.chunks if any(c.channel_count.get(i) for i in ids)),
+                       key=lambda c: c.chunk_start_offset)
+        if any(a.message_end_time > b.message_start_time for a, b in zip(infos, infos[1:])):
+            return None
+        return [(f"chunk at byte {c.chunk_start_offset}", partial(self._mcap_chunk, storage, c)) for c in infos]
+
+    @staticmethod
+    def _mcap_chunk(storage, chunk) -> bytes:
+        """The records of an MCAP chunk record (opcode, length, start and end times, size; the
+        CRC at byte 33, then the compression's name and the compressed records), unpacked and
+        checked by ``rosbags``."""
+        from rosbags.rosbag2.storage_mcap import decompress
+
+        storage.bio.seek(chunk.chunk_start_offset + 9 + 24)
+        crc = int.from_bytes(_read_exact(storage.bio, 4), "little")
+        storage.bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
+        data = _read_exact(storage.bio, chunk.compressed_size)
+        return decompress(data, chunk.compression, chunk.uncompressed_size, crc)
+
     def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
         """``(topic, type, digest, "msg" | "idl" | "", definition)`` of each connection of ``topics``."""
         for c in self._reader.connections:
@@ -310,37 +394,44 @@ class _Rosbags:
         self._reader.close()
 
 
-class _Ros1FromChunks:
-    """A ROS 1 bag read by :class:`Ros1Chunks`, its types from the connections' definitions."""
+class _Ros1:
+    """A ROS 1 bag: its index section read by :class:`Ros1Chunks` (connections, and where each
+    chunk is and what it holds), its chunks listed by :func:`~.records.chunk_records` for
+    :meth:`Bag.runs`. ``rosbags``' reader, whose opening reads every message's index entry (1.5 ms
+    for 1,820 messages, a list entry each), opens only for what needs it: the messages one by one
+    (:meth:`Bag.messages`), the bag's types, runs of chunks that overlap in time (which ``rosbags``
+    merges), and :attr:`note`. When ``rosbags`` rejects the index, :class:`_Ros1FromChunks` does
+    those instead, and :attr:`note` says so."""
 
     encoding = "ros1"
 
     def __init__(self, path: Path):
-        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
         self.path = path
         self._file = open(path, "rb")
         try:
             self._bag = Ros1Chunks(path, self._file)
-            self._types: dict[int, str] = {}
-            defined = {}
-            for conn in self._bag.connections.values():
-                kind = _ros2_name(conn.msgtype)
-                self._types[conn.id] = kind
-                try:
-                    defined.update(get_types_from_msg(conn.definition, kind))
-                except Exception as e:
-                    raise FormatError(path, f"connection {conn.id} ({conn.topic!r}): the definition of "
-                                      f"{conn.msgtype} does not parse ({_describe(e)})") from e
-            # Bags from before ROS C Turtle (2010) define Header as roslib/Header; "Header" in a
-            # definition means std_msgs/Header to rosbags.
-            if "roslib/msg/Header" in defined:
-                defined.setdefault("std_msgs/msg/Header", defined["roslib/msg/Header"])
-            self._typestore = get_typestore(Stores.EMPTY)
-            self._typestore.register(defined)
         except BaseException:
             self._file.close()
             raise
+        self._types = {conn.id: _ros2_name(conn.msgtype) for conn in self._bag.connections.values()}
+        self._reader = None  # _Rosbags, or _Ros1FromChunks when rosbags rejects the index
+        self._note = ""
+
+    @property
+    def reader(self):
+        """What reads the messages one by one and deserialises them, opened on first use."""
+        if self._reader is None:
+            try:
+                self._reader = _Rosbags(self.path, "ROS 1")
+            except FormatError as e:
+                self._reader = _Ros1FromChunks(self.path, self._bag, self._types)
+                self._note = f"rosbags rejects its index ({_describe(e.__cause__)}); read from its chunk records"
+        return self._reader
+
+    @property
+    def note(self) -> str:
+        self.reader
+        return self._note
 
     def topics(self) -> list[Topic]:
         counts = self._bag.counts()
@@ -358,27 +449,124 @@ class _Ros1FromChunks:
             return None, None
         return min(c.start for c in chunks) / 1e9, max(c.end for c in chunks) / 1e9
 
-    def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
-        conns = {c.id: c for c in self._bag.connections.values() if c.topic in topics}
-        for conn, time_ns, raw in self._bag.messages(set(conns)):
-            yield conns[conn].topic, self._types[conn], time_ns, raw
-
     def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
         for c in self._bag.connections.values():
             if c.topic in topics:
                 yield c.topic, self._types[c.id], c.md5sum, "msg", c.definition
 
-    def decode(self, raw: bytes, msgtype: str) -> object:
+    def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
+        return self.reader.raw(topics)
+
+    def decode(self, raw, msgtype: str) -> object:
+        return self.reader.decode(raw, msgtype)
+
+    def runs(self, topics: set[str]) -> Iterator[Run]:
+        topic_of = {c.id: c.topic for c in self._bag.connections.values() if c.topic in topics}
+        chunks = sorted((c for c in self._bag.chunks if not set(topic_of).isdisjoint(c.counts)),
+                        key=lambda c: c.position)
+        if any(a.end > b.start for a, b in zip(chunks, chunks[1:])):
+            yield from self.reader.runs(topics)
+            return
+        for data, records in self._bag.records_of(chunks):
+            run = _chunk_run(data, records, topic_of, sort=True)
+            if len(run):
+                yield run
+
+    def close(self) -> None:
+        if self._reader is not None:
+            self._reader.close()
+        self._file.close()
+
+
+class _Ros1FromChunks:
+    """The messages of a ROS 1 bag whose index ``rosbags`` rejects, read from its chunks
+    (:class:`Ros1Chunks`, in the order recorded), and its types from the connections' definitions."""
+
+    encoding = "ros1"
+
+    def __init__(self, path: Path, chunks: Ros1Chunks, types: dict[int, str]):
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        self.path, self._bag, self._types = path, chunks, types
+        defined = {}
+        for conn in self._bag.connections.values():
+            try:
+                defined.update(get_types_from_msg(conn.definition, types[conn.id]))
+            except Exception as e:
+                raise FormatError(path, f"connection {conn.id} ({conn.topic!r}): the definition of "
+                                  f"{conn.msgtype} does not parse ({_describe(e)})") from e
+        # Bags from before ROS C Turtle (2010) define Header as roslib/Header; "Header" in a
+        # definition means std_msgs/Header to rosbags.
+        if "roslib/msg/Header" in defined:
+            defined.setdefault("std_msgs/msg/Header", defined["roslib/msg/Header"])
+        self._typestore = get_typestore(Stores.EMPTY)
+        self._typestore.register(defined)
+
+    def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
+        conns = {c.id: c for c in self._bag.connections.values() if c.topic in topics}
+        for conn, time_ns, raw in self._bag.messages(set(conns)):
+            yield conns[conn].topic, self._types[conn], time_ns, raw
+
+    def runs(self, topics: set[str]) -> Iterator[Run]:
+        topic_of = {c.id: c.topic for c in self._bag.connections.values() if c.topic in topics}
+        for data, records in self._bag.chunks_of(set(topic_of)):
+            run = _chunk_run(data, records, topic_of, sort=False)
+            if len(run):
+                yield run
+
+    def decode(self, raw, msgtype: str) -> object:
         return self._typestore.deserialize_ros1(raw, msgtype)
 
     def close(self) -> None:
-        self._file.close()
+        pass  # the file is _Ros1's
 
 
 def _ros2_name(msgtype: str) -> str:
     """``pkg/Name`` → ``pkg/msg/Name`` (ROS 1 names in the ROS 2 form rosbags uses)."""
     parts = msgtype.split("/")
     return "/".join((parts[0], "msg", parts[1])) if len(parts) == 2 else msgtype
+
+
+#: Largest runs :meth:`Bag.runs` makes of messages read one by one: messages, bytes
+_RUN_MESSAGES, _RUN_BYTES = 64, 1 << 20
+
+
+def _runs_of(messages) -> Iterator[Run]:
+    """``(topic, time_ns, raw)`` in runs of :data:`_RUN_MESSAGES` (fewer past :data:`_RUN_BYTES`)."""
+    slots: dict[str, int] = {}
+    which, times, raws, held = [], [], [], 0
+    for topic, time_ns, raw in messages:
+        which.append(slots.setdefault(topic, len(slots)))
+        times.append(time_ns)
+        raws.append(raw)
+        held += len(raw)
+        if len(raws) == _RUN_MESSAGES or held >= _RUN_BYTES:
+            yield Run(tuple(slots), np.array(which, np.intp), np.array(times, np.int64), Raws.of(raws))
+            which, times, raws, held = [], [], [], 0
+    if raws:
+        yield Run(tuple(slots), np.array(which, np.intp), np.array(times, np.int64), Raws.of(raws))
+
+
+def _chunk_run(data, records, topic_of: dict[int, str], sort: bool) -> Run:
+    """The messages of a chunk (``data``, its :class:`~.records.Records`) on the connections
+    ``topic_of`` names, in the order recorded or, when ``sort``, by time (ties in the order
+    recorded, as ``rosbags`` gives them)."""
+    topics = tuple(dict.fromkeys(topic_of.values()))
+    ids = np.array(sorted(topic_of), dtype=np.int64)
+    slots = np.array([topics.index(topic_of[i]) for i in ids.tolist()], dtype=np.intp)
+    at = np.minimum(np.searchsorted(ids, records.conn), len(ids) - 1)
+    rows = np.flatnonzero(ids[at] == records.conn)
+    if sort:
+        rows = rows[np.argsort(records.time_ns[rows], kind="stable")]
+    return Run(topics, slots[at[rows]], records.time_ns[rows],
+               Raws(np.frombuffer(data, np.uint8), records.start[rows], records.size[rows]))
+
+
+def _read_exact(file, n: int) -> bytes:
+    data = file.read(n)
+    if len(data) != n:
+        raise EOFError(f"the file ends {n - len(data)} bytes early")
+    return data
 
 
 def _describe(e: BaseException | None) -> str:

@@ -22,8 +22,9 @@ The index section at ``index_pos`` holds the connection records and one chunk in
 ``rosbags`` also reads the index data records after each chunk and rejects a bag whose index data
 length disagrees with its count (the shared ``laser_scan_matcher_demo.bag`` says 5,560 bytes for
 278 entries of 12). This reader needs only the index section: it finds each chunk from its chunk
-info, unpacks it, and walks the message records inside, so it yields messages in the order they
-were recorded, one chunk in memory at a time. Integers are little-endian.
+info, unpacks it, and lists the message records inside (:func:`~.records.chunk_records`, the
+kernel the indexed path uses too), so it yields messages in the order they were recorded, one
+chunk in memory at a time. Integers are little-endian.
 """
 
 from __future__ import annotations
@@ -33,9 +34,10 @@ import struct
 from typing import BinaryIO, Iterator, NamedTuple
 
 from ...errors import FormatError
+from .records import Records, chunk_records
 
 _U32 = struct.Struct("<I")
-_OP_MESSAGE, _OP_BAG_HEADER, _OP_CHUNK, _OP_CONNECTION, _OP_CHUNK_INFO = 0x02, 0x03, 0x05, 0x07, 0x06
+_OP_BAG_HEADER, _OP_CHUNK, _OP_CONNECTION, _OP_CHUNK_INFO = 0x03, 0x05, 0x07, 0x06
 _MAGIC = b"#ROSBAG V2.0\n"
 
 
@@ -122,19 +124,22 @@ class Ros1Chunks:
     def messages(self, connections: set[int]) -> Iterator[tuple[int, int, bytes]]:
         """``(connection id, time in ns, serialised message)`` of the given connections, in the
         order recorded; chunks holding none of them are not read."""
-        for chunk in self.chunks:
-            if not connections.intersection(chunk.counts):
-                continue
-            data = self._unpack(chunk.position)
-            pos = 0
-            while pos < len(data):
-                start = pos
-                fields, body, pos = _record_at(self.path, data, pos, f"chunk at byte {chunk.position}")
-                if fields.get(b"op") != bytes([_OP_MESSAGE]):
-                    continue
-                conn = _unpack_uint(self.path, fields, "conn", start)
+        for data, records in self.chunks_of(connections):
+            for conn, time_ns, start, size in zip(*(a.tolist() for a in records)):
                 if conn in connections:
-                    yield conn, _time_ns(_get(self.path, fields, "time", start, 8)), body
+                    yield conn, time_ns, data[start: start + size]
+
+    def chunks_of(self, connections: set[int]) -> Iterator[tuple[bytes, Records]]:
+        """``(unpacked chunk, its message records)`` of each chunk holding messages of
+        ``connections`` (and maybe others), in time order (:meth:`records_of`)."""
+        return self.records_of([c for c in self.chunks if connections.intersection(c.counts)])
+
+    def records_of(self, chunks: list[ChunkInfo]) -> Iterator[tuple[bytes, Records]]:
+        """``(unpacked chunk, its message records)`` of each of ``chunks``, the records listed by
+        :func:`~.records.chunk_records`."""
+        for chunk in chunks:
+            data = self._unpack(chunk.position)
+            yield data, chunk_records(data, "ros1", self.path, f"chunk at byte {chunk.position}")
 
     # ------------------------------------------------------------------ records
 
@@ -203,20 +208,6 @@ def _fields(path, header: bytes, pos: int) -> dict[bytes, bytes]:
         fields[name] = value
         at += 4 + n
     return fields
-
-
-def _record_at(path, buf: bytes, pos: int, where: str) -> tuple[dict[bytes, bytes], bytes, int]:
-    """Header fields, data and the next position of the record at ``pos`` in ``buf``."""
-    if pos + 4 > len(buf):
-        raise FormatError(path, f"{where}: a record is cut short at unpacked byte {pos}")
-    hlen = _U32.unpack_from(buf, pos)[0]
-    dpos = pos + 8 + hlen
-    if dpos > len(buf):
-        raise FormatError(path, f"{where}: a record header is cut short at unpacked byte {pos}")
-    dlen = _U32.unpack_from(buf, pos + 4 + hlen)[0]
-    if dpos + dlen > len(buf):
-        raise FormatError(path, f"{where}: a record's data is cut short at unpacked byte {pos}")
-    return _fields(path, buf[pos + 4: pos + 4 + hlen], pos), buf[dpos: dpos + dlen], dpos + dlen
 
 
 def _get(path, fields, name: str, pos: int, size: int | None) -> bytes:

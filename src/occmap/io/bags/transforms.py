@@ -20,6 +20,7 @@ from ...geometry.frames import FrameTree
 from ...geometry.quaternion import quat_from_xyzw
 from ...geometry.se3 import SE3
 from .bag import Where
+from .records import Raws
 from .definitions import TF_TYPES
 from .wire import Wire, by_layout, column, frame_name, stamps
 
@@ -177,15 +178,15 @@ def read_frame_tree(bag, topics=None, odom_topic: str | None = None) -> FrameTre
     :class:`FormatError` for a transform that is not rigid or links that would form a loop.
     """
     feed = TransformFeed(bag, topics, odom_topic)
-    for m in bag.messages(feed.topics):
-        feed.add(m)
+    for run in bag.runs(feed.topics):
+        feed.add(run)
     return feed.flush()
 
 
 class TransformFeed:
     """The tf of a bag (and an odometry topic's ``frame_id -> child_frame_id`` link) gathered
     into one :class:`FrameTree` message by message, as a stream of the bag reads them:
-    :meth:`add` each message of :attr:`topics`, :meth:`flush` to have the tree hold all those
+    :meth:`add` each run of messages of :attr:`topics`, :meth:`flush` to have the tree hold all those
     added (the samples of a link wait in lists and go into the tree in one call, which costs what
     one sample does). Read to the end, the tree is :func:`read_frame_tree`'s: static links first,
     the last static sample of a link wins, a link both static and dynamic ends up dynamic, and the
@@ -205,26 +206,35 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
             bag.messages(odom_topic, msgtype=ODOMETRY).close()  # the topic exists and holds Odometry
         self.topics = list(topics) + ([] if odom_topic is None else [odom_topic])
         bag.require_standard(t for t in self.topics if t in bag.topics)
-        self.path, self.odom_topic = bag.path, odom_topic
+        self.path, self.odom_topic, self.encoding = bag.path, odom_topic, bag.encoding
         span = 0.0 if bag.start is None else bag.end - bag.start
         self.tree = FrameTree(cache_time=max(10.0, span + 1.0))
         self._waiting: dict[tuple[str, str, bool], list] = {}  # link -> [(order, stamps, values), ...]
-        self._pending = []  # tf messages not decoded yet: (order of arrival, number on its topic, message)
+        self._pending = []  # tf messages not decoded yet: (topic, order of arrival, numbers on it, times ns, Raws)
         self._arrived = 0  # messages added
         self._dynamic: set[tuple[str, str]] = set()  # links that have had a dynamic sample
         self._counts: dict[str, int] = {}
         self._odom_frames = None
 
-    def add(self, m) -> None:
-        """Read one message (a :class:`~occmap.io.bags.Message` of :attr:`topics`)."""
-        k = self._counts[m.topic] = self._counts.get(m.topic, -1) + 1
-        self._arrived += 1
-        if m.topic == self.odom_topic:
-            stamp, *pair, pose = _odometry(m.raw, m.encoding, Where(self.path, m.topic, k, m.time))
-            self._odom_frames = _same_frames(self.path, m.topic, m.time, self._odom_frames, pair)
-            self._wait(*pair, False, np.array([self._arrived]), np.array([stamp]), np.array([pose]))
-        else:
-            self._pending.append((self._arrived, k, m))
+    def add(self, run) -> None:
+        """Read a run of messages (a :class:`~occmap.io.bags.bag.Run`, :meth:`Bag.runs
+        <occmap.io.bags.Bag.runs>`), every one of them on :attr:`topics`."""
+        for slot, topic in enumerate(run.topics):
+            rows = np.flatnonzero(run.which == slot)
+            if not len(rows):
+                continue
+            first = self._counts.get(topic, 0)
+            self._counts[topic] = first + len(rows)
+            order, ks, times = self._arrived + 1 + rows, first + np.arange(len(rows)), run.times_ns[rows]
+            if topic != self.odom_topic:
+                self._pending.append((topic, order, ks, times, run.raws.take(rows)))
+                continue
+            for j, i in enumerate(rows.tolist()):
+                time = float(times[j]) / 1e9
+                stamp, *pair, pose = _odometry(run.raws[i], self.encoding, Where(self.path, topic, int(ks[j]), time))
+                self._odom_frames = _same_frames(self.path, topic, time, self._odom_frames, pair)
+                self._wait(*pair, False, order[j: j + 1], np.array([stamp]), np.array([pose]))
+        self._arrived += len(run)
 
     def _wait(self, parent: str, child: str, static: bool, order, stamps, values) -> None:
         """Samples of a link: their order of arrival, stamps (seconds) and ``(x, y, z, qx, qy, qz, qw)``."""
@@ -233,20 +243,19 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
     def _decode_pending(self) -> None:
         """The tf messages added since the last flush, decoded (those of one layout together)."""
         pending, self._pending = self._pending, []
-        for topic in dict.fromkeys(m.topic for _, _, m in pending):
-            mine = [p for p in pending if p[2].topic == topic]
-            raws = [m.raw for _, _, m in mine]
-            encoding, static = mine[0][2].encoding, topic.endswith("tf_static")
+        for topic in dict.fromkeys(p[0] for p in pending):
+            mine = [p for p in pending if p[0] == topic]
+            order, ks, times = (np.concatenate([p[c] for p in mine]) for c in (1, 2, 3))
+            raws = Raws.concat([p[4] for p in mine])
+            static = topic.endswith("tf_static")
 
-            def where(j, mine=mine):
-                _, k, m = mine[j]
-                return Where(self.path, m.topic, k, m.time)
+            def where(j, topic=topic, ks=ks, times=times):
+                return Where(self.path, topic, int(ks[j]), float(times[j]) / 1e9)
 
-            for group, layout, data in by_layout(raws, lambda j: _tf_layout(raws[j], encoding, where(j))):
-                order = np.array([mine[j][0] for j in group])
-                times, values = _tf_samples(layout, data)
+            for group, layout, data in by_layout(raws, lambda j: _tf_layout(raws[j], self.encoding, where(j))):
+                samples, values = _tf_samples(layout, data)
                 for t, (parent, child) in enumerate(layout.links):
-                    self._wait(parent, child, static, order, times[:, t], values[:, t])
+                    self._wait(parent, child, static, order[group], samples[:, t], values[:, t])
 
     def flush(self) -> FrameTree:
         """The tree, holding every sample added so far."""

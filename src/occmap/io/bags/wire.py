@@ -27,6 +27,7 @@ from functools import cache
 import numpy as np
 
 from ...errors import FormatError, InvalidArgumentError
+from .records import Raws
 
 __all__ = ["ENCODINGS", "Wire", "by_layout", "column", "frame_name", "stamps"]
 
@@ -49,33 +50,35 @@ def _struct(fmt: str) -> tuple[struct.Struct, int]:
 
 
 def by_layout(raws, layout_of):
-    """The messages ``raws`` in groups of one layout: ``(indices, layout, data)`` for each, the
-    group of the first message first. ``layout_of(i)`` reads message ``i``'s layout (raising for a
-    message it cannot read), an object with ``size`` (bytes) and ``same``: the ``(start, stop)``
-    byte spans (its frames, counts, byte order: what fixes where the other fields sit) that the
-    messages of the group hold alike. ``data`` is the group's messages end to end (see
-    :func:`column`)."""
-    sizes = np.fromiter(map(len, raws), np.intp, len(raws))
+    """The messages ``raws`` (a sequence of messages, or a :class:`~.records.Raws`) in groups of
+    one layout: ``(indices, layout, data)`` for each, the group of the first message first.
+    ``layout_of(i)`` reads message ``i``'s layout (raising for a message it cannot read), an object
+    with ``size`` (bytes) and ``same``: the ``(start, stop)`` byte spans (its frames, counts, byte
+    order: what fixes where the other fields sit) that the messages of the group hold alike.
+    ``data`` is the group's messages end to end, a uint8 array (see :func:`column`)."""
+    raws = Raws.of(raws)
+    sizes = raws.sizes
     left = np.arange(len(raws))
     while len(left):
         layout = layout_of(int(left[0]))
         alike = left[sizes[left] == layout.size]
-        data = b"".join([raws[i] for i in alike])
-        rows = np.frombuffer(data, np.uint8).reshape(len(alike), layout.size)
+        data = raws.take(alike).joined()
+        rows = data.reshape(len(alike), layout.size)
         same = np.ones(len(alike), dtype=bool)
         for a, b in layout.same:
             same &= (rows[:, a:b] == rows[0, a:b]).all(axis=1)
         whole = same.all()
         group = alike if whole else alike[same]
-        yield group, layout, data if whole else rows[same].tobytes()
+        yield group, layout, data if whole else rows[same].reshape(-1)
         if len(group) == len(left):
             return
         left = left[~np.isin(left, group)]
 
 
-def column(data: bytes, size: int, at: int, dtype: str, n: int = 1) -> np.ndarray:
+def column(data, size: int, at: int, dtype: str, n: int = 1) -> np.ndarray:
     """The ``n`` values of NumPy type ``dtype`` (with its byte order, ``"<f4"``) at byte ``at``
-    of each ``size``-byte message of ``data`` (:func:`by_layout`), (messages, n): a view."""
+    of each ``size``-byte message of ``data`` (bytes-like, messages end to end: :func:`by_layout`),
+    (messages, n): a view."""
     kind = np.dtype(dtype)
     return np.ndarray((len(data) // size, n), kind, data, at, (size, kind.itemsize))
 
