@@ -100,6 +100,14 @@ def machine() -> str:
     )
 
 
+def publish(name: str, body: str, write: bool = True) -> None:
+    """Write the section ``name`` of BENCHMARKS.md (:func:`write_section`), or only print it."""
+    if write:
+        write_section(name, body)
+    else:
+        print(body)
+
+
 def write_section(name: str, body: str) -> None:
     """Replace (or append) the section of BENCHMARKS.md between the markers for ``name``."""
     start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import write_section  # noqa: E402
+from _report import publish  # noqa: E402
 
 from occmap.local import LocalMap  # noqa: E402
 from occmap.local.tracking.detection import box_corners  # noqa: E402
@@ -187,10 +187,7 @@ def main() -> None:
         "track on it; from first sight: from one second after its first such scan, whatever happened since. The "
         "coverage columns and the three last are per run, not per kind.",
     ])
-    if args.no_write:
-        print(body)
-    else:
-        write_section("tracking", body)
+    publish("tracking", body, write=not args.no_write)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, shared_data, write_section  # noqa: E402
+from _report import ROOT, publish, shared_data  # noqa: E402
 
 from occmap.io.carmen import read_carmen  # noqa: E402
 from occmap.geometry.se2 import compose_poses, relative_poses  # noqa: E402
@@ -154,10 +154,7 @@ def main() -> None:
         "|---|---:|---:|---:|---:|---:|---:|---:|",
         *rows,
     ])
-    if args.no_write:
-        print(body)
-    else:
-        write_section("tracking-logs", body)
+    publish("tracking-logs", body, write=not args.no_write)
 
 
 if __name__ == "__main__":
