@@ -92,7 +92,8 @@ def test_a_point_off_the_centre_is_measured_through_the_heading():
 
     def h(states):
         c, si = np.cos(states[:, 2]), np.sin(states[:, 2])
-        return states[:, :2] + np.stack([c * offset[:, 0] - si * offset[:, 1], si * offset[:, 0] + c * offset[:, 1]], -1)
+        turned = np.stack([c * offset[:, 0] - si * offset[:, 1], si * offset[:, 0] + c * offset[:, 1]], -1)
+        return states[:, :2] + turned
 
     y, H = ekf.pose_innovation(s, z, with_heading=False, offset=offset)
     np.testing.assert_allclose(y, z - h(s), atol=1e-12)

@@ -414,9 +414,10 @@ class Tracker:
             fast = self.state[:, 3] >= p.min_moving_speed  # a vehicle's bare end: see _measure
             axes, size = _frames(self.state[:, None, 2], self.size[:, None], centres[None], sensor,
                                  detections.heading[None], directed[None])
-            seen = self._measure(_corners(detections)[None], axes, size, sensor, detections.occluded[None],
-                                 self.state[:, None, :2], np.where(fast[:, None, None], detections.bare_end[None], np.nan))
-            z, R = seen.centre, seen.covariance
+            bare = np.where(fast[:, None, None], detections.bare_end[None], np.nan)
+            measured = self._measure(_corners(detections)[None], axes, size, sensor, detections.occluded[None],
+                                     self.state[:, None, :2], bare)
+            z, R = measured.centre, measured.covariance
             r = z - self.state[:, None, :2]
             S = self.cov[:, None, :2, :2] + R
             # a track seen once has no velocity yet: it may have gone anywhere within max_speed
@@ -427,7 +428,7 @@ class Tracker:
             cost = np.where(d2 <= p.gate, d2 + np.log(np.linalg.det(S)), np.inf)
             rows, cols = self._assign(cost)
             if len(rows):
-                self._resize(*self._correct(rows, cols, z[rows, cols], R[rows, cols], seen.lever[rows, cols],
+                self._resize(*self._correct(rows, cols, z[rows, cols], R[rows, cols], measured.lever[rows, cols],
                                             detections), detections, sensor)
         self._shadowed(np.setdiff1d(np.arange(n), rows), sensor)
         self._manage(rows)
