@@ -140,6 +140,10 @@ def _paths_in_free_space(lm, origin, rng, duration):
     return start, heading, speed, car
 
 
+#: Cycles (0.1 s each) before the timed ones: the objects' tracks start and get confirmed.
+WARM_UP = 10
+
+
 def tracking_cycle(points, origin, repeat):
     """Median time of one cycle with tracking (insert the cloud with the objects, then the costmap
     one second ahead) and of the same cycle without tracking, and the confirmed tracks at the end."""
@@ -150,7 +154,7 @@ def tracking_cycle(points, origin, repeat):
         for k in range(5):  # the scene seen still first: its free space known
             lm.insert_point_cloud(points, origin, 0.1 * k, Z_MIN, Z_MAX)
     lm = maps[True]
-    n_cycles = 10 + 1 + 2 * repeat  # warm-up cycles, median_times' own warm-up, the timed rounds
+    n_cycles = WARM_UP + 1 + 2 * repeat  # warm-up cycles, median_times' own warm-up, the timed rounds
     start, heading, speed, car = _paths_in_free_space(lm, origin, rng, 0.1 * (n_cycles + 1))
     z = origin[2] - 0.5
     clouds = []
@@ -167,7 +171,7 @@ def tracking_cycle(points, origin, repeat):
         maps[flag].insert_point_cloud(cloud, origin, t, Z_MIN, Z_MAX)
         maps[flag].costmap(at=t + 1.0)
 
-    for _ in range(10):  # tracks start and get confirmed
+    for _ in range(WARM_UP):  # tracks start and get confirmed
         cycle(True)
         cycle(False)
     t_track, t_plain = median_times([lambda: cycle(True), lambda: cycle(False)], number=1, repeat=2 * repeat)
