@@ -147,7 +147,7 @@ def replay(street: Street, seed: int, radar: bool) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--seeds", type=int, default=6)
     parser.add_argument("--no-write", action="store_true", help="print the results only")
     args = parser.parse_args()
     street = Street.default()
