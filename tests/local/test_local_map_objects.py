@@ -127,3 +127,36 @@ def test_an_object_leaving_the_window_coasts_and_is_dropped_cleanly():
             assert lm.tracks().confirmed.any()
     assert len(lm.tracks()) == 0 and lm.stats["tracks_dropped"] >= 1
     assert lm.predicted_occupancy(lm.time + 1.0).max() == 0.0  # nothing left of it in the costmap
+
+
+def _ring_scene(walker=None):
+    """A 3D scanner's cloud at the origin: a wall 15 m round at its height, two rings of low
+    returns 4 and 5 m round (what lower lasers hit within the height band, as an HDL-32's ground
+    rings do), every 0.25°; and a ``walker`` (x, y) 0.5 m across, its near side at the scanner's
+    height."""
+    a = np.radians(np.arange(0.0, 360.0, 0.25))
+    parts = [np.c_[r * np.cos(a), r * np.sin(a), np.full(len(a), z)]
+             for r, z in ((15.0, 0.0), (4.0, -0.7), (5.0, -0.7))]
+    if walker is not None:
+        b = np.linspace(-0.5 * np.pi, 0.5 * np.pi, 16) + math.atan2(walker[1], walker[0]) + np.pi
+        parts.append(np.c_[walker[0] + 0.25 * np.cos(b), walker[1] + 0.25 * np.sin(b), np.zeros(16)])
+    return np.concatenate(parts)
+
+
+@pytest.mark.parametrize("origin", [(0.0, 0.0, 0.0), (0.0, 0.0)])
+def test_lower_rings_do_not_hide_a_walker_from_a_3d_scanner(origin):
+    # with the scanner's height known, the returns of the lower rings, nearer at every bearing, do
+    # not cut the walker's ends: its views are whole, it gets its velocity and is confirmed; with
+    # a 2D origin every view is cut at both ends and it never is (each view restarts its wait)
+    lm = LocalMap((40.0, 40.0), 0.1, tracking=True)
+    for k in range(5):
+        lm.insert_point_cloud(_ring_scene(), origin, 0.1 * k, -1.0, 1.0)
+    for k in range(5, 25):
+        t = 0.1 * k
+        lm.insert_point_cloud(_ring_scene((10.0, -3.0 + 1.2 * t)), origin, t, -1.0, 1.0)
+    tracks = lm.tracks()
+    assert tracks.confirmed.any() == (len(origin) == 3)
+    if len(origin) == 3:
+        i = int(np.argmax(tracks.confirmed))
+        assert math.hypot(tracks.x[i] - 10.0, tracks.y[i] - (-3.0 + 1.2 * 2.4)) < 0.3
+        assert tracks.vy[i] == pytest.approx(1.2, abs=0.3)

@@ -15,7 +15,7 @@ from occmap.geometry.motion import unicycle_step
 from occmap.local.tracking import _kernels as K
 from occmap.local.tracking import ekf
 from occmap.local.tracking.assignment import assign
-from occmap.local.tracking.detection import Detections, detect_objects
+from occmap.local.tracking.detection import Detections, detect_objects, elevation_layers
 from occmap.local.tracking.tracker import Tracker, TrackerParams
 
 RNG = np.random.default_rng(7)
@@ -214,6 +214,27 @@ def test_cluster_ends_are_cut_by_nearer_returns_and_not_bare_where_the_surface_g
     assert not goes_on.cut.any() and goes_on.bare[0].tolist() == [True, False]
     limit = detect_objects(line, sensor=sensor, scene=line, max_range=math.hypot(1.0, 10.0) + 0.05)
     assert limit.cut[0].all() and not limit.bare.any()  # the range limit cuts it between its ends
+
+
+def test_a_lower_ring_nearer_hides_nothing_of_an_object_its_own_ring_sees():
+    # a 3D scanner at (1, -10, 0): an object seen by its horizontal ring; just past the object's
+    # clockwise end, 5 m nearer, a return of a ring 20 deg down (the ground): planar, it cuts that end;
+    # by elevation layers (elevation_layers of the 3D points) it does not, while a return of the
+    # object's own ring there still does
+    sensor = np.array([1.0, -10.0, 0.0])
+    line = np.c_[np.arange(0.0, 2.01, 0.1), np.zeros(21), np.zeros(21)]
+    past = math.atan2(10.0, 1.0) - math.radians(0.5)
+    r = 5.0
+    ground = np.array([[1.0 + r * math.cos(past), -10.0 + r * math.sin(past), -r * math.tan(math.radians(20.0))]])
+    level = ground * [1.0, 1.0, 0.0] + [0.0, 0.0, 0.01]  # the same bearing and range, the object's ring
+    for other, cut in ((ground, False), (level, True)):
+        scene = np.concatenate([line, other])
+        layers = elevation_layers(scene, sensor)
+        planar = detect_objects(line[:, :2], sensor=sensor[:2], scene=scene[:, :2])
+        layered = detect_objects(line[:, :2], sensor=sensor[:2], scene=scene[:, :2], layers=layers[:21],
+                                 scene_layers=layers)
+        assert planar.cut[0].tolist() == [True, False]
+        assert layered.cut[0].tolist() == [cut, False]
 
 
 def _box(x, y, length, width, points, oriented=False, cut=(False, False), ends=None):

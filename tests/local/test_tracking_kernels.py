@@ -14,14 +14,16 @@ from occmap.local.tracking import _kernels as K
 BINS = 1440
 
 
-def _beyond_reference(points, starts, scene, sx, sy, angle, slack):
-    """Every finite scene return binned by its exact bearing; each cluster's angular ends as the
-    kernel defines them, and the nearest return beyond each less than ``slack`` farther."""
+def _beyond_reference(points, point_layers, starts, scene, scene_layers, n_layers, sx, sy, angle, slack):
+    """Every finite scene return binned by its exact bearing and its layer; each cluster's angular
+    ends as the kernel defines them, and the nearest return beyond each less than ``slack``
+    farther, in the end's layer or the next."""
     scale = BINS / (2 * np.pi)
-    sc = scene[np.isfinite(scene).all(axis=1)] - (sx, sy)
-    nearest = np.full(BINS, np.inf)
-    np.minimum.at(nearest, ((np.arctan2(sc[:, 1], sc[:, 0]) + np.pi) * scale).astype(int) % BINS,
-                  np.hypot(sc[:, 0], sc[:, 1]))
+    finite = np.isfinite(scene).all(axis=1)
+    sc = scene[finite] - (sx, sy)
+    nearest = np.full((BINS, n_layers), np.inf)
+    np.minimum.at(nearest, (((np.arctan2(sc[:, 1], sc[:, 0]) + np.pi) * scale).astype(int) % BINS,
+                            scene_layers[finite]), np.hypot(sc[:, 0], sc[:, 1]))
     reach = int(np.ceil(angle * scale))
     ends, out = [], []
     for a, b in zip(starts[:-1], starts[1:]):
@@ -34,7 +36,10 @@ def _beyond_reference(points, starts, scene, sx, sy, angle, slack):
         b_lo, b_hi = int((mid + rel[lo] + np.pi) * scale), int((mid + rel[hi] + np.pi) * scale)
         j = np.arange(1, reach + 1)
         row = []
-        for near, r_end in ((nearest[(b_lo - j) % BINS], r[lo]), (nearest[(b_hi + j) % BINS], r[hi])):
+        for bins, end in (((b_lo - j) % BINS, lo), ((b_hi + j) % BINS, hi)):
+            layer = point_layers[a + end]
+            near = nearest[bins][:, max(layer - 1, 0):layer + 2].ravel()
+            r_end = r[end]
             near = near[near < r_end + slack]
             row.append(near.min() if len(near) else np.inf)
         ends.append((a + lo, a + hi))
@@ -60,9 +65,14 @@ def test_returns_beyond_cluster_ends_equal_exact_bearings_of_every_return():
                                 [[sx, sy], [sx + 1, sy - 1e-300], [np.nan, 1.0], [np.inf, 0.0]],
                                 ring if trial % 3 == 0 else np.empty((0, 2))])
         angle, slack = np.radians(rng.uniform(0.5, 3)), rng.uniform(0, 1)
+        n_layers = int(rng.integers(1, 6))  # a planar scan (1), or a 3D scanner's elevation layers
+        point_layers = rng.integers(0, n_layers, len(points))
+        scene_layers = rng.integers(0, n_layers, len(scene))
         ends, out = np.empty((len(clusters), 2), np.int64), np.empty((len(clusters), 2))
-        K.beyond_ends(points, starts, scene, sx, sy, BINS, angle, slack, ends, out)
-        want_ends, want = _beyond_reference(points, starts, scene, sx, sy, angle, slack)
+        K.beyond_ends(points, point_layers, starts, scene, scene_layers, n_layers, sx, sy, BINS, angle, slack, ends,
+                      out)
+        want_ends, want = _beyond_reference(points, point_layers, starts, scene, scene_layers, n_layers, sx, sy, angle,
+                                            slack)
         np.testing.assert_array_equal(ends, want_ends)
         np.testing.assert_array_equal(out, want)
         hidden += np.isfinite(out).sum()

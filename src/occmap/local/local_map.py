@@ -46,6 +46,7 @@ from ..raster.ring import slot
 from ..raster.update import UNSEEN, ScanCodes
 from . import _kernels as K
 from .costmap import InflationParams, as_footprint, circumscribed_radius, inscribed_radius as _inscribed_radius
+from .tracking.detection import elevation_layers
 from .tracking.layer import ObjectLayer
 from .tracking.tracker import TrackerParams
 
@@ -285,18 +286,20 @@ class LocalMap(OneCallAtATime):
     # ------------------------------------------------------------------ sensing
 
     def _insert(self, px, py, ends, kinds, dropped: int, maxed: int, max_range: float | None = None,
-                model=None) -> dict:
+                model=None, layers=None) -> dict:
         """Insert one scan's ray ends from the sensor at (px, py) with ``model``'s evidence (the
         map's by default); record and return its counts (the keys of :attr:`stats`,
         ``docs/architecture.md``). With tracking and the map's own model (a lidar), the returns of
-        moving objects clear only and go to the tracks."""
+        moving objects clear only and go to the tracks (``layers``: a 3D scanner's elevation
+        layers of the ends, for the occlusion test)."""
         model = self.model if model is None else model
         if self._objects is not None and model is self.model:
             open_, occupied, unseen, walled = self._classify_returns(ends, kinds)
             recent = self._objects.recent_hits(self._time)
             vacated = recent[self._classify_returns(recent, np.ones(len(recent), np.int8), vacated=True)[0]]
             self._objects.sort_returns(ends, kinds, open_, occupied, (px, py), self._time, max_range,
-                                       (self.origin, self.resolution, self.shape), vacated, unseen, walled)
+                                       (self.origin, self.resolution, self.shape), vacated, unseen, walled,
+                                       layers)
             self.stats.update(self._objects.counts())
         g = self._g
         lp = self.l_prior
@@ -372,7 +375,10 @@ class LocalMap(OneCallAtATime):
 
     def insert_point_cloud(self, points, origin, stamp, z_min: float, z_max: float) -> dict:
         """Insert a 3D cloud: ``points`` (N, 3) in the world frame, seen from the sensor at
-        ``origin`` (2 or 3 numbers; z unused) at ``stamp`` seconds.
+        ``origin`` (2 or 3 numbers) at ``stamp`` seconds. With tracking, a 3D origin gives each
+        return its elevation seen from the sensor, so that only returns of about the same elevation
+        hide an object's ends (:func:`~occmap.local.tracking.detection.elevation_layers`); with a 2D
+        one, every in-band return can.
 
         Points with ``z_min ≤ z ≤ z_max`` mark their cell as an obstacle and clear the cells
         before it; the others (ground below the band, overhangs above it) mark nothing and clear
@@ -396,7 +402,8 @@ class LocalMap(OneCallAtATime):
         ends = np.empty((len(pts), 2))
         kinds = np.empty(len(pts), dtype=np.int8)
         dropped = K.cloud_ends(pts, z_min, z_max, ends, kinds)
-        return self._insert(o[0], o[1], ends, kinds, dropped, 0)
+        layers = elevation_layers(pts, o) if self._objects is not None and len(o) == 3 else None
+        return self._insert(o[0], o[1], ends, kinds, dropped, 0, layers=layers)
 
     def insert_radar(self, pose, ranges, azimuths, stamp, max_range: float, radial_velocity=None, ego_velocity=None,
                      model: RadarModel | None = None) -> dict:

@@ -241,15 +241,16 @@ def _pseudo_bearing(dx, dy):
 
 
 @kernel
-def nearest_by_bearing(scene, sx, sy, limit, need, out):
+def nearest_by_bearing(scene, layers, sx, sy, limit, need, out):
     """Range of the nearest point of ``scene`` (K, 2) seen from ``(sx, sy)`` in each of the
-    ``len(need)`` equal bearing sectors over the full circle where ``need`` is set (``out``
-    (bins,), +inf where none or not needed), counting only the points nearer than ``limit`` (m;
-    the others are not looked at, non-finite ones neither). A point's exact bearing is computed
-    only when a coarse pseudo-bearing (:func:`_pseudo_bearing`, buckets grown by one on each
-    side) puts it near a needed sector."""
+    ``len(need)`` equal bearing sectors over the full circle where ``need`` is set, per elevation
+    layer (``layers`` (K,), each point's in ``0 … L − 1``): ``out`` (bins, L), +inf where none or not
+    needed. Only the points nearer than ``limit`` (m) count (the others are not looked at,
+    non-finite ones neither). A point's exact bearing is computed only when a coarse
+    pseudo-bearing (:func:`_pseudo_bearing`, buckets grown by one on each side) puts it near a
+    needed sector."""
     bins = need.shape[0]
-    out[:] = np.inf
+    out[:, :] = np.inf
     scale = bins / (2.0 * np.pi)
     n_coarse = 4 * bins
     coarse = np.zeros(n_coarse, np.bool_)
@@ -274,20 +275,22 @@ def nearest_by_bearing(scene, sx, sy, limit, need, out):
             continue
         b = int((np.arctan2(dy, dx) + np.pi) * scale) % bins
         if need[b]:
-            out[b] = min(out[b], np.hypot(dx, dy))
+            out[b, layers[j]] = min(out[b, layers[j]], np.hypot(dx, dy))
     return out
 
 
 @kernel
-def beyond_ends(points, starts, scene, sx, sy, bins, angle, slack, ends, out):
+def beyond_ends(points, point_layers, starts, scene, scene_layers, n_layers, sx, sy, bins, angle, slack, ends,
+                out):
     """The angular ends of each cluster seen from the sensor at ``(sx, sy)`` and what lies just
     beyond them: cluster ``k`` is ``points[starts[k]:starts[k + 1]]``; ``ends[k]`` = the indices
     (into ``points``) of its clockwise and its counter-clockwise end (the least and the greatest
     bearing about the cluster's mean direction; the first such point on ties); ``out[k, e]`` =
     the range (m) of the nearest return of ``scene`` (K, 2) in the ``bins`` equal bearing sectors
     over the full circle within ``angle`` (rad) beyond end ``e``, counting only the returns less
-    than ``slack`` (m) farther than that end (+inf where none; :func:`nearest_by_bearing` over
-    those sectors only)."""
+    than ``slack`` (m) farther than that end and in the end's elevation layer or next to it
+    (``point_layers``, ``scene_layers``: each point's in ``0 … n_layers − 1``; one layer for a
+    planar scan) (+inf where none; :func:`nearest_by_bearing` over those sectors only)."""
     scale = bins / (2.0 * np.pi)
     reach = int(np.ceil(angle * scale))
     n = starts.shape[0] - 1
@@ -327,17 +330,18 @@ def beyond_ends(points, starts, scene, sx, sy, bins, angle, slack, ends, out):
             need[(b_lo[k] - j) % bins] = True
             need[(b_hi[k] + j) % bins] = True
         limit = max(limit, r_lo[k] + slack, r_hi[k] + slack)
-    nearest = nearest_by_bearing(scene, sx, sy, limit, need, np.empty(bins))
+    nearest = nearest_by_bearing(scene, scene_layers, sx, sy, limit, need, np.empty((bins, n_layers)))
     for k in range(n):
-        out[k, 0] = np.inf
-        out[k, 1] = np.inf
-        for j in range(1, reach + 1):
-            q = nearest[(b_lo[k] - j) % bins]
-            if q < r_lo[k] + slack:
-                out[k, 0] = min(out[k, 0], q)
-            q = nearest[(b_hi[k] + j) % bins]
-            if q < r_hi[k] + slack:
-                out[k, 1] = min(out[k, 1], q)
+        for e in range(2):
+            out[k, e] = np.inf
+            layer = point_layers[ends[k, e]]
+            r_end = r_lo[k] if e == 0 else r_hi[k]
+            for j in range(1, reach + 1):
+                b = (b_lo[k] - j) % bins if e == 0 else (b_hi[k] + j) % bins
+                for m in range(max(layer - 1, 0), min(layer + 1, n_layers - 1) + 1):
+                    q = nearest[b, m]
+                    if q < r_end + slack:
+                        out[k, e] = min(out[k, e], q)
     return out
 
 

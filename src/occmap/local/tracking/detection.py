@@ -16,7 +16,7 @@ from ... import checks
 from ...errors import ShapeError
 from . import _kernels as K
 
-__all__ = ["Detections", "box_corners", "detect_objects"]
+__all__ = ["Detections", "box_corners", "detect_objects", "elevation_layers"]
 
 #: Largest gap (m) between the returns of one object.
 DETECTION_GAP = 0.5
@@ -26,6 +26,21 @@ BEARING_SECTORS = 1440
 FIT_STEPS = 90
 #: Floor of the closeness criterion's distance (m): points this close to an edge count alike.
 FIT_MIN_DISTANCE = 0.01
+#: Elevation layers (rad) of a 3D scanner's returns in the occlusion test: a return hides an end
+#: only from its own layer or the next (one laser: a ring's returns share an elevation).
+ELEVATION_LAYER = math.radians(0.5)
+
+
+def elevation_layers(points, origin) -> np.ndarray:
+    """Elevation layer (int64 (N,), from 0) of 3D ``points`` (N, 3) seen from ``origin`` (3,):
+    their elevation angle above the sensor's horizontal plane in steps of :data:`ELEVATION_LAYER`,
+    counted from the lowest (non-finite points: layer 0)."""
+    p = np.asarray(points, dtype=np.float64)
+    o = np.asarray(origin, dtype=np.float64)
+    up = np.arctan2(p[:, 2] - o[2], np.hypot(p[:, 0] - o[0], p[:, 1] - o[1]))
+    up = np.where(np.isfinite(up), up, 0.0)
+    layer = np.floor(up / ELEVATION_LAYER).astype(np.int64)
+    return layer - layer.min() if len(layer) else layer
 
 
 class Detections(NamedTuple):
@@ -87,7 +102,7 @@ def box_corners(x, y, heading, length, width) -> np.ndarray:
 
 def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_width: float = 0.3, *, sensor=None,
                    scene=None, max_range: float | None = None, angle: float = math.radians(1.0),
-                   depth: float = 0.3) -> Detections:
+                   depth: float = 0.3, layers=None, scene_layers=None) -> Detections:
     """Cluster world points ``(N, 2)`` (single linkage at ``gap`` m) and fit a box to each cluster
     of at least ``min_points``; a box is ``oriented`` when its width is at least ``min_width`` m.
 
@@ -97,11 +112,18 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
     ``max_range``) when it lies within ``depth`` of the range limit, beyond which the rest may lie
     (both ends when only other points of it do); without the sensor none is, and ``ends`` are NaN.
     An end is ``bare`` when it is not cut and no return within ``angle`` beyond it lies less than
-    ``depth`` m farther."""
+    ``depth`` m farther. The returns of a 3D scanner (``layers`` of ``points`` and ``scene_layers``
+    of ``scene``: :func:`elevation_layers`) count beyond an end only from its elevation layer or
+    the next: a lower ring's ground returns, nearer at every bearing, hide nothing of an object its
+    own ring sees whole (a planar scan: one layer)."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ShapeError(f"points must have shape (N, 2), got {p.shape}")
-    p = p[np.isfinite(p).all(axis=1)]
+    lay = np.zeros(len(p), np.int64) if layers is None else np.asarray(layers, dtype=np.int64)
+    if lay.shape != (len(p),):
+        raise ShapeError(f"layers must have shape ({len(p)},), got {lay.shape}")
+    finite = np.isfinite(p).all(axis=1)
+    p, lay = p[finite], lay[finite]
     gap = checks.positive("gap", gap, "metres")
     min_points = checks.count("min_points", min_points)
     if not len(p):
@@ -115,6 +137,7 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
     lab = remap[labels[chosen]]
     order = np.argsort(lab, kind="stable")
     pts = np.ascontiguousarray(p[chosen][order])
+    pts_layers = np.ascontiguousarray(lay[chosen][order])
     counts = sizes[keep]
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     box = K.fit_boxes(pts, starts, FIT_STEPS, FIT_MIN_DISTANCE, np.empty((len(counts), 5)))
@@ -127,10 +150,16 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
         sc = np.empty((0, 2)) if scene is None else np.ascontiguousarray(scene, dtype=np.float64)
         if sc.ndim != 2 or sc.shape[1] != 2:
             raise ShapeError(f"scene must have shape (K, 2), got {sc.shape}")
+        sc_layers = np.zeros(len(sc), np.int64) if scene_layers is None else \
+            np.ascontiguousarray(scene_layers, dtype=np.int64)
+        if sc_layers.shape != (len(sc),):
+            raise ShapeError(f"scene_layers must have shape ({len(sc)},), got {sc_layers.shape}")
+        n_layers = int(max(pts_layers.max(initial=0), sc_layers.max(initial=0))) + 1
         depth = checks.non_negative("depth", depth, "metres")
         index = np.empty((len(counts), 2), np.int64)
         beyond = np.empty((len(counts), 2))
-        K.beyond_ends(pts, starts, sc, sx, sy, BEARING_SECTORS, checks.positive("angle", angle), depth, index, beyond)
+        K.beyond_ends(pts, pts_layers, starts, sc, sc_layers, n_layers, sx, sy, BEARING_SECTORS,
+                      checks.positive("angle", angle), depth, index, beyond)
         ends = pts[index]
         r_end = np.hypot(ends[..., 0] - sx, ends[..., 1] - sy)
         cut = beyond < r_end - depth

@@ -83,14 +83,15 @@ class ObjectLayer:
 
     def sort_returns(self, ends: np.ndarray, kinds: np.ndarray, known_free: np.ndarray, known_occupied: np.ndarray,
                      sensor, stamp: float, max_range: float | None = None, grid=None, vacated=None,
-                     unseen=None, walled=None) -> None:
+                     unseen=None, walled=None, layers=None) -> None:
         """Take one scan: returns (``kinds == 1``) at ``ends`` (N, 2) that are moving become
         clearing rays (``kinds`` set to 2, in place); the tracks move to ``stamp``.
         ``known_free`` and ``known_occupied`` (N,) say which ends lie in cells the static layer
         holds free (and open around) or occupied, ``unseen`` (N,) which lie in cells never seen;
         ``vacated`` ``(M, 2)`` are the points of :meth:`recent_hits` whose cells the map has since
         seen through; ``grid`` ``(origin, resolution, (H, W))`` is the map's window, in which the
-        returns are joined into objects."""
+        returns are joined into objects; ``layers`` (N,) the elevation layers of a 3D scanner's
+        returns (:func:`~.detection.elevation_layers`; None: a planar scan)."""
         hit = np.flatnonzero(kinds == 1)
         pts = np.ascontiguousarray(ends[hit])
         moving = known_free[hit]
@@ -131,7 +132,10 @@ class ObjectLayer:
         self._shadowed = pts[moving & shadow]
         self.stats["moving_returns"] += int(moving.sum())
         sensor = np.asarray(sensor, dtype=np.float64)[:2]
-        self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range), sensor)
+        hit_layers = None if layers is None else np.asarray(layers)[hit]
+        self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range,
+                                                  layers=None if layers is None else hit_layers[moving],
+                                                  scene_layers=hit_layers), sensor)
 
     def counts(self) -> dict:
         """Running counts: returns taken as moving, tracks started, confirmed and dropped."""
