@@ -310,13 +310,13 @@ def main():
         "insert — beside inserting the same placed clouds. 2D: the Intel corrected log (910 scans) as LaserScan "
         "+ tf (the laser's pose as `odom → laser`) into a grid at 0.05 m as `occmap map2d BAG` does, beside "
         "`map_scans` of the same placed scans (checked to be the log's poses). "
-        f"The maps are checked equal; medians of {args.repeat} alternating rounds in 3D, "
-        f"{3 * args.repeat} in 2D. Both read ahead on a thread of their own (`occmap._threads.read_ahead`) "
+        f"The maps are checked equal; medians of {3 * args.repeat} alternating rounds. Both read ahead on a thread of their own (`occmap._threads.read_ahead`) "
         "while the kernels insert, which hides the reading only where a core is idle. The last column times the bag's part alone (open, tf, stream, decode, "
         "place: `world_points` for clouds; for scans the runs of stacked scans `BagScans.stacks()` gives), the "
         "figure that the machine's load disturbs least.",
-        map3d_rows(pts, args.map_clouds, args.repeat),
-        map2d_rows(intel, 3 * args.repeat),  # a map takes 0.1 s: many rounds steady the median
+        # many rounds steady the medians: seven of the 3D rows read 0.95-1.17x from run to run
+        map3d_rows(pts, args.map_clouds, 3 * args.repeat),
+        map2d_rows(intel, 3 * args.repeat),
     ])
     print(body)
     print(f"\n({time.perf_counter() - t0:.0f} s)")
