@@ -85,9 +85,7 @@ class Raws:
         if isinstance(raws, Raws):
             return raws
         sizes = np.fromiter(map(len, raws), np.int64, len(raws))
-        starts = np.zeros(len(raws), np.int64)
-        np.cumsum(sizes[:-1], out=starts[1:])
-        return cls(np.frombuffer(b"".join(raws), np.uint8), starts, sizes)
+        return cls(np.frombuffer(b"".join(raws), np.uint8), _end_to_end(sizes), sizes)
 
     @classmethod
     def concat(cls, parts: list[Raws]) -> Raws:
@@ -96,11 +94,9 @@ class Raws:
             return parts[0]
         whole = [p.joined() for p in parts]
         sizes = np.concatenate([p.sizes for p in parts])
-        starts = np.zeros(len(sizes), np.int64)
-        np.cumsum(sizes[:-1], out=starts[1:])
         buf = np.concatenate(whole)
         buf.setflags(write=False)  # as a chunk's: the kernels see one array type
-        return cls(buf, starts, sizes)
+        return cls(buf, _end_to_end(sizes), sizes)
 
     def __len__(self) -> int:
         return len(self.sizes)
@@ -116,9 +112,7 @@ class Raws:
         """The messages in a buffer of their own, which lets go of a chunk's buffer."""
         buf = self.joined().copy()
         buf.setflags(write=False)
-        starts = np.zeros(len(self.sizes), np.int64)
-        np.cumsum(self.sizes[:-1], out=starts[1:])
-        return Raws(buf, starts, self.sizes)
+        return Raws(buf, _end_to_end(self.sizes), self.sizes)
 
     def joined(self) -> np.ndarray:
         """The messages end to end, a uint8 array (a view when they already are)."""
@@ -131,6 +125,13 @@ class Raws:
         out = np.empty(total, np.uint8)
         _gather(self.buf, self.starts, self.sizes, out)
         return out
+
+
+def _end_to_end(sizes: np.ndarray) -> np.ndarray:
+    """Where messages of ``sizes`` bytes start when they lie end to end from byte 0 (int64)."""
+    starts = np.zeros(len(sizes), np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    return starts
 
 
 @kernel
