@@ -455,3 +455,27 @@ def test_log_odds_at_and_occupancy_at_read_the_window_cells():
     assert (occ == 1).any() and (occ == 0).any() and (occ == -1).any()
     outside = [[lm.origin[0] - 0.05, lm.origin[1] + 1.0], [lm.origin[0] + 1.0, lm.origin[1] + 3.05], [np.nan, 0.0]]
     assert np.isnan(lm.log_odds_at(outside)).all() and (lm.occupancy_at(outside) == -1).all()
+
+
+def test_replay_frames_are_capped_by_the_memory_available(tmp_path, monkeypatch, capsys):
+    """`occmap local` holds its frames until the GIF is written: asked for more than a third of the
+    available memory holds, it draws fewer and says so (a whole-log replay once took every byte)."""
+    from PIL import Image
+
+    from occmap.cli import main
+    from occmap.commands import local
+
+    log = tmp_path / "walk.log"
+    ranges = " ".join(["2.0"] * 181)
+    log.write_text("".join(f"FLASER 181 {ranges} {0.1 * i} 0 0 {0.1 * i} 0 0 {i}.0 host {i}.0\n" for i in range(12)))
+    out = tmp_path / "local.gif"
+    args = ["local", str(log), "-o", str(out), "--size", "6", "--frame-every", "1", "--max-frames", "10"]
+    assert main(args) == 0
+    with Image.open(out) as im:
+        assert im.n_frames == 10
+        frame = im.size[0] * im.size[1]
+    monkeypatch.setattr(local, "_available_memory", lambda: 3 * 4 * frame + 1)
+    assert main(args) == 0
+    with Image.open(out) as im:
+        assert im.n_frames == 4
+    assert "--max-frames 10 lowered to 4" in capsys.readouterr().out

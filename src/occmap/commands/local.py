@@ -3,10 +3,14 @@ tf, odometry or a pose file) through a :class:`~occmap.LocalMap` and write an an
 costmap following the robot.
 
 Each scan moves the window to the laser's position and integrates the scan at its logger stamp;
-every ``--frame-every`` scans a frame is drawn (:func:`occmap.local.replay.frame_image`).
+every ``--frame-every`` scans a frame is drawn (:func:`occmap.local.replay.frame_image`). Frames
+(and recorded costmaps) stay in memory until the end: ``--max-frames`` is lowered, with a note,
+to what a third of the memory available at the start holds (the GIF's writer needs as much again).
 """
 
 from __future__ import annotations
+
+import os
 
 from . import _options, _scan_match, _sources
 from ._outputs import check_outputs
@@ -72,6 +76,7 @@ def run(args) -> int:
     title = args.title if args.title is not None else f"local costmap: {Path(args.log).name}"
     frames = CostmapAnimation(lm.shape, args.resolution, args.scale, title, args.tracking)
     recorder = LocalMapRecorder() if args.record is not None else None
+    max_frames = _frames_that_fit(args.max_frames, frames.frame_bytes + (2 * lm.shape[0] * lm.shape[1] if recorder else 0))
     used = 0
     clamped = 0
     clock = WorkClock()
@@ -101,7 +106,7 @@ def run(args) -> int:
             if recorder is not None:
                 recorder.add(lm, stamp, scan.pose, cost)
         used += 1
-        if len(frames) >= args.max_frames:
+        if len(frames) >= max_frames:
             break
     _sources.report("local", source)
     if matcher is not None:
@@ -125,3 +130,31 @@ def run(args) -> int:
         print(f"dropped: {lm.stats['dropped']} readings (NaN, ≤ 0), {lm.stats['dropped_poses']} poses; "
               f"{clamped} stamps going backwards held at the previous one")
     return 0
+
+
+def _frames_that_fit(requested: int, frame_bytes: int) -> int:
+    """``requested`` frames, or fewer (with a note) when they would take more than a third of the
+    memory available now."""
+    available = _available_memory()
+    if available is None or requested * frame_bytes <= available // 3:
+        return requested
+    fit = max(1, available // 3 // frame_bytes)
+    print(f"--max-frames {requested:,} lowered to {fit:,}: each frame holds {frame_bytes / 1e6:.1f} MB in memory until "
+          f"the GIF is written, and {available / 1e9:.1f} GB are available (--frame-every thins the frames)")
+    return fit
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available to a new allocation without swapping (Linux ``MemAvailable``;
+    free pages elsewhere); None where the system does not say."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None

@@ -95,6 +95,11 @@ class CostmapAnimation:
     def __len__(self) -> int:
         return len(self._images)
 
+    @property
+    def frame_bytes(self) -> int:
+        """Bytes one frame holds in memory until :meth:`save` (one byte a pixel)."""
+        return self._frame.nbytes
+
     def png_bytes(self, index: int = -1) -> bytes:
         """One frame (the last by default) as PNG bytes."""
         buffer = io.BytesIO()
