@@ -364,7 +364,9 @@ class LocalMap(OneCallAtATime):
         readings, and readings whose angle is NaN or infinite, are dropped and counted. Without ``max_range`` every finite reading is a return
         and infinite ones are dropped. A pose with NaN drops the whole scan (counted in
         ``stats["dropped_poses"]``; time still advances). Stamps must not go backwards
-        (:class:`~occmap.errors.InvalidArgumentError`). Returns this scan's counts.
+        (:class:`~occmap.errors.InvalidArgumentError`). With tracking, what moves is judged in
+        the scan registered to the static layer, and nothing in a scan that does not fit it
+        (:meth:`_registered`). Returns this scan's counts.
         """
         P = np.asarray(pose, dtype=np.float64)
         if P.shape != (3,):
