@@ -433,7 +433,7 @@ def test_check_path_lethal_collides_even_beside_unknown():
     assert disc.first_collision == 1
 
 
-def test_log_odds_at_and_occupancy_at_read_the_window_cells():
+def test_log_odds_at_occupancy_at_and_lethal_read_the_window_cells():
     """Per point, the value log_odds() holds in its cell (after a move, so the ring is started
     mid-buffer, and with forgetting); NaN / −1 outside the window, in unknown cells and for NaN
     points; occupied from occupied_threshold on."""
@@ -452,6 +452,7 @@ def test_log_odds_at_and_occupancy_at_read_the_window_cells():
     occ = lm.occupancy_at(centres)
     np.testing.assert_array_equal(occ == -1, np.isnan(full))
     np.testing.assert_array_equal(occ == 1, np.nan_to_num(full, nan=-np.inf) >= logit(0.6))
+    np.testing.assert_array_equal(lm.lethal(), occ == 1)
     assert (occ == 1).any() and (occ == 0).any() and (occ == -1).any()
     outside = [[lm.origin[0] - 0.05, lm.origin[1] + 1.0], [lm.origin[0] + 1.0, lm.origin[1] + 3.05], [np.nan, 0.0]]
     assert np.isnan(lm.log_odds_at(outside)).all() and (lm.occupancy_at(outside) == -1).all()

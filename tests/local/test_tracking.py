@@ -16,6 +16,7 @@ from occmap.local.tracking import _kernels as K
 from occmap.local.tracking import ekf
 from occmap.local.tracking.assignment import assign
 from occmap.local.tracking.detection import Detections, detect_objects, elevation_layers
+from occmap.local.tracking.layer import ObjectLayer
 from occmap.local.tracking.tracker import Tracker, TrackerParams
 
 RNG = np.random.default_rng(7)
@@ -501,3 +502,16 @@ def test_doppler_corrects_a_track_speed_and_ignores_what_is_off_it_or_out_of_the
     assert tracker.stats["doppler_updates"] == 1
     with pytest.raises(InvalidArgumentError, match="same detections"):
         tracker.update_radar(tracker.time, pts, bearing(pts), [1.0])
+
+
+def test_a_track_explains_the_returns_on_its_footprint_but_not_those_on_mapped_structure():
+    layer = ObjectLayer()
+    _walker(layer.tracker)
+    assert layer.tracker.tracks().confirmed.all()
+    x, y = layer.tracker.predicted(2.1)[1][0, :2]
+    pts = np.array([[x, y - 0.2], [x, y + 0.2], [x - 0.1, y], [x + 0.1, y]])
+    kinds = np.ones(4, np.int8)
+    nothing = np.zeros(4, bool)
+    occupied = np.array([True, True, False, False])  # a wall the person passes: its cells mapped
+    layer.sort_returns(pts, kinds, nothing, occupied, (x, 10.0), 2.1)
+    np.testing.assert_array_equal(kinds, [1, 1, 2, 2])

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from occmap.raster.edt import distance_transform, squared_distance_cells
+from occmap.raster.edt import bounded_distance, distance_transform, squared_distance_cells
 from occmap.errors import InvalidArgumentError, ShapeError
 
 ndimage = pytest.importorskip("scipy.ndimage")
@@ -65,3 +65,12 @@ def test_non_bool_mask_and_bad_input():
         squared_distance_cells(np.zeros(5, bool))
     with pytest.raises(InvalidArgumentError):
         distance_transform(np.zeros((3, 3), bool), resolution=0.0)
+
+
+@pytest.mark.parametrize("limit", [0.05, 0.2, 0.37, 5.0])
+@pytest.mark.parametrize("density", [0.0, 0.01, 0.3])
+def test_bounded_distance_is_the_transform_clamped(limit, density):
+    rng = np.random.default_rng(int(limit * 100) + int(density * 1000))
+    mask = rng.random((37, 53)) < density
+    expected = np.minimum(distance_transform(mask, 0.05), limit) if mask.any() else np.full(mask.shape, limit)
+    np.testing.assert_array_equal(bounded_distance(mask, 0.05, limit), expected)

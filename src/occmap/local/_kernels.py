@@ -357,6 +357,18 @@ def log_odds(cells, stamps, sr, sc, g, l_prior, out):
 
 
 @kernel
+def lethal(cells, stamps, sr, sc, g, l_prior, l_occupied, out):
+    """Cells (bool, window order) into ``out`` whose log-odds, as :func:`log_odds` gives it
+    (float32), is at least ``l_occupied``; False where never observed."""
+    H, W = out.shape
+    for y in range(H):
+        r = slot(y, sr, H)
+        for x in range(W):
+            c = slot(x, sc, W)
+            out[y, x] = stamps[r, c, 1] != UNSEEN and np.float32(l_prior + g * cells[r, c, 0]) >= l_occupied
+
+
+@kernel
 def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, kinds, open_, occupied,
                      unseen, walled):
     """For each return (``kinds[i] == 1``) at world point ``pts[i]``: ``occupied[i]``, its cell is

@@ -26,7 +26,7 @@ from .._jit import kernel, kernel_parallel
 from .._threads import ThreadChoice
 from ..errors import ShapeError
 
-__all__ = ["squared_distance_cells", "distance_transform", "row_envelope"]
+__all__ = ["bounded_distance", "squared_distance_cells", "distance_transform", "row_envelope"]
 
 #: Masks with fewer cells than this run on one thread (thread start-up costs more than it saves);
 #: larger ones on as many as :data:`THREADS` finds cheaper.
@@ -177,3 +177,34 @@ def distance_transform(obstacle_mask, resolution: float = 1.0, parallel: bool | 
     if resolution != 1.0:
         d *= float(resolution)
     return d
+
+
+@kernel
+def _stamp(mask, reach, step, limit, out):
+    H, W = mask.shape
+    for y in range(H):
+        for x in range(W):
+            out[y, x] = limit
+    for y in range(H):
+        for x in range(W):
+            if not mask[y, x]:
+                continue
+            for v in range(max(0, y - reach), min(H, y + reach + 1)):
+                for u in range(max(0, x - reach), min(W, x + reach + 1)):
+                    d = step * np.sqrt(float((v - y) * (v - y) + (u - x) * (u - x)))
+                    if d < out[v, u]:
+                        out[v, u] = d
+
+
+def bounded_distance(obstacle_mask, resolution: float, limit: float) -> np.ndarray:
+    """:func:`distance_transform` clamped at ``limit`` metres, ``min(distance, limit)``, exactly
+    (the same float64 values): each obstacle writes its distance into the cells within
+    ``ceil(limit / resolution)`` cells of it. For sparse masks and short limits, as scan matchers
+    read them, a fraction of the whole transform's cost. float64 (H, W); ``limit`` everywhere
+    when the mask has no obstacle."""
+    resolution = checks.resolution(resolution)
+    limit = checks.positive("limit", limit, "metres")
+    mask = _check_mask(obstacle_mask)
+    out = np.empty(mask.shape, dtype=np.float64)
+    _stamp(mask, int(np.ceil(limit / resolution)), float(resolution), float(limit), out)
+    return out

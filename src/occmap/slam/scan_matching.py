@@ -71,10 +71,11 @@ from ..localize import _kernels as K
 from ..localize.likelihood_field import beam_end_points
 from ..localize.params import LocalizationParams
 from ..localize.scan_match import match
-from ..raster.edt import distance_transform
+from ..raster.edt import bounded_distance
 from ..scan import LaserScan
 
-__all__ = ["DEGENERATE_RATIO", "FAILED", "FIRST", "MATCHED", "MatchQuality", "REJECTED", "ScanMatchParams", "ScanMatchTrack", "ScanMatcher", "match_scans"]
+__all__ = ["DEGENERATE_RATIO", "FAILED", "FIRST", "MATCHED", "MatchQuality", "REJECTED", "ScanMatchParams", "ScanMatchTrack",
+           "ScanMatcher", "distance_fields", "keep_prior_where_unconstrained", "match_scans", "refine"]
 
 #: Below this ratio of the smaller to the larger eigenvalue of the scatter of a scan's surface
 #: normals, the scan constrains the position along one direction only.
@@ -247,7 +248,7 @@ def describe(stats: dict) -> str:
             f"{s['inserted']:,} inserted into the map")
 
 
-def _keep_prior_where_unconstrained(pose: np.ndarray, prior: np.ndarray, bx: np.ndarray, by: np.ndarray):
+def keep_prior_where_unconstrained(pose: np.ndarray, prior: np.ndarray, bx: np.ndarray, by: np.ndarray):
     """``(pose, degenerate)``: when the surfaces of end points ``(bx, by)`` (sensor frame)
     constrain the position along one direction only, ``pose`` with its position moved from the
     prior's along that direction only."""
@@ -318,7 +319,7 @@ class ScanMatcher:
             prior, by_odometry = self._predict(odom)
             pose, status = self._match(prior, bx, by, SEARCH_BELOW_ODOMETRY if by_odometry else SEARCH_BELOW)
             if status == MATCHED:
-                pose, degenerate = _keep_prior_where_unconstrained(pose, prior, bx, by)
+                pose, degenerate = keep_prior_where_unconstrained(pose, prior, bx, by)
         self.quality = self._quality(status, pose, bx, by, degenerate)
         self._count(self.quality)
         if self._pose is not None:
@@ -351,19 +352,7 @@ class ScanMatcher:
         return x, MATCHED
 
     def _refine(self, start: np.ndarray, bx: np.ndarray, by: np.ndarray) -> tuple[np.ndarray | None, int]:
-        """Gauss–Newton coarse to fine from ``start``: ``(pose, inliers at the finest level)``,
-        the pose None when the finest level failed."""
-        p = self.params
-        x = start
-        for level, f in enumerate(self._fields):
-            cutoff = p.cutoff * 2 ** (len(self._fields) - 1 - level)
-            found, used = match(f, x, bx, by, cutoff, p.iterations)
-            if found is None:
-                if level == len(self._fields) - 1:
-                    return None, used
-                continue  # a coarse level that found too little: the finer ones start where it began
-            x = found
-        return x, used
+        return refine(self._fields, start, bx, by, self.params.cutoff, self.params.iterations)
 
     def _search(self, prior: np.ndarray, bx: np.ndarray, by: np.ndarray) -> np.ndarray:
         """The best pose of the correlative search around ``prior`` on the coarsest field."""
@@ -431,22 +420,48 @@ class ScanMatcher:
             occupied = L > 0  # NaN (unobserved) is not an obstacle
         if not occupied.any():
             return []
-        fields = []
-        mask = occupied
-        for k in range(p.levels):
-            if k:  # a coarse cell is occupied when any of the four finer cells it covers is
-                H, W = mask.shape
-                pad = np.zeros((H + H % 2, W + W % 2), dtype=bool)
-                pad[:H, :W] = mask
-                mask = pad[0::2, 0::2] | pad[1::2, 0::2] | pad[0::2, 1::2] | pad[1::2, 1::2]
-            res = p.resolution * 2 ** k
-            far = p.cutoff * 2 ** k + res
-            dist = distance_transform(mask, res)
-            np.minimum(dist, far, out=dist)
-            fields.append(_Field(dist, corner, res, far, None))
-        coarse = fields[-1]
-        fields[-1] = coarse._replace(score=np.exp(-0.5 * (coarse.distance / coarse.resolution) ** 2).astype(np.float32))
-        return fields[::-1]
+        return distance_fields(occupied, corner, p.resolution, p.levels, p.cutoff)
+
+
+def distance_fields(occupied: np.ndarray, corner, resolution: float, levels: int, cutoff: float) -> list[_Field]:
+    """Distance fields (:class:`_Field`, coarse to fine) of the obstacle cells ``occupied``
+    (bool (H, W), row 0 at ``corner``, the outer corner (x, y) of cell (0, 0), cells of side
+    ``resolution`` m): level k at ``resolution · 2^k`` (a coarse cell is occupied when any of the
+    finer cells it covers is), clamped just beyond its cutoff ``cutoff · 2^k`` (m); the coarsest
+    with the correlative search's score."""
+    fields = []
+    mask = occupied
+    for k in range(levels):
+        if k:
+            H, W = mask.shape
+            pad = np.zeros((H + H % 2, W + W % 2), dtype=bool)
+            pad[:H, :W] = mask
+            mask = pad[0::2, 0::2] | pad[1::2, 0::2] | pad[0::2, 1::2] | pad[1::2, 1::2]
+        res = resolution * 2 ** k
+        far = cutoff * 2 ** k + res
+        dist = bounded_distance(mask, res, far)
+        fields.append(_Field(dist, np.asarray(corner, dtype=np.float64), res, far, None))
+    coarse = fields[-1]
+    fields[-1] = coarse._replace(score=np.exp(-0.5 * (coarse.distance / coarse.resolution) ** 2).astype(np.float32))
+    return fields[::-1]
+
+
+def refine(fields: list[_Field], start: np.ndarray, bx: np.ndarray, by: np.ndarray, cutoff: float,
+           iterations: int) -> tuple[np.ndarray | None, int]:
+    """Gauss–Newton coarse to fine (:func:`distance_fields`) from pose ``start`` for end points
+    ``(bx, by)`` (sensor frame, m), ends farther than ``cutoff · 2^k`` (m) from every obstacle
+    left out at level k: ``(pose, inliers at the finest level)``, the pose None when the finest
+    level failed (a coarse level that finds too little leaves the finer ones where it began)."""
+    x = start
+    used = 0
+    for level, f in enumerate(fields):
+        found, used = match(f, x, bx, by, cutoff * 2 ** (len(fields) - 1 - level), iterations)
+        if found is None:
+            if level == len(fields) - 1:
+                return None, used
+            continue
+        x = found
+    return x, used
 
 
 def match_scans(scans, params: ScanMatchParams | None = None, progress: bool = False) -> ScanMatchTrack:

@@ -32,7 +32,7 @@ import numpy as np
 from ... import checks
 from ...errors import ShapeError
 from . import _kernels as K
-from .detection import DETECTION_GAP, detect_objects
+from .detection import DETECTION_GAP, Detections, detect_objects
 from .tracker import Tracker, TrackerParams
 
 __all__ = ["ObjectLayer"]
@@ -95,9 +95,11 @@ class ObjectLayer:
         hit = np.flatnonzero(kinds == 1)
         pts = np.ascontiguousarray(ends[hit])
         moving = known_free[hit]
-        if len(self.tracker) and len(pts):
-            moving = moving | self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True)
         blocked = np.ascontiguousarray(known_occupied[hit])
+        if len(self.tracker) and len(pts):
+            # a track explains the returns on its footprint, not those on mapped structure beside it
+            # (a wall a person passes: taken as the track's, they would hold it on the wall)
+            moving = moving | (self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True) & ~blocked)
         shadow = np.zeros(len(pts), bool) if unseen is None else unseen[hit]
         clear = shadow if walled is None else shadow & ~walled[hit]
         # an object standing when first seen, then walking on inside its own shadow: its returns
@@ -136,6 +138,13 @@ class ObjectLayer:
         self.tracker.update(stamp, detect_objects(self.moving, sensor=sensor, scene=pts, max_range=max_range,
                                                   layers=None if layers is None else hit_layers[moving],
                                                   scene_layers=hit_layers), sensor)
+
+    def pass_over(self, stamp: float, sensor) -> None:
+        """Take a scan in which nothing can be told to move (its pose does not fit the static
+        layer): no return is moving, the tracks move to ``stamp`` without detections."""
+        self.moving = np.empty((0, 2))
+        self._shadowed = np.empty((0, 2))
+        self.tracker.update(stamp, Detections.empty(), np.asarray(sensor, dtype=np.float64)[:2])
 
     def counts(self) -> dict:
         """Running counts: returns taken as moving, tracks started, confirmed and dropped."""
