@@ -229,6 +229,36 @@ def test_large_scans_match_octomap(res):
     assert encode_ot(ours) == ref.write()  # every node and value, in OctoMap's own bytes
 
 
+def test_scans_of_changing_size_reuse_the_thread_s_ray_room():
+    """The rays of a scan go into arrays the thread keeps (``insertion._ray_room``): scans that
+    shrink (the room's rows past them hold the last scan's rays), grow (the room is replaced), and
+    drop points (NaN) give OctoMap's tree after every scan; and ``prepare_rays_into`` writes into
+    the first rows of larger arrays what ``prepare_rays`` returns."""
+    from occmap.octree import insertion, marking
+
+    octomap = _octomap()
+    rng = np.random.default_rng(17)
+    ours, ref = OcTree(0.2), octomap.OcTree(0.2)
+    for n in (6000, 2500, 9000):
+        pts = _room_cloud(rng, n)
+        pts[rng.integers(0, n, 40), 1] = np.nan
+        origin = rng.uniform(-0.5, 0.5, 3)
+        counts = ours.insert_point_cloud(pts, origin, max_range=4.0)
+        ref.insertPointCloud(pts, origin, 4.0)
+        assert counts["dropped"] == np.count_nonzero(np.isnan(pts[:, 1]))
+        assert encode_ot(ours) == ref.write()
+        assert len(insertion._kept.rays[1]) >= n
+    o32 = np.float32(origin)[None]
+    box, shift = np.empty((0, 3), np.float32), np.zeros(3, np.int64)
+    ends, hit, kept, non_finite, outside = marking.prepare_rays(pts, o32, 4.0, 0.2, box, shift)
+    room_ends, room_hit = np.full((len(pts) + 7, 3), np.nan, np.float32), np.ones(len(pts) + 7, bool)
+    m, nf, out = marking.prepare_rays_into(pts, o32, 4.0, 0.2, box, shift, room_ends, room_hit, np.zeros(0, np.int64))
+    assert (m, nf, out) == (len(ends), non_finite, outside)
+    assert non_finite == np.count_nonzero(np.isnan(pts[:, 1])) and m == len(pts) - non_finite - outside
+    np.testing.assert_array_equal(room_ends[:m], ends)
+    np.testing.assert_array_equal(room_hit[:m], hit)
+
+
 def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
     """A ray from the origin with a y of −4·10⁻¹⁶ (a UOS scan has one): its end voxel is at
     y key 32767, but its walk never crosses y = 0 before the range test stops it, 64 voxels out,

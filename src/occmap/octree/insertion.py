@@ -48,12 +48,25 @@ VOXELS = np.zeros(0, np.int8)
 
 
 #: Per thread, its cube (:func:`.marking.new_cube`: 2.25 MiB) kept between scans, zeroed, its box empty;
-#: and ``blocks_per_ray``, the blocks its last scan's rays marked outside the cube, a ray (the
-#: first room for the next scan's blocks: storage that fills up is grown and rehashed).
+#: ``blocks_per_ray``, the blocks its last scan's rays marked outside the cube, a ray (the
+#: first room for the next scan's blocks: storage that fills up is grown and rehashed); and
+#: ``rays``, room for a scan's rays (:func:`_ray_room`).
 _kept = threading.local()
 #: Blocks a ray is taken to mark before a thread has marked a scan.
 _BLOCKS_PER_RAY = 1 / 32
 _NO_CUBE = (np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros((2, 3), np.int64))
+_NO_INDICES = np.zeros(0, np.int64)
+
+
+def _ray_room(n: int):
+    """This thread's arrays for a scan's rays (ends float32 (≥ n, 3), hit flags (≥ n,)), kept
+    between scans (:func:`.marking.prepare_rays_into`) and grown by half as much again when a scan
+    needs more. (The rays are read only while :func:`cloud_voxels` runs on this thread.)"""
+    room = getattr(_kept, "rays", None)
+    if room is None or len(room[1]) < n:
+        size = max(n, int(1.5 * len(room[1])) if room is not None else 0)
+        room = _kept.rays = np.empty((size, 3), np.float32), np.empty(size, np.bool_)
+    return room
 
 
 def pipeline():
@@ -150,7 +163,10 @@ def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: floa
     non_finite = outside = 0
     if discretize:
         points, non_finite, outside = M.voxel_centres(points, res, shift)
-    ends, hit, _, more, beyond_keys = M.prepare_rays(points, origin32[None, :], float(max_range), res, box, shift)
+    ends, hit = _ray_room(len(points))
+    m, more, beyond_keys = M.prepare_rays_into(points, origin32[None, :], float(max_range), res, box, shift, ends, hit,
+                                               _NO_INDICES)
+    ends, hit = ends[:m], hit[:m]
     non_finite, outside = non_finite + more, outside + beyond_keys
     origin_key = coord_to_keys(origin32.astype(np.float64), res) - shift
     # with a box, a ray's free voxels are those before it first leaves the box: none from outside
