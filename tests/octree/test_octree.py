@@ -327,8 +327,10 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
 
 def test_one_numba_thread_means_no_worker_thread(monkeypatch):
     """With ``numba.set_num_threads(1)`` a large scan is marked, listed and applied on the calling
-    thread alone (no pool of workers is asked for), and the tree is the one two threads build."""
+    thread alone (no pool of workers is asked for), its voxels listed in one call (not in runs
+    copied together), and the tree is the one two threads build."""
     from occmap import _threads
+    from occmap.octree import insertion
 
     rng = np.random.default_rng(17)
     clouds = [(_room_cloud(rng, 30_000, half=8.0), rng.uniform(-0.5, 0.5, 3)) for _ in range(3)]
@@ -338,7 +340,15 @@ def test_one_numba_thread_means_no_worker_thread(monkeypatch):
     def no_pool(*args):
         raise AssertionError("a worker thread was asked for")
 
+    listed = []
+    block_voxels = insertion.B.block_voxels
+
+    def counted(codes, *args):
+        listed.append(len(codes))
+        return block_voxels(codes, *args)
+
     monkeypatch.setattr(_threads, "pool", no_pool)
+    monkeypatch.setattr(insertion.B, "block_voxels", counted)
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
@@ -347,6 +357,7 @@ def test_one_numba_thread_means_no_worker_thread(monkeypatch):
         one.insert_point_clouds([c for c, _ in clouds[1:]], [o for _, o in clouds[1:]])
     finally:
         numba.set_num_threads(before)
+    assert len(listed) == 3 and min(listed) >= insertion._PARALLEL_BLOCKS
     assert encode_ot(one) == encode_ot(two)
 
 

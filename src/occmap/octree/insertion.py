@@ -119,7 +119,7 @@ def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
     corner = M.cube_corner(origin, ends, res, shift) if rays and n >= _CUBE_RAYS else -1
     # room for the blocks at the rate of this thread's last scan, and a quarter more
     room = 1.25 * getattr(_kept, "blocks_per_ray", _BLOCKS_PER_RAY) * n
-    if not threads or n < _PARALLEL_RAYS:
+    if not threads or n < _PARALLEL_RAYS or _threads.thread_count() < 2:
         parts = [_mark_runs(origin, ends, hit, res, shift, rays, corner, deque([(0, n)]), max(256, int(room)))]
     else:
         bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
@@ -137,7 +137,7 @@ def voxels(blocks, kbox, merge: bool, threads: bool):
     hit flags); with ``threads``, many blocks are listed by several threads, in runs (Morton order
     kept)."""
     n = len(blocks[0])
-    if not threads or n < _PARALLEL_BLOCKS:
+    if not threads or n < _PARALLEL_BLOCKS or _threads.thread_count() < 2:  # (one thread: one call, no copy)
         return B.block_voxels(*blocks, kbox, merge)
     bounds = np.linspace(0, n, _LIST_RUNS + 1).astype(np.int64).tolist()
     parts = run_jobs([lambda a=a, z=z: B.block_voxels(*(b[a:z] for b in blocks), kbox, merge)
