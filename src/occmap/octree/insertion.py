@@ -129,7 +129,8 @@ def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
                  if p is not None]
     if n:
         _kept.blocks_per_ray = sum(count for _, count in parts) / n
-    return B.merge_blocks(*(np.concatenate(arrays) for arrays in zip(*(blocks for blocks, _ in parts))))
+    marked = [blocks for blocks, _ in parts]
+    return B.merge_blocks(*(marked[0] if len(marked) == 1 else (np.concatenate(arrays) for arrays in zip(*marked))))
 
 
 def voxels(blocks, kbox, merge: bool, threads: bool):
