@@ -694,6 +694,43 @@ def test_insert_point_clouds_pipeline_equals_scan_by_scan():
     assert total["scans"] == 5 and total["dropped"] == 1 and one.stats == many.stats
 
 
+def test_the_next_scan_is_marked_by_the_threads_of_the_caller(monkeypatch):
+    """insert_point_clouds traces the next scan on its own thread with the caller's Numba thread
+    count, so a large scan's marking is shared there too (not left to that one thread while the
+    other waits); the tree is the one scan-by-scan insertion builds."""
+    import threading
+
+    from occmap import _threads
+    from occmap.octree import insertion
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one Numba thread: no pipeline")
+    calls = []
+    share = insertion.share
+
+    def recording(task, threads=None):
+        calls.append((threading.current_thread().name, _threads.thread_count()))
+        return share(task, threads)
+
+    monkeypatch.setattr(insertion, "share", recording)
+    monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
+    rng = np.random.default_rng(19)
+    clouds = [(_room_cloud(rng, 3000), rng.uniform(-0.5, 0.5, 3)) for _ in range(3)]
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        many = OcTree(0.1)
+        many.insert_point_clouds([c for c, _ in clouds], [o for _, o in clouds])
+    finally:
+        numba.set_num_threads(before)
+    ahead = [count for name, count in calls if name.startswith("occmap-octree-next")]
+    assert len(ahead) == 2 and set(ahead) == {2}
+    one = OcTree(0.1)
+    for c, o in clouds:
+        one.insert_point_cloud(c, o)
+    assert encode_ot(one) == encode_ot(many)
+
+
 def test_bbx_limit_matches_octomap_test():
     """test_bbx: three points, a ±10.1 m box, max range 8: the x ray hits its point, the y ray stops
     at unknown space just outside the box, the z ray (point beyond max range) at max range."""

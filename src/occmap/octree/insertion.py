@@ -17,6 +17,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 
+import numba
 import numpy as np
 
 from .. import _threads
@@ -69,10 +70,20 @@ def _ray_room(n: int):
     return room
 
 
-def pipeline():
-    """The thread that traces the next scan of OcTree.insert_point_clouds while the tree takes
-    the current one."""
-    return _threads.pool("octree-next", 1)
+def ahead(scan_voxels, *args):
+    """``scan_voxels(*args)`` (the next scan of ``OcTree.insert_point_clouds``) submitted to a
+    thread of its own while the calling thread's tree takes the current scan; it runs with the
+    calling thread's Numba thread count (a per-thread setting), so that its rays are marked by
+    that thread and the workers together (:func:`mark`): a scan whose marking outweighs the
+    tree's update (small clouds, few voxels a ray: Osnabrück at 0.2 m, 3.5 ms against 0.4 ms)
+    would otherwise be marked on one thread while the other waits."""
+    n = _threads.thread_count()
+
+    def traced():
+        numba.set_num_threads(n)
+        return scan_voxels(*args)
+
+    return _threads.pool("octree-next", 1).submit(traced)
 
 
 def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacity: int):
