@@ -229,6 +229,36 @@ def test_large_scans_match_octomap(res):
     assert encode_ot(ours) == ref.write()  # every node and value, in OctoMap's own bytes
 
 
+def test_scans_of_changing_size_reuse_the_thread_s_ray_room():
+    """The rays of a scan go into arrays the thread keeps (``insertion._ray_room``): scans that
+    shrink (the room's rows past them hold the last scan's rays), grow (the room is replaced), and
+    drop points (NaN) give OctoMap's tree after every scan; and ``prepare_rays_into`` writes into
+    the first rows of larger arrays what ``prepare_rays`` returns."""
+    from occmap.octree import insertion, marking
+
+    octomap = _octomap()
+    rng = np.random.default_rng(17)
+    ours, ref = OcTree(0.2), octomap.OcTree(0.2)
+    for n in (6000, 2500, 9000):
+        pts = _room_cloud(rng, n)
+        pts[rng.integers(0, n, 40), 1] = np.nan
+        origin = rng.uniform(-0.5, 0.5, 3)
+        counts = ours.insert_point_cloud(pts, origin, max_range=4.0)
+        ref.insertPointCloud(pts, origin, 4.0)
+        assert counts["dropped"] == np.count_nonzero(np.isnan(pts[:, 1]))
+        assert encode_ot(ours) == ref.write()
+        assert len(insertion._kept.rays[1]) >= n
+    o32 = np.float32(origin)[None]
+    box, shift = np.empty((0, 3), np.float32), np.zeros(3, np.int64)
+    ends, hit, kept, non_finite, outside = marking.prepare_rays(pts, o32, 4.0, 0.2, box, shift)
+    room_ends, room_hit = np.full((len(pts) + 7, 3), np.nan, np.float32), np.ones(len(pts) + 7, bool)
+    m, nf, out = marking.prepare_rays_into(pts, o32, 4.0, 0.2, box, shift, room_ends, room_hit, np.zeros(0, np.int64))
+    assert (m, nf, out) == (len(ends), non_finite, outside)
+    assert non_finite == np.count_nonzero(np.isnan(pts[:, 1])) and m == len(pts) - non_finite - outside
+    np.testing.assert_array_equal(room_ends[:m], ends)
+    np.testing.assert_array_equal(room_hit[:m], hit)
+
+
 def test_ray_stopped_by_the_range_test_marks_its_end_voxel_beyond_the_cube():
     """A ray from the origin with a y of −4·10⁻¹⁶ (a UOS scan has one): its end voxel is at
     y key 32767, but its walk never crosses y = 0 before the range test stops it, 64 voxels out,
@@ -297,8 +327,10 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
 
 def test_one_numba_thread_means_no_worker_thread(monkeypatch):
     """With ``numba.set_num_threads(1)`` a large scan is marked, listed and applied on the calling
-    thread alone (no pool of workers is asked for), and the tree is the one two threads build."""
+    thread alone (no pool of workers is asked for), its voxels listed in one call (not in runs
+    copied together), and the tree is the one two threads build."""
     from occmap import _threads
+    from occmap.octree import insertion
 
     rng = np.random.default_rng(17)
     clouds = [(_room_cloud(rng, 30_000, half=8.0), rng.uniform(-0.5, 0.5, 3)) for _ in range(3)]
@@ -308,7 +340,15 @@ def test_one_numba_thread_means_no_worker_thread(monkeypatch):
     def no_pool(*args):
         raise AssertionError("a worker thread was asked for")
 
+    listed = []
+    block_voxels = insertion.B.block_voxels
+
+    def counted(codes, *args):
+        listed.append(len(codes))
+        return block_voxels(codes, *args)
+
     monkeypatch.setattr(_threads, "pool", no_pool)
+    monkeypatch.setattr(insertion.B, "block_voxels", counted)
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
@@ -317,6 +357,7 @@ def test_one_numba_thread_means_no_worker_thread(monkeypatch):
         one.insert_point_clouds([c for c, _ in clouds[1:]], [o for _, o in clouds[1:]])
     finally:
         numba.set_num_threads(before)
+    assert len(listed) == 3 and min(listed) >= insertion._PARALLEL_BLOCKS
     assert encode_ot(one) == encode_ot(two)
 
 
@@ -651,6 +692,43 @@ def test_insert_point_clouds_pipeline_equals_scan_by_scan():
     total = many.insert_point_clouds(clouds, origins, max_range=4.5)
     np.testing.assert_array_equal(_leaf_table(one), _leaf_table(many))
     assert total["scans"] == 5 and total["dropped"] == 1 and one.stats == many.stats
+
+
+def test_the_next_scan_is_marked_by_the_threads_of_the_caller(monkeypatch):
+    """insert_point_clouds traces the next scan on its own thread with the caller's Numba thread
+    count, so a large scan's marking is shared there too (not left to that one thread while the
+    other waits); the tree is the one scan-by-scan insertion builds."""
+    import threading
+
+    from occmap import _threads
+    from occmap.octree import insertion
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one Numba thread: no pipeline")
+    calls = []
+    share = insertion.share
+
+    def recording(task, threads=None):
+        calls.append((threading.current_thread().name, _threads.thread_count()))
+        return share(task, threads)
+
+    monkeypatch.setattr(insertion, "share", recording)
+    monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
+    rng = np.random.default_rng(19)
+    clouds = [(_room_cloud(rng, 3000), rng.uniform(-0.5, 0.5, 3)) for _ in range(3)]
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        many = OcTree(0.1)
+        many.insert_point_clouds([c for c, _ in clouds], [o for _, o in clouds])
+    finally:
+        numba.set_num_threads(before)
+    ahead = [count for name, count in calls if name.startswith("occmap-octree-next")]
+    assert len(ahead) == 2 and set(ahead) == {2}
+    one = OcTree(0.1)
+    for c, o in clouds:
+        one.insert_point_cloud(c, o)
+    assert encode_ot(one) == encode_ot(many)
 
 
 def test_bbx_limit_matches_octomap_test():

@@ -178,10 +178,15 @@ def block_voxels(codes, hits, frees, kbox, merge):
     hit = np.empty(8, np.int64)
     n = 0
     for b in range(codes.shape[0]):
+        any_hit = np.int64(0)
         for w in range(8):
             either[w] = hits[b, w] | frees[b, w]
+            any_hit |= hits[b, w]
         morton_words(either, marked)
-        morton_words(hits[b], hit)
+        if any_hit != 0:  # (most blocks hold free voxels only)
+            morton_words(hits[b], hit)
+        else:
+            hit[:] = 0
         base = block_key(codes[b])
         if merge and _inside(kbox, base, 8):
             whole = True

@@ -48,10 +48,23 @@ def prepare_rays(points, origins, max_range, res, box, shift):
     0 .. 65535 or whose float32 length overflows. Returns (ends, hit, the indices of the points
     kept, non-finite points dropped, rays dropped outside the key range)."""
     n = points.shape[0]
-    inv_res = 1.0 / res
     ends = np.empty((n, 3), np.float32)
     hit = np.empty(n, np.bool_)
     kept = np.empty(n, np.int64)
+    m, non_finite, outside = prepare_rays_into(points, origins, max_range, res, box, shift, ends, hit, kept)
+    return ends[:m], hit[:m], kept[:m], non_finite, outside
+
+
+@kernel
+def prepare_rays_into(points, origins, max_range, res, box, shift, ends, hit, kept):
+    """:func:`prepare_rays` into the first rows of given arrays (each of N rows at least; ``kept``
+    may be empty: the indices are then not written), so that a caller can keep them from scan to
+    scan: fresh arrays as large as a scan cost a page fault every 4 KiB written (a fifth of
+    this pass for 80,000 points). Returns (the number of rays, non-finite points dropped, rays
+    dropped outside the key range)."""
+    n = points.shape[0]
+    inv_res = 1.0 / res
+    with_kept = kept.shape[0] > 0
     mr = np.float32(max_range)
     m = 0
     non_finite = 0
@@ -77,9 +90,10 @@ def prepare_rays(points, origins, max_range, res, box, shift):
                       and box[0, 2] <= pz <= box[1, 2])
         ends[m, 0], ends[m, 1], ends[m, 2] = px, py, pz
         hit[m] = is_hit
-        kept[m] = i
+        if with_kept:
+            kept[m] = i
         m += 1
-    return ends[:m], hit[:m], kept[:m], non_finite, n - non_finite - m
+    return m, non_finite, n - non_finite - m
 
 
 @kernel

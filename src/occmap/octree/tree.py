@@ -223,8 +223,9 @@ class OcTree(OneCallAtATime):
         """Integrate many scans in order, each as :meth:`insert_point_cloud`. ``clouds`` holds
         (N_i, 3) arrays with ``origins`` (S, 3), or objects with ``world_points()`` and ``origin``
         (:class:`occmap.cloud.PointCloud`). With two threads or more (Numba's count), the next
-        scan's rays are traced on a second thread while the tree takes the current one (here when
-        that thread has not started by then). Returns the summed summary."""
+        scan's rays are traced on another thread (shared with the workers where it is large)
+        while the tree takes the current one (here when that thread has not started by then).
+        Returns the summed summary."""
         clouds = list(clouds)
         if origins is None:
             pairs = [(c.world_points(), c.origin) for c in clouds]
@@ -240,7 +241,7 @@ class OcTree(OneCallAtATime):
             if pending is not None and pending.cancel():
                 pending = None
             current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, lazy, True)
-            pending = (insertion.pipeline().submit(self._scan_voxels, *pairs[k + 1], max_range, discretize, lazy, False)
+            pending = (insertion.ahead(self._scan_voxels, *pairs[k + 1], max_range, discretize, lazy, True)
                        if ahead and k + 1 < len(pairs) else None)
             keys, depths, is_hit, summary = current
             # (the second core traces the next scan)
