@@ -510,3 +510,26 @@ def test_scan_stream_memory_does_not_grow_with_the_bag(tmp_path, kind):
             tracemalloc.stop()
         assert n == count and source.fixed_frame == "base_link"
     assert peaks[2400] < 1.2 * peaks[800] and peaks[2400] < 4e6, peaks
+
+
+def test_stream_cuts_a_sources_stacks_without_copying(intel):
+    """map_scan_stream takes a source's stacks (a bag's) in chunks of its schedule at most, cut
+    where a stack ends rather than copied together with the next, as views of the stacks; the
+    map is map_scans' to the bit. With a recorder the chunks are its batches exactly."""
+    from occmap.mapping2d import _restacked
+
+    whole = stack_scans(intel)
+    cuts = [0, 25, 140, 147, 200]
+    stacks = [whole.take(slice(a, b)) for a, b in zip(cuts, cuts[1:])]
+    chunks = list(_restacked(iter(stacks), 50, 10, exact=False))
+    assert [len(c.poses) for c in chunks] == [10, 15, 20, 40, 50, 5, 7, 50, 3]
+    assert all(np.shares_memory(c.ranges, whole.ranges) for c in chunks)
+    np.testing.assert_array_equal(np.concatenate([c.ranges for c in chunks]), whole.ranges)
+    assert [len(c.poses) for c in _restacked(iter(stacks), 60, 60, exact=True)] == [60, 60, 60, 20]
+
+    class Stacked:
+        def stacks(self):
+            return iter(stacks)
+
+    np.testing.assert_array_equal(map_scan_stream(Stacked(), 0.1).grid.log_odds(),
+                                  map_scans(whole, 0.1).grid.log_odds())
