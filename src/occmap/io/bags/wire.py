@@ -24,9 +24,8 @@ than its fields need, a length past its end, or a string that is not UTF-8 raise
 from __future__ import annotations
 
 import struct
-from functools import cache
-
 import sys
+from functools import cache
 
 import numpy as np
 
@@ -114,6 +113,7 @@ def stamps(raws: Raws, at: int, order: str) -> np.ndarray:
 
 
 def _column(raws: Raws, at: int, code: int, order: str, n: int, nbytes: int) -> np.ndarray:
+    """:func:`column` of a kernel code, reading ``nbytes`` bytes of each message (checked to hold them)."""
     if len(raws) and int(raws.sizes.min()) < at + nbytes:
         i = int(np.argmax(raws.sizes < at + nbytes))
         raise InvalidArgumentError(f"message {i} is {int(raws.sizes[i])} bytes; {nbytes} are read from byte {at}")
