@@ -69,7 +69,9 @@ def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: fl
     stacked ``chunk`` at a time, the next chunk read on a thread of its own while the grid takes
     the last (:func:`occmap._threads.read_ahead`), so memory holds two or three chunks. The first
     chunks are smaller (:data:`FIRST_CHUNK` scans, doubling up to ``chunk``): nothing overlaps the
-    reading of the first, so the grid starts as soon as a few scans are in. Without ``max_range``, no-return
+    reading of the first, so the grid starts as soon as a few scans are in. A source that stacks
+    its scans itself (``scans.stacks()``, a bag's) has its stacks cut to those lengths at most,
+    never joined (a copy): a chunk ends where a stack does. Without ``max_range``, no-return
     readings clear up to the largest maximum range of their chunk (one sensor has one; for scans
     of one maximum range the grid is :func:`map_scans`'s to the bit). ``progress`` is told the
     scans done; a ``recorder`` each batch, as by :func:`map_scans` (batches of its ``every`` scans
@@ -78,7 +80,7 @@ def map_scan_stream(scans: Iterable[LaserScan], resolution: float, max_range: fl
     if recorder is not None:
         chunk = first = recorder.every
     if hasattr(scans, "stacks"):  # a source that decodes many scans at once (a bag's)
-        stacks = _restacked(scans.stacks(), chunk, first)
+        stacks = _restacked(scans.stacks(), chunk, first, exact=recorder is not None)
     else:
         stacks = (stack_scans(batch) for batch in _batches(scans, chunk, first))
     chunks = read_ahead(stacks)
@@ -108,10 +110,22 @@ def _batches(items, size: int, first: int):
         yield batch
 
 
-def _restacked(stacks, size: int, first: int):
-    """The scans of ``stacks`` in runs as long as :func:`_sizes` says (the last shorter)."""
+def _restacked(stacks, size: int, first: int, exact: bool):
+    """The scans of ``stacks`` in runs as long as :func:`_sizes` says (the last shorter). Unless
+    ``exact``, a run also ends where a stack does: the rest of a stack goes in as it is, not
+    copied together with the next stack's first scans (views of the stacks, no copy)."""
     sizes = _sizes(size, first)
     n = next(sizes)
+    if not exact:
+        for s in stacks:
+            at, count = 0, len(s.poses)
+            while at < count:
+                take = min(n, count - at)
+                yield s if take == count else s.take(slice(at, at + take))
+                at += take
+                if take == n:
+                    n = next(sizes)
+        return
     held, count = [], 0
     for s in stacks:
         held.append(s)

@@ -73,26 +73,50 @@ def test_runs_are_rosbags_messages(tmp_path, carmen_scans, kind, compression, wi
         for topics in (["/scan", "/tf"], ["/scan"], ["/tf"]):
             runs = list(bag.runs(topics))
             assert len(runs) > 2  # chunks
-            if kind == "ros1":
-                assert bag._source._reader is None  # not opened for the runs
-            else:
-                assert bag._source._chunks({c.id for c in bag._source._reader.connections}) is not None
+            assert bag._source._reader is None  # rosbags' reader is not opened for the runs
             want = [(m.topic, m.time_ns, m.raw) for m in bag.messages(topics)]
             assert flattened(runs) == want and len(want) == len(carmen_scans) * len(topics)
-            if kind == "ros1":
-                bag._source._reader.close()
-                bag._source._reader = None
+            bag._source._reader.close()
+            bag._source._reader = None
 
 
 @pytest.mark.parametrize("kind", ("ros1", "mcap"))
 def test_chunks_that_overlap_in_time_are_read_as_rosbags_merges_them(tmp_path, carmen_scans, kind):
     path = write(tmp_path / "b", kind, carmen_scans, widen=1 if kind == "ros1" else 120, back=30.0)
     with open_bag(path) as bag:
-        if kind == "mcap":
-            assert bag._source._chunks({c.id for c in bag._source._reader.connections}) is None
+        got = flattened(bag.runs(["/scan", "/tf"]))
+        assert bag._source._reader is not None  # rosbags' reader merged them
         want = [(m.topic, m.time_ns, m.raw) for m in bag.messages()]
-        assert flattened(bag.runs(["/scan", "/tf"])) == want
+        assert got == want
         assert [t for _, t, _ in want] == sorted(t for _, t, _ in want)  # rosbags' merge, not the chunks' order
+
+
+@pytest.mark.parametrize("compression, back", [(None, 0.0), ("zstd", 0.0), (None, 30.0)])
+def test_an_mcap_files_summary_read_by_occmap_is_what_rosbags_reads(tmp_path, carmen_scans, compression, back):
+    """A lone MCAP file is opened from its summary section by occmap (rosbags' reader not opened):
+    the same topics, counts, time span and type definitions as rosbags' reader gives. A file
+    whose footer points to no summary is left to rosbags (which scans it), with the same result."""
+    from occmap.io.bags.bag import _Mcap, _Rosbags
+
+    folder = write(tmp_path / "b", "mcap", carmen_scans, compression, widen=120, back=back)
+    file = next(folder.glob("*.mcap"))
+    theirs = _Rosbags(file, "ROS 2 MCAP")
+    with open_bag(folder) as bag:
+        assert isinstance(bag._source, _Mcap) and bag._source._reader is None
+        assert sorted(bag.topics.values()) == sorted(theirs.topics())
+        assert (bag.start, bag.end) == theirs.span() and bag.start is not None
+        topics = {"/scan", "/tf"}
+        assert list(bag._source.definitions(topics)) == list(theirs.definitions(topics))
+        assert len(bag._source._chunk_index) > 2
+    theirs.close()
+    data = bytearray(file.read_bytes())
+    data[-37 + 9: -37 + 17] = bytes(8)  # the footer's summary start: none
+    (tmp_path / "bare.mcap").write_bytes(bytes(data))
+    with open_bag(tmp_path / "bare.mcap") as bare, open_bag(folder) as bag:
+        assert isinstance(bare._source, _Rosbags)
+        assert bare.topics == bag.topics and (bare.start, bare.end) == (bag.start, bag.end)
+        if not back:  # rosbags reads an unindexed file only in time order
+            assert flattened(bare.runs(["/scan", "/tf"])) == flattened(bag.runs(["/scan", "/tf"]))
 
 
 def ros1_record(fields: dict, data: bytes) -> bytes:

@@ -180,6 +180,31 @@ def test_first_iteration_goes_on_from_what_opening_read(tmp_path, intel, kind, m
             np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.parametrize("kind", ("ros1", "mcap"))
+def test_the_first_scans_wait_only_for_the_tf_they_need(tmp_path, intel, kind, monkeypatch):
+    """A run's tf goes into the tree as its batches need it: the first 25 scans are placed with
+    the tf recorded up to TF_AHEAD after the 25th, not with the whole chunk's (the 120 scans' tf
+    here); then the rest comes in, and the poses are those of the whole tf."""
+    import occmap.sources.bags as bags
+    from occmap.io.bags.transforms import TransformFeed
+
+    scans = intel[:120]
+    path = write_bag(tmp_path, kind, laser_bag(scans))
+    added = []
+    add = TransformFeed.add
+    monkeypatch.setattr(TransformFeed, "add", lambda self, run: (added.append(len(run)), add(self, run))[1])
+    stacks = BagScans(path, fixed_frame="odom").stacks()
+    first = next(stacks)
+    assert len(first.poses) == 25
+    ahead = bags.TF_AHEAD + 1e-9
+    due = sum(1 for s in scans if s.stamp <= scans[24].stamp + ahead)  # odom -> base_link messages by then
+    assert sum(added) == due + 1  # and the static mount
+    rest = list(stacks)
+    assert sum(added) >= len(scans) + 1
+    got = np.concatenate([first.poses] + [r.poses for r in rest])
+    np.testing.assert_allclose(got, [s.pose for s in BagScans(path)], rtol=0, atol=0)
+
+
 def test_scans_outside_the_tf_data_are_dropped_and_counted(tmp_path, intel, capsys):
     path = write_bag(tmp_path, "sqlite3", laser_bag(intel[:50], drop_tf_after=40))
     assert main(["map2d", str(path), "-o", str(tmp_path / "m.yaml")]) == 0
@@ -510,3 +535,26 @@ def test_scan_stream_memory_does_not_grow_with_the_bag(tmp_path, kind):
             tracemalloc.stop()
         assert n == count and source.fixed_frame == "base_link"
     assert peaks[2400] < 1.2 * peaks[800] and peaks[2400] < 4e6, peaks
+
+
+def test_stream_cuts_a_sources_stacks_without_copying(intel):
+    """map_scan_stream takes a source's stacks (a bag's) in chunks of its schedule at most, cut
+    where a stack ends rather than copied together with the next, as views of the stacks; the
+    map is map_scans' to the bit. With a recorder the chunks are its batches exactly."""
+    from occmap.mapping2d import _restacked
+
+    whole = stack_scans(intel)
+    cuts = [0, 25, 140, 147, 200]
+    stacks = [whole.take(slice(a, b)) for a, b in zip(cuts, cuts[1:])]
+    chunks = list(_restacked(iter(stacks), 50, 10, exact=False))
+    assert [len(c.poses) for c in chunks] == [10, 15, 20, 40, 50, 5, 7, 50, 3]
+    assert all(np.shares_memory(c.ranges, whole.ranges) for c in chunks)
+    np.testing.assert_array_equal(np.concatenate([c.ranges for c in chunks]), whole.ranges)
+    assert [len(c.poses) for c in _restacked(iter(stacks), 60, 60, exact=True)] == [60, 60, 60, 20]
+
+    class Stacked:
+        def stacks(self):
+            return iter(stacks)
+
+    np.testing.assert_array_equal(map_scan_stream(Stacked(), 0.1).grid.log_odds(),
+                                  map_scans(whole, 0.1).grid.log_odds())

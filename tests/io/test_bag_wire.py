@@ -13,7 +13,8 @@ import pytest
 from occmap.errors import FormatError, OccmapError
 from occmap.io.bags import decode_laser_scan, decode_odometry, decode_tf_message, ros_poses
 from occmap.io.bags.laserscan import decode_laser_scans
-from occmap.io.bags.wire import Wire
+from occmap.io.bags.records import Raws
+from occmap.io.bags.wire import Wire, column, stamps
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
@@ -200,3 +201,29 @@ def test_encapsulation_and_encoding_names():
             decode_laser_scan(head + raw[2:], "cdr", "scan")
     with pytest.raises(OccmapError, match="encoding 'json'"):
         decode_laser_scan(raw, "json", "scan")
+
+
+def test_column_reads_messages_where_they_lie_as_numpy_does():
+    """column() and stamps() read a field of messages scattered in one buffer (a chunk's, with
+    other records between them) as NumPy reads each message alone, in both byte orders; a message
+    too short for the bytes read is refused rather than read past."""
+    rng = np.random.default_rng(5)
+    size, count = 48, 37
+    gaps = rng.integers(0, 23, count)  # odd offsets too: nothing is aligned
+    starts = np.cumsum(gaps + size) - size
+    buf = rng.integers(0, 256, int(starts[-1]) + size + 7, dtype=np.uint8)
+    buf.setflags(write=False)
+    raws = Raws(buf, starts.astype(np.int64), np.full(count, size, np.int64))
+    for order in "<>":
+        for kind, n in (("f4", 5), ("f8", 3), ("i4", 4), ("u4", 2)):
+            at = 7
+            got = column(raws, at, order + kind, n)
+            want = np.array([np.frombuffer(raws[i], order + kind, n, at) for i in range(count)], np.float64)
+            assert got.dtype == np.float64 and got.shape == (count, n)
+            np.testing.assert_array_equal(got, want)  # NaN bit patterns compare equal as NaN
+        sec = np.array([np.frombuffer(raws[i], order + "i4", 1, 11)[0] for i in range(count)])
+        nsec = np.array([np.frombuffer(raws[i], order + "u4", 1, 15)[0] for i in range(count)])
+        np.testing.assert_array_equal(stamps(raws, 11, order), sec + nsec * 1e-9)
+    short = Raws(buf, starts.astype(np.int64), np.where(np.arange(count) == 9, 20, size))
+    with pytest.raises(OccmapError, match="message 9 is 20 bytes; 16 are read from byte 7"):
+        column(short, 7, "<f4", 4)

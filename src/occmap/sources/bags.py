@@ -11,7 +11,8 @@ Where each message was taken comes, in this order, from:
   the tree as the link ``header.frame_id → child_frame_id`` of its messages, so odometry serves
   where a bag has no tf, or only a static sensor mount. tf is read in the same pass as the
   messages (:class:`~occmap.io.bags.transforms.TransformFeed`; the tf of a run of messages read
-  together, :meth:`~occmap.io.bags.Bag.runs`, goes in at once), and a message waits until tf has
+  together, :meth:`~occmap.io.bags.Bag.runs`, goes in at once, but for the first batch, which
+  takes the tf recorded up to :data:`TF_AHEAD` seconds after its last message), and a message waits until tf has
   passed its stamp, as tf2's message filters make a node wait; if tf lags so far behind that
   :data:`WAIT_LIMIT` batches wait, or never joins the sensor frame, the bag's whole tf is read in a
   pass of its own. With tf recorded in stamp order, the poses are those the whole bag's tf gives.
@@ -59,6 +60,10 @@ ROOT_HORIZON = 1.0
 HEAD_BYTES = 4 << 20
 #: Bytes of messages that end a batch before it has its count (see :class:`BagScans`)
 BATCH_BYTES = 256 << 10
+#: Seconds of tf recorded after the first batch's last message that go into the tree with it (the
+#: rest of the run's tf goes in with the next batch, at once): the first scans need not wait for a
+#: chunk's tf, and later batches decode a run's tf in one call, not one per batch
+TF_AHEAD = 0.5
 #: Largest batches of messages that may wait for tf to pass their stamps before the whole bag's tf
 #: is read in a pass of its own (tf that lags far behind, or never joins the sensor frame)
 WAIT_LIMIT = 3
@@ -196,6 +201,7 @@ class _BagSource:
             pending = []  # (numbers on the topic, Run) of the topic's messages not yet decoded
             waiting = None  # decoded messages waiting for tf to pass their stamps (a _Decoded)
             k, batch, count, held = 0, self.FIRST_BATCH, 0, 0  # count, held: pending's messages and bytes
+            ahead = round(TF_AHEAD * 1e9)  # ns of tf past the first batch's last message fed with it
             for run in itertools.chain([_run_of(head)] if head else [], stream):
                 mine = _on(run, self.topic)
                 at = np.flatnonzero(mine)  # the topic's messages in the run, then those the stream takes
@@ -203,8 +209,8 @@ class _BagSource:
                 k += len(at)
                 if self.every > 1:
                     at, ks = at[ks % self.every == 0], ks[ks % self.every == 0]
-                if not whole:  # tf's messages: the run's all at once (a chunk: the messages read with them)
-                    feed.add(run.take(np.flatnonzero(~mine)))
+                if not whole:  # tf's messages of the run (a chunk: the messages read with them), fed as batches need them
+                    tf_at, fed = np.flatnonzero(~mine), 0
                 taken = 0  # of at
                 while taken < len(at):
                     sizes = run.raws.sizes[at[taken:]]
@@ -223,6 +229,12 @@ class _BagSource:
                     waiting = self._joined(waiting, self._decoded(pending, bag))
                     pending, batch, count, held = [], min(16 * batch, self.BATCH), 0, 0
                     if not whole:
+                        upto = len(tf_at) if ahead is None else int(np.searchsorted(
+                            run.times_ns[tf_at], run.times_ns[at[end - 1]] + ahead, "right"))
+                        ahead = None  # after the first batch: the rest of each run's tf at once
+                        if upto > fed:
+                            feed.add(run.take(tf_at[fed:upto]))
+                            fed = upto
                         tree = feed.flush()
                         if len(waiting.ks) >= WAIT_LIMIT * self.BATCH:  # tf lags far behind, or never joins the frame
                             with open_bag(self.path) as again:
@@ -231,6 +243,8 @@ class _BagSource:
                     if n:
                         yield from self._placed(self._part(waiting, slice(None, n)), tree)
                         waiting = self._part(waiting, slice(n, None))
+                if not whole and fed < len(tf_at):
+                    feed.add(run.take(tf_at[fed:]))
             if not whole:
                 tree = feed.flush()
             if pending:

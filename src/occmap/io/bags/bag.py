@@ -6,7 +6,9 @@ Kinds, told apart by their first bytes (a folder by its ``metadata.yaml``):
   :class:`~occmap.io.bags.ros1_chunks.Ros1Chunks`, its messages one by one by ``rosbags`` (opened
   when first needed), or by ``Ros1Chunks`` when ``rosbags`` rejects the bag's index;
 * ROS 2 bag folders (``metadata.yaml`` beside ``.db3`` or ``.mcap`` files), and a lone ``.db3``
-  (SQLite) or ``.mcap`` file.
+  (SQLite) or ``.mcap`` file; an MCAP file (lone, or a folder's only one) by its summary section
+  (schemas, channels, statistics, chunk index) read by occmap, ``rosbags`` opening when first
+  needed, as for ROS 1 (or at once when the summary lacks what opening needs).
 
 :meth:`Bag.runs` gives the messages a chunk at a time for the sources (ROS 1 and MCAP chunks
 listed by the kernel of :mod:`.records`, no Python per message). A message comes as its bytes,
@@ -29,7 +31,7 @@ for a message type a topic does not hold, raises :class:`~occmap.errors.InvalidA
 
 from __future__ import annotations
 
-from functools import partial
+import struct
 from pathlib import Path
 from typing import Iterable, Iterator, NamedTuple
 
@@ -154,7 +156,8 @@ class Bag:
         else:
             if suffix is not None and self.path.suffix != suffix:
                 raise FormatError(self.path, f"holds {self.kind} data; name it *{suffix} to read it")
-            self._source = _Rosbags(_lone_mcap(self.path) or self.path, self.kind)
+            path = _lone_mcap(self.path) or self.path
+            self._source = (_Mcap.of(path) if self.kind == "ROS 2 MCAP" else None) or _Rosbags(path, self.kind)
         self.encoding = self._source.encoding
         try:
             self.topics = dict(sorted((t.name, t) for t in self._source.topics()))
@@ -318,51 +321,13 @@ class _Rosbags:
             raise FormatError(self.path, f"cannot read the messages ({_describe(e)})") from e
 
     def runs(self, topics: set[str]) -> Iterator[Run]:
-        connections = [c for c in self._reader.connections if c.topic in topics]
-        if not connections:
-            return
-        chunks = self._chunks({c.id for c in connections})
-        if chunks is None:
-            yield from _runs_of((topic, time_ns, raw) for topic, _, time_ns, raw in self.raw(topics))
-            return
-        topic_of = {c.id: c.topic for c in connections}
-        for where, read in chunks:
-            try:
-                data = read()
-            except Exception as e:  # rosbags' decompressors and checks raise their own errors
-                raise FormatError(self.path, f"{where}: cannot read it ({_describe(e)})") from e
-            run = _chunk_run(data, chunk_records(data, "mcap", self.path, where), topic_of, sort=True)
-            if len(run):
-                yield run
-
-    def _chunks(self, ids: set[int]) -> list | None:
-        """``(where, read)`` of each chunk of an MCAP file holding messages of channels ``ids``, in
-        file order, ``read()`` its unpacked bytes; None when the bag is not read by chunks (ROS 2
-        sqlite3, a bag folder of several files, an MCAP without chunks; ROS 1: :class:`_Ros1`) or
-        when chunks overlap in time (then ``rosbags`` merges their messages)."""
         from rosbags.rosbag2.storage_mcap import McapReader
 
+        connections = [c for c in self._reader.connections if c.topic in topics]
         storage = getattr(self._reader, "storage", None)
-        if not isinstance(storage, McapReader) or not storage.chunks:
-            return None
-        infos = sorted((c for c in storage.chunks if any(c.channel_count.get(i) for i in ids)),
-                       key=lambda c: c.chunk_start_offset)
-        if any(a.message_end_time > b.message_start_time for a, b in zip(infos, infos[1:])):
-            return None
-        return [(f"chunk at byte {c.chunk_start_offset}", partial(self._mcap_chunk, storage, c)) for c in infos]
-
-    @staticmethod
-    def _mcap_chunk(storage, chunk) -> bytes:
-        """The records of an MCAP chunk record (opcode, length, start and end times, size; the
-        CRC at byte 33, then the compression's name and the compressed records), unpacked and
-        checked by ``rosbags``."""
-        from rosbags.rosbag2.storage_mcap import decompress
-
-        storage.bio.seek(chunk.chunk_start_offset + 9 + 24)
-        crc = int.from_bytes(_read_exact(storage.bio, 4), "little")
-        storage.bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
-        data = _read_exact(storage.bio, chunk.compressed_size)
-        return decompress(data, chunk.compression, chunk.uncompressed_size, crc)
+        mcap = isinstance(storage, McapReader)
+        return _mcap_runs(self, {c.id: c.topic for c in connections}, storage.chunks if mcap else [],
+                          storage.bio if mcap else None, topics)
 
     def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
         """``(topic, type, digest, "msg" | "idl" | "", definition)`` of each connection of ``topics``."""
@@ -392,6 +357,179 @@ class _Rosbags:
 
     def close(self) -> None:
         self._reader.close()
+
+
+class _McapChunk(NamedTuple):
+    """An MCAP chunk index record, with the fields :func:`_mcap_runs` reads as rosbags names them."""
+
+    message_start_time: int
+    message_end_time: int
+    chunk_start_offset: int
+    channel_count: dict  # channel id -> its messages in the chunk (those with any)
+    compression: str
+    compressed_size: int
+    uncompressed_size: int
+
+
+class _Mcap:
+    """A lone MCAP file whose summary section holds what opening needs (schemas, channels,
+    statistics or a chunk index), read by occmap: ``rosbags``' reader, whose opening parses each
+    channel's QoS profiles (YAML, 0.3 ms for two channels), opens only for what needs it: the
+    messages one by one (:meth:`Bag.messages`), the bag's types, runs of chunks that overlap in
+    time. Topics, counts, time span and definitions are those ``rosbags`` gives (the tests check);
+    a file whose summary is missing, partial or not as expected is left to ``rosbags``
+    (:meth:`of` gives None), which reads it as before, errors included."""
+
+    encoding = "cdr"
+    kind = "ROS 2 MCAP"
+
+    def __init__(self, path: Path, file, schemas: dict, channels: list, chunks: list, counts: dict, span):
+        self.path, self._file, self._schemas, self._channels = path, file, schemas, channels
+        self._chunk_index, self._counts, self._span = chunks, counts, span
+        self._reader = None
+
+    @classmethod
+    def of(cls, path: Path) -> _Mcap | None:
+        if not path.is_file():
+            return None
+        file = open(path, "rb")
+        try:
+            found = _mcap_summary(file)
+        except (struct.error, UnicodeDecodeError, ValueError, OSError):
+            found = None
+        if found is None:
+            file.close()
+            return None
+        return cls(path, file, *found)
+
+    @property
+    def reader(self) -> _Rosbags:
+        if self._reader is None:
+            self._reader = _Rosbags(self.path, self.kind)
+        return self._reader
+
+    def topics(self) -> list[Topic]:
+        by_name: dict[str, Topic] = {}
+        for cid, topic, msgtype in self._channels:
+            old = by_name.get(topic)
+            n = self._counts.get(cid, 0) + (old.count if old else 0)
+            by_name[topic] = Topic(topic, msgtype if old is None or old.msgtype == msgtype else "(mixed types)", n)
+        return list(by_name.values())
+
+    def span(self) -> tuple[float | None, float | None]:
+        return self._span
+
+    def definitions(self, topics: set[str]) -> Iterator[tuple[str, str, str, str, str]]:
+        for cid, topic, msgtype in self._channels:
+            if topic in topics:
+                yield (topic, msgtype, "", *self._schemas.get(cid, ("", "")))
+
+    def runs(self, topics: set[str]) -> Iterator[Run]:
+        return _mcap_runs(self, {cid: t for cid, t, _ in self._channels if t in topics}, self._chunk_index,
+                          self._file, topics)
+
+    def raw(self, topics: set[str]) -> Iterator[tuple[str, str, int, bytes]]:
+        return self.reader.raw(topics)
+
+    def decode(self, raw, msgtype: str) -> object:
+        return self.reader.decode(raw, msgtype)
+
+    def close(self) -> None:
+        if self._reader is not None:
+            self._reader.close()
+        self._file.close()
+
+
+#: MCAP schema encodings as rosbags reads them (others it refuses: left to it)
+_MCAP_FORMS = {"ros2msg": "msg", "ros2idl": "idl", "omgidl": "idl", "": ""}
+
+
+def _mcap_summary(file):
+    """``(definitions, channels, chunks, counts, span)`` from the summary section of the MCAP
+    ``file`` as rosbags' reader takes them: definitions ``{channel: (form, text)}``, channels
+    ``[(id, topic, type)]`` in file order, the chunk index (:class:`_McapChunk`), messages per
+    channel and the time span in seconds; None where rosbags would read more than the summary
+    (no summary, no statistics and no chunk index, statistics without schemas) or the file is not
+    as it expects (rosbags then says why)."""
+    u16, u32, u64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+    head = file.read(8 + 9)
+    if len(head) < 17 or head[:8] != _MCAP_MAGIC or head[8] != 0x01:
+        return None
+    header = file.read(u64.unpack_from(head, 9)[0])
+    if header[4: 4 + u32.unpack_from(header)[0]] != b"ros2":
+        return None
+    data_start = file.tell()
+    file.seek(-37, 2)
+    footer_start = file.tell()
+    footer = file.read(37)
+    if footer[-8:] != _MCAP_MAGIC or footer[:9] != b"\x02\x14" + bytes(7):
+        return None
+    summary_start = u64.unpack_from(footer, 9)[0]
+    if not summary_start or not data_start <= summary_start <= footer_start:
+        return None
+    file.seek(summary_start)
+    summary = file.read(footer_start - summary_start)
+
+    def string(at):
+        n = u32.unpack_from(summary, at)[0]
+        if at + 4 + n > len(summary):
+            raise ValueError("past the summary")
+        return summary[at + 4: at + 4 + n].decode(), at + 4 + n
+
+    schemas, channels, chunks, stats = {}, [], [], None
+    pos = 0
+    while pos + 9 <= len(summary):
+        op, body = summary[pos], pos + 9
+        end = body + u64.unpack_from(summary, pos + 1)[0]
+        if op in (0x02, 0x0E):
+            break
+        if end > len(summary):
+            return None
+        if op == 0x03:
+            name, at = string(body + 2)
+            encoding, at = string(at)
+            text, _ = string(at)
+            if encoding not in _MCAP_FORMS:
+                return None
+            schemas[u16.unpack_from(summary, body)[0]] = (name, _MCAP_FORMS[encoding], text)
+        elif op == 0x04:
+            cid, sid = u16.unpack_from(summary, body)[0], u16.unpack_from(summary, body + 2)[0]
+            topic, _ = string(body + 4)
+            if all(cid != c for c, _, _ in channels):  # rosbags keeps a channel's first record
+                channels.append((cid, topic, sid))
+        elif op == 0x08:
+            start, stop, offset = struct.unpack_from("<QQQ", summary, body)
+            n = u32.unpack_from(summary, body + 32)[0]
+            index = sorted((o, c) for c, o in struct.iter_unpack("<HQ", summary[body + 36: body + 36 + n]))
+            at = body + 36 + n
+            index_length = u64.unpack_from(summary, at)[0]
+            compression, at = string(at + 8)
+            packed, unpacked = struct.unpack_from("<QQ", summary, at)
+            ends = [o for o, _ in index[1:]] + [offset + u64.unpack_from(summary, body + 24)[0] + index_length]
+            counts = {c: (e - o - 15) // 16 for (o, c), e in zip(index, ends) if e - o - 15}
+            chunks.append(_McapChunk(start, stop, offset, counts, compression, packed, unpacked))
+        elif op == 0x0B:
+            message_count, = u64.unpack_from(summary, body)
+            start, stop = struct.unpack_from("<QQ", summary, body + 26)
+            n = u32.unpack_from(summary, body + 42)[0]
+            stats = (message_count, start, stop, dict(struct.iter_unpack("<HQ", summary[body + 46: body + 46 + n])))
+        pos = end
+    if stats is None:
+        if not chunks:
+            return None
+        counts: dict[int, int] = {}
+        for c in chunks:
+            for cid, n in c.channel_count.items():
+                counts[cid] = counts.get(cid, 0) + n
+        stats = (sum(counts.values()), min(c.message_start_time for c in chunks),
+                 max(c.message_end_time for c in chunks), counts)
+    elif not schemas:
+        return None
+    message_count, start, stop, counts = stats
+    typed = [(cid, topic, schemas[sid][0] if sid in schemas else "__schemaless__") for cid, topic, sid in channels]
+    definitions = {cid: schemas[sid][1:] for cid, _, sid in channels if sid in schemas}
+    span = (start / 1e9, stop / 1e9) if message_count else (None, None)
+    return definitions, typed, chunks, counts, span
 
 
 class _Ros1:
@@ -560,6 +698,42 @@ def _chunk_run(data, records, topic_of: dict[int, str], sort: bool) -> Run:
         rows = rows[np.argsort(records.time_ns[rows], kind="stable")]
     return Run(topics, slots[at[rows]], records.time_ns[rows],
                Raws(np.frombuffer(data, np.uint8), records.start[rows], records.size[rows]))
+
+
+def _mcap_runs(source, topic_of: dict[int, str], chunks, file, topics: set[str]) -> Iterator[Run]:
+    """:meth:`Bag.runs` of an MCAP file: the channels ``topic_of`` names (id → topic), a chunk at a
+    time (``chunks``: its chunk index, whose items have rosbags' ``ChunkInfo`` fields, read from
+    ``file``), or, where the file has no chunks or they overlap in time (then rosbags merges their
+    messages), runs of ``source.raw(topics)``'s messages."""
+    if not topic_of:
+        return
+    infos = sorted((c for c in chunks if any(c.channel_count.get(i) for i in topic_of)),
+                   key=lambda c: c.chunk_start_offset)
+    if not chunks or any(a.message_end_time > b.message_start_time for a, b in zip(infos, infos[1:])):
+        yield from _runs_of((topic, time_ns, raw) for topic, _, time_ns, raw in source.raw(topics))
+        return
+    for c in infos:
+        where = f"chunk at byte {c.chunk_start_offset}"
+        try:
+            data = _mcap_chunk(file, c)
+        except Exception as e:  # rosbags' decompressors and checks raise their own errors
+            raise FormatError(source.path, f"{where}: cannot read it ({_describe(e)})") from e
+        run = _chunk_run(data, chunk_records(data, "mcap", source.path, where), topic_of, sort=True)
+        if len(run):
+            yield run
+
+
+def _mcap_chunk(file, chunk) -> bytes:
+    """The records of an MCAP chunk record (opcode, length, start and end times, size; the CRC at
+    byte 33, then the compression's name and the compressed records), unpacked and checked by
+    ``rosbags``."""
+    from rosbags.rosbag2.storage_mcap import decompress
+
+    file.seek(chunk.chunk_start_offset + 9 + 24)
+    crc = int.from_bytes(_read_exact(file, 4), "little")
+    file.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
+    data = _read_exact(file, chunk.compressed_size)
+    return decompress(data, chunk.compression, chunk.uncompressed_size, crc)
 
 
 def _read_exact(file, n: int) -> bytes:

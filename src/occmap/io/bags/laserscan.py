@@ -25,6 +25,7 @@ import numpy as np
 
 from ...errors import FormatError
 from ...scan import LaserScan, ScanStack, concat_stacks
+from .records import Raws
 from .wire import Wire, by_layout, column, stamps
 
 __all__ = ["ScanMessage", "ScanMessages", "decode_laser_scan", "decode_laser_scans"]
@@ -65,8 +66,8 @@ def decode_laser_scans(raws, encoding: str, where: Callable[[int], str] = lambda
     :func:`decode_laser_scan`), those of one layout together; ``where(i)`` names message ``i`` in
     errors, which are :func:`decode_laser_scan`'s."""
     parts, order = [], []
-    for group, layout, data in by_layout(raws, lambda i: _layout(raws[i], encoding, where(i))):
-        parts.append(_decode_alike(layout, data, lambda j, group=group: where(int(group[j]))))
+    for group, layout, alike in by_layout(raws, lambda i: _layout(raws[i], encoding, where(i))):
+        parts.append(_decode_alike(layout, alike, lambda j, group=group: where(int(group[j]))))
         order.append(group)
     if len(parts) == 1:
         return parts[0]
@@ -78,12 +79,12 @@ def decode_laser_scans(raws, encoding: str, where: Callable[[int], str] = lambda
                         np.concatenate([p.beams for p in parts])[back], [frames[i] for i in back])
 
 
-def _decode_alike(layout: _Layout, data: bytes, where) -> ScanMessages:
-    """The scans of ``data``: messages of ``layout`` end to end."""
-    o, size, n = layout.order, layout.size, layout.beams
-    count = len(data) // size
-    values = column(data, size, layout.values_at, o + "f4", 7)
-    start, step, lowest, max_range = (values[:, c].astype(np.float64) for c in (0, 2, 5, 6))
+def _decode_alike(layout: _Layout, raws: Raws, where) -> ScanMessages:
+    """The scans of ``raws``: messages of ``layout``."""
+    o, n = layout.order, layout.beams
+    count = len(raws)
+    values = column(raws, layout.values_at, o + "f4", 7)
+    start, step, lowest, max_range = (values[:, c].copy() for c in (0, 2, 5, 6))
     bad = ~(np.isfinite(max_range) & (max_range > 0))
     if bad.any():
         i = int(np.argmax(bad))
@@ -92,7 +93,7 @@ def _decode_alike(layout: _Layout, data: bytes, where) -> ScanMessages:
     if bad.any():
         i = int(np.argmax(bad))
         raise FormatError(where(i), f"angle_min {start[i]} and angle_increment {step[i]} must be finite")
-    ranges = column(data, size, layout.ranges_at, o + "f4", n).astype(np.float64)
+    ranges = column(raws, layout.ranges_at, o + "f4", n)
     low = ranges < lowest[:, None]
     if low.any():
         ranges[low & np.isfinite(ranges)] = np.nan
@@ -100,7 +101,7 @@ def _decode_alike(layout: _Layout, data: bytes, where) -> ScanMessages:
         angles = beam_angles(float(start[0]), float(step[0]), n)
     else:
         angles = start[:, None] + step[:, None] * np.arange(n, dtype=np.float64)
-    stack = ScanStack(np.zeros((count, 3)), ranges, angles, max_range, stamps(data, size, layout.stamp_at, o))
+    stack = ScanStack(np.zeros((count, 3)), ranges, angles, max_range, stamps(raws, layout.stamp_at, o))
     return ScanMessages(stack, np.full(count, n, np.intp), [layout.frame] * count)
 
 

@@ -71,8 +71,9 @@ def chunk_records(chunk, kind: str, path, where: str) -> Records:
 class Raws:
     """Serialised messages held in one buffer: message ``i`` is ``sizes[i]`` bytes from byte
     ``starts[i]`` of ``buf`` (a uint8 array; a chunk's, or messages joined end to end). ``raws[i]``
-    is a uint8 view of one message, :meth:`take` picks messages without copying them,
-    :meth:`joined` puts them end to end (how :func:`~.wire.by_layout` reads many at once)."""
+    is a uint8 view of one message, :meth:`take` picks messages without copying them (the
+    decoders read fields of many where they lie, :func:`~.wire.column`), :meth:`joined` puts them
+    end to end."""
 
     __slots__ = ("buf", "starts", "sizes")
 

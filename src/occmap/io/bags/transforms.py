@@ -76,21 +76,21 @@ def decode_tf_message(raw, encoding: str, where: str = "TFMessage") -> Transform
     in ``encoding`` ``"ros1"`` or ``"cdr"`` (see :mod:`.wire`). ``where`` names the message in
     errors; the quaternions are as recorded (:func:`ros_poses` normalises them)."""
     layout = _tf_layout(raw, encoding, where)
-    stamps, values = _tf_samples(layout, bytes(raw))
+    stamps, values = _tf_samples(layout, Raws.of([raw]))
     values = values.reshape(-1, 7)
     return TransformsMessage([p for p, _ in layout.links], [c for _, c in layout.links], stamps.reshape(-1),
                              values[:, :3], values[:, 3:])
 
 
-def _tf_samples(layout: _TFLayout, data: bytes) -> tuple[np.ndarray, np.ndarray]:
+def _tf_samples(layout: _TFLayout, raws: Raws) -> tuple[np.ndarray, np.ndarray]:
     """Stamps (messages, transforms) in seconds and ``(x, y, z, qx, qy, qz, qw)`` (messages,
-    transforms, 7) of the messages of ``layout`` in ``data``, end to end."""
-    o, size, count = layout.order, layout.size, len(data) // layout.size
+    transforms, 7) of the messages ``raws`` of ``layout``."""
+    o, count = layout.order, len(raws)
     times = np.empty((count, len(layout.links)))
     values = np.empty((count, len(layout.links), 7))
     for t in range(len(layout.links)):
-        times[:, t] = stamps(data, size, layout.stamps_at[t], o)
-        values[:, t] = column(data, size, layout.values_at[t], o + "f8", 7)
+        times[:, t] = stamps(raws, layout.stamps_at[t], o)
+        values[:, t] = column(raws, layout.values_at[t], o + "f8", 7)
     return times, values
 
 
@@ -252,8 +252,8 @@ odometry's child frame keeps the odometry's frame as its parent whatever tf says
             def where(j, topic=topic, ks=ks, times=times):
                 return Where(self.path, topic, int(ks[j]), float(times[j]) / 1e9)
 
-            for group, layout, data in by_layout(raws, lambda j: _tf_layout(raws[j], self.encoding, where(j))):
-                samples, values = _tf_samples(layout, data)
+            for group, layout, alike in by_layout(raws, lambda j: _tf_layout(raws[j], self.encoding, where(j))):
+                samples, values = _tf_samples(layout, alike)
                 for t, (parent, child) in enumerate(layout.links):
                     self._wait(parent, child, static, order[group], samples[:, t], values[:, t])
 

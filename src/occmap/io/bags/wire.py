@@ -14,7 +14,9 @@ Two serialisations, named as :attr:`Message.encoding <occmap.io.bags.Message>` n
 In both, a sequence is a ``uint32`` count and its items. Arrays of numbers come out as NumPy
 views of the message's bytes (no copy, nothing done per element in Python). Messages of one
 layout (a sensor's scans, a broadcaster's tf: the same size, frames and counts) are read many at
-once: :func:`by_layout` groups them and :func:`column` reads a field of every one. A message shorter
+once, where they lie (a chunk's buffer, :class:`~.records.Raws`): :func:`by_layout` groups them
+and :func:`column` reads a field of every one into float64 rows, one kernel pass over the
+messages (no copy of them, no intermediate arrays). A message shorter
 than its fields need, a length past its end, or a string that is not UTF-8 raises
 :class:`~occmap.errors.FormatError` naming the message (``where``), the field and the value.
 """
@@ -22,10 +24,12 @@ than its fields need, a length past its end, or a string that is not UTF-8 raise
 from __future__ import annotations
 
 import struct
+import sys
 from functools import cache
 
 import numpy as np
 
+from ..._jit import kernel
 from ...errors import FormatError, InvalidArgumentError
 from .records import Raws
 
@@ -51,42 +55,104 @@ def _struct(fmt: str) -> tuple[struct.Struct, int]:
 
 def by_layout(raws, layout_of):
     """The messages ``raws`` (a sequence of messages, or a :class:`~.records.Raws`) in groups of
-    one layout: ``(indices, layout, data)`` for each, the group of the first message first.
+    one layout: ``(indices, layout, group)`` for each, the group of the first message first, its
+    messages a :class:`~.records.Raws` (where they lie, not copied; see :func:`column`).
     ``layout_of(i)`` reads message ``i``'s layout (raising for a message it cannot read), an object
     with ``size`` (bytes) and ``same``: the ``(start, stop)`` byte spans (its frames, counts, byte
-    order: what fixes where the other fields sit) that the messages of the group hold alike.
-    ``data`` is the group's messages end to end, a uint8 array (see :func:`column`)."""
+    order: what fixes where the other fields sit) that the messages of the group hold alike."""
     raws = Raws.of(raws)
-    sizes = raws.sizes
     left = np.arange(len(raws))
     while len(left):
         layout = layout_of(int(left[0]))
-        alike = left[sizes[left] == layout.size]
-        data = raws.take(alike).joined()
-        rows = data.reshape(len(alike), layout.size)
-        same = np.ones(len(alike), dtype=bool)
-        for a, b in layout.same:
-            same &= (rows[:, a:b] == rows[0, a:b]).all(axis=1)
+        same = np.empty(len(left), dtype=np.bool_)
+        _alike(raws.buf, raws.starts[left], raws.sizes[left], layout.size,
+               np.array(layout.same, dtype=np.int64).reshape(-1, 2), same)
         whole = same.all()
-        group = alike if whole else alike[same]
-        yield group, layout, data if whole else rows[same].reshape(-1)
-        if len(group) == len(left):
+        group = left if whole else left[same]
+        yield group, layout, raws.take(group)
+        if whole:
             return
-        left = left[~np.isin(left, group)]
+        left = left[~same]
 
 
-def column(data, size: int, at: int, dtype: str, n: int = 1) -> np.ndarray:
-    """The ``n`` values of NumPy type ``dtype`` (with its byte order, ``"<f4"``) at byte ``at``
-    of each ``size``-byte message of ``data`` (bytes-like, messages end to end: :func:`by_layout`),
-    (messages, n): a view."""
-    kind = np.dtype(dtype)
-    return np.ndarray((len(data) // size, n), kind, data, at, (size, kind.itemsize))
+@kernel
+def _alike(buf, starts, sizes, size, spans, same):
+    """``same[i]``: message ``i`` is ``size`` bytes and holds message 0's bytes in every span
+    ``spans[k] = (start, stop)``."""
+    ref = starts[0]
+    for i in range(len(starts)):
+        ok = sizes[i] == size
+        k = 0
+        while ok and k < len(spans):
+            for b in range(spans[k, 0], spans[k, 1]):
+                if buf[starts[i] + b] != buf[ref + b]:
+                    ok = False
+                    break
+            k += 1
+        same[i] = ok
 
 
-def stamps(data: bytes, size: int, at: int, order: str) -> np.ndarray:
-    """The header stamps in seconds whose ``sec`` starts at byte ``at`` (:meth:`Wire.header_at`)
-    of each ``size``-byte message of ``data``, in byte order ``order``, (messages,)."""
-    return column(data, size, at, order + "i4")[:, 0] + column(data, size, at + 4, order + "u4")[:, 0] * 1e-9
+# what column() reads (the kernel's codes): a number type, or a header stamp (int32 sec, uint32 nanosec)
+_CODES = {"f4": 0, "f8": 1, "i4": 2, "u4": 3, "stamp": 4}
+_NATIVE = "<" if sys.byteorder == "little" else ">"
+
+
+def column(raws: Raws, at: int, dtype: str, n: int = 1) -> np.ndarray:
+    """The ``n`` values of type ``dtype`` (with its byte order: ``"<f4"``, ``">f8"``, ``"<i4"``,
+    ``"<u4"``) at byte ``at`` of each message of ``raws``, as float64 rows (messages, n), read
+    where the messages lie in one kernel pass; every message must hold those bytes."""
+    order, kind = dtype[0], dtype[1:]
+    width = 8 if kind == "f8" else 4
+    return _column(raws, at, _CODES[kind], order, n, n * width)
+
+
+def stamps(raws: Raws, at: int, order: str) -> np.ndarray:
+    """The header stamps in seconds (``sec + nanosec * 1e-9``) whose ``sec`` starts at byte ``at``
+    (:meth:`Wire.header_at`) of each message of ``raws``, in byte order ``order``, (messages,)."""
+    return _column(raws, at, _CODES["stamp"], order, 1, 8)[:, 0]
+
+
+def _column(raws: Raws, at: int, code: int, order: str, n: int, nbytes: int) -> np.ndarray:
+    """:func:`column` of a kernel code, reading ``nbytes`` bytes of each message (checked to hold them)."""
+    if len(raws) and int(raws.sizes.min()) < at + nbytes:
+        i = int(np.argmax(raws.sizes < at + nbytes))
+        raise InvalidArgumentError(f"message {i} is {int(raws.sizes[i])} bytes; {nbytes} are read from byte {at}")
+    out = np.empty((len(raws), n))
+    _read_column(raws.buf, raws.starts, at, code, order != _NATIVE, n, out)
+    return out
+
+
+@kernel
+def _read_column(buf, starts, at, code, swap, n, out):
+    """``out[i]``: the ``n`` values of ``code`` (:data:`_CODES`) at byte ``at`` of the message
+    starting at ``buf[starts[i]]``, each value's bytes reversed when ``swap``."""
+    width = 8 if code == 1 else 4
+    nbytes = 2 * width if code == 4 else n * width
+    words = np.empty((nbytes + 7) // 8, np.uint64)  # the values' bytes, aligned for the views
+    b, f4, f8, i4, u4 = (words.view(np.uint8), words.view(np.float32), words.view(np.float64),
+                         words.view(np.int32), words.view(np.uint32))
+    for i in range(len(starts)):
+        s = starts[i] + at
+        if swap:
+            for k in range(0, nbytes, width):
+                for m in range(width):
+                    b[k + m] = buf[s + k + width - 1 - m]
+        else:
+            b[:nbytes] = buf[s: s + nbytes]
+        if code == 0:
+            for j in range(n):
+                out[i, j] = f4[j]
+        elif code == 1:
+            for j in range(n):
+                out[i, j] = f8[j]
+        elif code == 2:
+            for j in range(n):
+                out[i, j] = i4[j]
+        elif code == 3:
+            for j in range(n):
+                out[i, j] = u4[j]
+        else:
+            out[i, 0] = np.float64(i4[0]) + np.float64(u4[1]) * 1e-9
 
 
 def frame_name(frame_id: str) -> str:
