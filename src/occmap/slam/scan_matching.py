@@ -427,13 +427,16 @@ class ScanMatcher:
 @kernel
 def _coarser(mask, out):
     """``out`` ((H + 1) // 2, (W + 1) // 2) ← whether any of the (up to) 2 × 2 cells of ``mask``
-    (H, W) that each of its cells covers is True."""
-    out[:, :] = False
+    (H, W) that each of its cells covers is True (one pass over ``out``, branch-free)."""
     H, W = mask.shape
-    for y in range(H):
-        for x in range(W):
-            if mask[y, x]:
-                out[y >> 1, x >> 1] = True
+    h, w = out.shape
+    for Y in range(h):
+        y0 = 2 * Y
+        y1 = min(y0 + 1, H - 1)  # an odd last row covers one row
+        for X in range(W // 2):
+            out[Y, X] = mask[y0, 2 * X] | mask[y0, 2 * X + 1] | mask[y1, 2 * X] | mask[y1, 2 * X + 1]
+        if W % 2:
+            out[Y, w - 1] = mask[y0, W - 1] | mask[y1, W - 1]
 
 
 def distance_fields(occupied: np.ndarray, corner, resolution: float, levels: int, cutoff: float,
