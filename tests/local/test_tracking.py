@@ -515,3 +515,18 @@ def test_a_track_explains_the_returns_on_its_footprint_but_not_those_on_mapped_s
     occupied = np.array([True, True, False, False])  # a wall the person passes: its cells mapped
     layer.sort_returns(pts, kinds, nothing, occupied, (x, 10.0), 2.1)
     np.testing.assert_array_equal(kinds, [1, 1, 2, 2])
+
+
+def test_predicted_without_covariances_gives_the_same_states():
+    layer = ObjectLayer()
+    _walker(layer.tracker)
+    tracker = layer.tracker
+    for t in (tracker.time, tracker.time + 0.7, [tracker.time + 0.3, tracker.time + 1.0]):
+        ids, states, covs, sizes = tracker.predicted(t, confirmed_only=False)
+        ids2, states2, none, sizes2 = tracker.predicted(t, confirmed_only=False, covariances=False)
+        assert none is None and covs.shape == states.shape + (5,)
+        np.testing.assert_array_equal(ids2, ids)
+        np.testing.assert_array_equal(states2, states)
+        np.testing.assert_array_equal(sizes2, sizes)
+    ahead = tracker.predicted(tracker.time + 0.7, confirmed_only=False, covariances=False)[1]
+    assert len(tracker) and (ahead[:, 0] > tracker.state[:, 0] + 0.5).all()  # the walker moved on: 1.2 m/s

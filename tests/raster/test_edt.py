@@ -74,3 +74,18 @@ def test_bounded_distance_is_the_transform_clamped(limit, density):
     mask = rng.random((37, 53)) < density
     expected = np.minimum(distance_transform(mask, 0.05), limit) if mask.any() else np.full(mask.shape, limit)
     np.testing.assert_array_equal(bounded_distance(mask, 0.05, limit), expected)
+
+
+@pytest.mark.parametrize("limit", [0.1, 0.3, 0.4])
+def test_bounded_distance_on_blobs_and_the_edges(limit):
+    """Solid regions (inner obstacles only get 0: their border ones stamp), obstacles on and near
+    every edge (the bounds-checked stamps), a limit that is a whole number of cells (0.3 / 0.1
+    rounds up to 4 cells)."""
+    rng = np.random.default_rng(7)
+    mask = np.zeros((41, 58), bool)
+    mask[5:14, 9:30] = True
+    mask[20:41, 40:58] = True
+    mask[0, ::7] = mask[:, 0] = mask[-1, 3] = mask[2, -2] = True
+    mask |= rng.random(mask.shape) < 0.02
+    expected = np.minimum(distance_transform(mask, 0.1), limit)
+    np.testing.assert_array_equal(bounded_distance(mask, 0.1, limit), expected)

@@ -15,7 +15,7 @@ from occmap.geometry.se2 import SE2
 from occmap.scan import LaserScan, with_poses
 from occmap.sim.world2d import World2D, simulate_scans
 from occmap.slam import ScanMatcher, ScanMatchParams, match_scans, relative_pose_error
-from occmap.slam.scan_matching import FAILED, FIRST, MATCHED
+from occmap.slam.scan_matching import FAILED, FIRST, MATCHED, distance_fields
 
 
 def _in_first_frame(truth):
@@ -159,3 +159,20 @@ def test_on_intel_the_relative_pose_error_beats_raw_odometry(data_dir):
     assert track.stats["failed"] == track.stats["rejected"] == 0
     assert matched["translation_mean"] < 0.6 * odometry["translation_mean"]
     assert matched["rotation_deg_mean"] < 0.2 * odometry["rotation_deg_mean"]
+
+
+@pytest.mark.parametrize("shape", [(6, 8), (7, 9), (1, 1)])
+def test_coarser_levels_mark_a_cell_where_any_finer_cell_it_covers_is_occupied(shape):
+    rng = np.random.default_rng(shape[0])
+    mask = rng.random(shape) < 0.15
+    mask[-1, -1] = True
+    fields = distance_fields(mask, (0.0, 0.0), 0.1, 3, 0.3, score=False)
+    level = mask
+    for f in fields[::-1]:
+        np.testing.assert_array_equal(f.distance == 0.0, level)
+        assert f.score is None
+        pad = np.zeros((level.shape[0] + level.shape[0] % 2, level.shape[1] + level.shape[1] % 2), bool)
+        pad[:level.shape[0], :level.shape[1]] = level
+        level = pad[0::2, 0::2] | pad[1::2, 0::2] | pad[0::2, 1::2] | pad[1::2, 1::2]
+    scored = distance_fields(mask, (0.0, 0.0), 0.1, 3, 0.3)
+    np.testing.assert_array_equal(scored[0].score, np.exp(-0.5 * (fields[0].distance / 0.4) ** 2).astype(np.float32))

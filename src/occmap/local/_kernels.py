@@ -361,11 +361,16 @@ def lethal(cells, stamps, sr, sc, g, l_prior, l_occupied, out):
     """Cells (bool, window order) into ``out`` whose log-odds, as :func:`log_odds` gives it
     (float32), is at least ``l_occupied``; False where never observed."""
     H, W = out.shape
+    split = wrap_point(sc, W)  # a row's storage columns wrap once, at window column W − sc
     for y in range(H):
         r = slot(y, sr, H)
-        for x in range(W):
-            c = slot(x, sc, W)
-            out[y, x] = stamps[r, c, 1] != UNSEEN and np.float32(l_prior + g * cells[r, c, 0]) >= l_occupied
+        for seg in range(2):
+            x0 = 0 if seg == 0 else split
+            x1 = split if seg == 0 else W
+            off = sc if seg == 0 else -split
+            for x in range(x0, x1):  # branch-free, so it vectorises
+                c = x + off
+                out[y, x] = (stamps[r, c, 1] != UNSEEN) & (np.float32(l_prior + g * cells[r, c, 0]) >= l_occupied)
 
 
 @kernel

@@ -433,7 +433,7 @@ class LocalMap(OneCallAtATime):
         if len(ret) < MIN_INLIERS or not occupied.any():
             return None
         cutoff = REGISTER_CUTOFF_CELLS * self.resolution
-        fields = distance_fields(occupied, self.origin, self.resolution, REGISTER_LEVELS, cutoff)
+        fields = distance_fields(occupied, self.origin, self.resolution, REGISTER_LEVELS, cutoff, score=False)
         bx = np.ascontiguousarray(R[ret] * np.cos(A[ret]))
         by = np.ascontiguousarray(R[ret] * np.sin(A[ret]))
         x, inliers = refine(fields, P, bx, by, cutoff, 10)

@@ -35,7 +35,7 @@ def match(field: LikelihoodField, pose, bx: np.ndarray, by: np.ndarray, cutoff: 
                                            field.origin[0], field.origin[1], inv, Hm, g)
         if used < MIN_INLIERS:
             return None, used
-        Hm[np.diag_indices(3)] += 1e-6 * used
+        Hm.flat[::4] += 1e-6 * used  # the diagonal
         try:
             step = np.linalg.solve(Hm, -g)
         except np.linalg.LinAlgError:

@@ -63,6 +63,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import checks
+from .._jit import kernel
 from ..errors import InvalidArgumentError
 from ..geometry.se2 import compose_poses, relative_poses
 from ..geometry.so2 import rot2, wrap_angle_one
@@ -423,26 +424,42 @@ class ScanMatcher:
         return distance_fields(occupied, corner, p.resolution, p.levels, p.cutoff)
 
 
-def distance_fields(occupied: np.ndarray, corner, resolution: float, levels: int, cutoff: float) -> list[_Field]:
+@kernel
+def _coarser(mask, out):
+    """``out`` ((H + 1) // 2, (W + 1) // 2) ← whether any of the (up to) 2 × 2 cells of ``mask``
+    (H, W) that each of its cells covers is True (one pass over ``out``, branch-free)."""
+    H, W = mask.shape
+    h, w = out.shape
+    for Y in range(h):
+        y0 = 2 * Y
+        y1 = min(y0 + 1, H - 1)  # an odd last row covers one row
+        for X in range(W // 2):
+            out[Y, X] = mask[y0, 2 * X] | mask[y0, 2 * X + 1] | mask[y1, 2 * X] | mask[y1, 2 * X + 1]
+        if W % 2:
+            out[Y, w - 1] = mask[y0, W - 1] | mask[y1, W - 1]
+
+
+def distance_fields(occupied: np.ndarray, corner, resolution: float, levels: int, cutoff: float,
+                    score: bool = True) -> list[_Field]:
     """Distance fields (:class:`_Field`, coarse to fine) of the obstacle cells ``occupied``
     (bool (H, W), row 0 at ``corner``, the outer corner (x, y) of cell (0, 0), cells of side
     ``resolution`` m): level k at ``resolution · 2^k`` (a coarse cell is occupied when any of the
     finer cells it covers is), clamped just beyond its cutoff ``cutoff · 2^k`` (m); the coarsest
-    with the correlative search's score."""
+    with the correlative search's score when ``score`` (:func:`refine` does not read it)."""
     fields = []
-    mask = occupied
+    mask = np.ascontiguousarray(occupied, dtype=np.bool_)
     for k in range(levels):
         if k:
-            H, W = mask.shape
-            pad = np.zeros((H + H % 2, W + W % 2), dtype=bool)
-            pad[:H, :W] = mask
-            mask = pad[0::2, 0::2] | pad[1::2, 0::2] | pad[0::2, 1::2] | pad[1::2, 1::2]
+            coarse = np.empty(((mask.shape[0] + 1) // 2, (mask.shape[1] + 1) // 2), dtype=np.bool_)
+            _coarser(mask, coarse)
+            mask = coarse
         res = resolution * 2 ** k
         far = cutoff * 2 ** k + res
         dist = bounded_distance(mask, res, far)
         fields.append(_Field(dist, np.asarray(corner, dtype=np.float64), res, far, None))
-    coarse = fields[-1]
-    fields[-1] = coarse._replace(score=np.exp(-0.5 * (coarse.distance / coarse.resolution) ** 2).astype(np.float32))
+    if score:
+        coarse = fields[-1]
+        fields[-1] = coarse._replace(score=np.exp(-0.5 * (coarse.distance / coarse.resolution) ** 2).astype(np.float32))
     return fields[::-1]
 
 

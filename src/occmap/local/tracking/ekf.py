@@ -48,11 +48,11 @@ def _sinc_and_derivative(h: np.ndarray):
     return sinc, d
 
 
-def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: float,
+def predict(states: np.ndarray, covs: np.ndarray | None, dt, accel: float, yaw_accel: float,
             yaw_rate_time: float = np.inf):
     """States and covariances ``dt`` seconds later (``dt``, ``accel`` and ``yaw_accel`` scalars or
     ``(N,)``; ``dt ≥ 0``; the yaw rate's time constant ``yaw_rate_time`` in seconds, inf: constant
-    turn rate); returns new arrays."""
+    turn rate); returns new arrays. ``covs`` None: the states only (the same), ``(states, None)``."""
     x, y, th, v, w = states.T
     dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), x.shape)
     h = 0.5 * w * dt
@@ -66,6 +66,8 @@ def predict(states: np.ndarray, covs: np.ndarray, dt, accel: float, yaw_accel: f
     out[:, 2] = wrap_angle(th + 2.0 * h)
     decay = np.exp(-dt / yaw_rate_time)
     out[:, 4] = w * decay
+    if covs is None:
+        return out, None
     n = states.shape[0]
     F = np.broadcast_to(np.eye(5), (n, 5, 5)).copy()
     F[:, 0, 2] = -chord * sa

@@ -253,11 +253,12 @@ class Tracker:
                 self.state, self.cov = ekf.predict(self.state, self.cov, dt, *self._noise(self.size), p.yaw_rate_time)
         self.time = stamp
 
-    def predicted(self, t, confirmed_only: bool = True):
+    def predicted(self, t, confirmed_only: bool = True, covariances: bool = True):
         """``(ids (T,), states, covariances, sizes (T, 2))`` of the tracks predicted to time ``t``
         (seconds, at or after the last update), without changing them: states ``(T, 5)`` and
         covariances ``(T, 5, 5)`` for one time, ``(K, T, 5)`` and ``(K, T, 5, 5)`` for times
-        ``(K,)``. ``confirmed_only``: the confirmed tracks (lost ones included), else all."""
+        ``(K,)``. ``confirmed_only``: the confirmed tracks (lost ones included), else all.
+        ``covariances`` False: None for them (the states alone cost less)."""
         times = np.asarray(t, dtype=np.float64)
         if not np.isfinite(times).all():
             raise InvalidArgumentError(f"prediction times must be finite, got {t!r}")
@@ -266,16 +267,16 @@ class Tracker:
             raise InvalidArgumentError(f"t = {float(times.min())!r} lies before the tracker's time {now!r}: "
                                        "predictions go forward only")
         keep = self.status == CONFIRMED if confirmed_only else np.ones(len(self), bool)
-        s, c, size = self.state[keep], self.cov[keep], self.size[keep]
+        s, size = self.state[keep], self.size[keep]
         k, n = times.size, len(s)
         flat_s = np.broadcast_to(s, (k, n, 5)).reshape(-1, 5)
-        flat_c = np.broadcast_to(c, (k, n, 5, 5)).reshape(-1, 5, 5)
+        flat_c = np.broadcast_to(self.cov[keep], (k, n, 5, 5)).reshape(-1, 5, 5) if covariances else None
         dt = np.repeat(times.reshape(-1) - now, n)
         if n and (dt > 0.0).any():  # to the tracker's own time they are as they are
             accel, yaw = self._noise(np.broadcast_to(size, (k, n, 2)).reshape(-1, 2))
             flat_s, flat_c = ekf.predict(flat_s, flat_c, dt, accel, yaw, self.params.yaw_rate_time)
         shape = times.shape + (n,)
-        return self.id[keep], flat_s.reshape(shape + (5,)), flat_c.reshape(shape + (5, 5)), size
+        return self.id[keep], flat_s.reshape(shape + (5,)), None if flat_c is None else flat_c.reshape(shape + (5, 5)), size
 
     def covers(self, points, t: float, margin: float, confirmed_only: bool = False) -> np.ndarray:
         """Whether each world point ``(N, 2)`` lies within a track's footprint (predicted to
@@ -286,7 +287,7 @@ class Tracker:
         """Per world point ``(N, 2)``: the index (among the confirmed tracks, or all) of the track
         whose footprint predicted to ``t``, grown by ``margin``, holds it — the nearest centre of
         those that do — or −1."""
-        _, s, _, size = self.predicted(t, confirmed_only=confirmed_only)
+        _, s, _, size = self.predicted(t, confirmed_only=confirmed_only, covariances=False)
         p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
         out = np.empty(len(p), dtype=np.int64)
         half = 0.5 * size + margin
