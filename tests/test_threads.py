@@ -8,6 +8,7 @@ import platform
 import subprocess
 import sys
 import threading
+import time
 
 import numba
 import numpy as np
@@ -34,6 +35,7 @@ class _Clock:
 def clock(monkeypatch):
     fake = _Clock()
     monkeypatch.setattr(occmap._threads, "perf_counter", fake)
+    monkeypatch.setattr(occmap._threads, "free_cores", lambda: 2.0)  # the machine's load stays out of these
     return fake
 
 
@@ -86,6 +88,39 @@ def test_a_call_that_is_no_fair_sample_runs_the_chosen_path_unlearnt(clock):
         clock.now += 0.05
     assert parallel and choice.costs[1] > choice.costs[0]
     assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=1) == [False]
+
+
+@two_threads
+def test_while_other_processes_leave_no_second_core_one_thread_runs_unmeasured(clock, monkeypatch):
+    choice = ThreadChoice(min_work=1.0)
+    _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=12)
+    costs = choice.costs
+    monkeypatch.setattr(occmap._threads, "free_cores", lambda: 1.2)
+    assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=20) == [False] * 20
+    assert choice.costs == costs
+    monkeypatch.setattr(occmap._threads, "free_cores", lambda: None)  # unknown: the choice as before
+    assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=3) == [True] * 3
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the load is read from Linux's /proc/stat")
+def test_free_cores_sees_a_busy_process_and_not_this_one():
+    cpus = len(os.sched_getaffinity(0))
+    occmap._threads.free_cores()
+    spin_until = time.monotonic() + 0.3
+    while time.monotonic() < spin_until:  # this process's own work is not another's load
+        pass
+    mine = occmap._threads.free_cores()
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.3)
+        occmap._threads.free_cores()
+        time.sleep(0.3)
+        theirs = occmap._threads.free_cores()
+    finally:
+        busy.kill()
+        busy.wait()
+    # the busy process takes a whole core (or all there is, on one): a core less than this one's own work left
+    assert theirs <= mine - min(0.7, cpus - 0.3), (mine, theirs)
 
 
 def test_small_work_takes_one_thread_unmeasured():

@@ -12,8 +12,13 @@ from a process whose kernels ran on OpenMP takes one thread (:func:`thread_count
 
 **Threads per call.** Robots stream one scan per call on computers where other processes compete
 for the cores: there a second thread waits for a core and a parallel call takes longer than one
-thread would; on an idle machine it takes less. :class:`ThreadChoice` measures both paths of a
-kernel as the calls come and runs the cheaper one, trying the other now and then.
+thread would; on an idle machine it takes less. :class:`ThreadChoice` runs one thread while other
+processes leave no second core free (:func:`free_cores`, as GNU OpenMP's ``OMP_DYNAMIC`` sizes its
+teams by the load), and otherwise measures both paths of a kernel as the calls come and runs the
+cheaper one, trying the other now and then. The load must be asked for, not learnt from the
+kernel's time: a worker thread spins for a while after a parallel region (TBB), and beside a busy
+process the main thread's next work, outside the kernel, pays for it (a local map's cycle beside
+one busy process: its kernel as fast on two threads as on one, the cycle 15 % slower).
 
 **One map, several threads.** Every map and the localizer derive from :class:`OneCallAtATime`:
 each public method runs holding the object's lock, so calls from several threads on one object
@@ -43,7 +48,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
-from time import perf_counter
+from time import monotonic, perf_counter, process_time
 
 _TBB_SONAME = "libtbb.so.12"
 
@@ -87,12 +92,81 @@ _FIRST_INTERVAL = 8
 _MAX_INTERVAL = 256
 
 
+#: Cores other processes must leave free for a call to take several threads: with half a core
+#: taken, a second thread's half of the work runs at about half speed and the parallel call is no
+#: faster than one thread.
+_FREE_FOR_PARALLEL = 1.5
+#: Seconds over which :func:`free_cores` averages the other processes' load (at least).
+_LOAD_WINDOW = 0.1
+
+
+class _Load:
+    """The CPU time other processes take on the CPUs this process may run on: ``/proc/stat``'s
+    busy ticks of those CPUs less this process's own CPU time, over windows of at least
+    :data:`_LOAD_WINDOW` seconds (the last full window's figure is kept between samples)."""
+
+    def __init__(self):
+        self._cpus = None
+        self._last = None  # (monotonic s, busy s of our CPUs, our CPU s)
+        self.free = None
+
+    def sample(self) -> float | None:
+        now = monotonic()
+        if self._last is not None and now - self._last[0] < _LOAD_WINDOW:
+            return self.free
+        busy = self._busy_seconds()
+        if busy is None:
+            return None
+        mine = process_time()
+        if self._last is not None:
+            wall = now - self._last[0]
+            others = max(0.0, (busy - self._last[1]) - (mine - self._last[2])) / wall
+            self.free = len(self._cpus) - others
+        self._last = (now, busy, mine)
+        return self.free
+
+    def _busy_seconds(self) -> float | None:
+        """Seconds the CPUs this process may use have been busy since boot (user, nice, system,
+        irq, softirq and steal: time a thread of ours could not have had); None off Linux."""
+        if self._cpus == frozenset():  # tried: no /proc/stat here
+            return None
+        try:
+            if self._cpus is None:
+                self._cpus = {f"cpu{i}".encode() for i in os.sched_getaffinity(0)}
+                self._tick = 1.0 / os.sysconf("SC_CLK_TCK")
+            with open("/proc/stat", "rb") as f:
+                text = f.read()
+        except (OSError, AttributeError, ValueError):
+            self._cpus = frozenset()
+            return None
+        ticks = 0
+        for line in text.split(b"\n"):
+            if not line.startswith(b"cpu"):
+                break
+            name, *fields = line.split()
+            if name in self._cpus:
+                user, nice, system, _idle, _iowait, irq, softirq, steal = (int(v) for v in fields[:8])
+                ticks += user + nice + system + irq + softirq + steal
+        return ticks * self._tick
+
+
+_load = _Load()
+
+
+def free_cores() -> float | None:
+    """Cores of those this process may run on that other processes have left free lately
+    (about the last :data:`_LOAD_WINDOW` seconds); None where the system does not say (not
+    Linux) or before a window has passed."""
+    return _load.sample()
+
+
 class ThreadChoice:
     """Chooses, call by call, between a kernel's one-thread and many-thread paths: whichever has
     cost less per unit of work lately (an exponential average of the measured calls).
 
-    Calls with less than ``min_work`` units of work, or with Numba limited to one thread, take
-    one thread and are not measured. The first call takes several threads unmeasured: it pays for
+    Calls with less than ``min_work`` units of work, with Numba limited to one thread, or while
+    other processes leave fewer than :data:`_FREE_FOR_PARALLEL` cores free (:func:`free_cores`),
+    take one thread and are not measured. The first call takes several threads unmeasured: it pays for
     first-touch page faults and thread start-up (a grid's parallel path looked 3× slower than one
     thread after it, where it is 1.4–1.7× faster). So does a call that is not a fair ``sample``
     (the caller knows it writes memory never touched before: a grid's first call after it grew
@@ -125,7 +199,7 @@ class ThreadChoice:
     def choose(self, work: float, sample: bool = True):
         """Yields whether the block should run on several threads; times the block and learns
         from it (unless ``sample`` is false: the path chosen now, not timed)."""
-        if not work >= self.min_work or thread_count() < 2:
+        if not work >= self.min_work or thread_count() < 2 or not _free_for_parallel():
             yield False
             return
         if not (self._warm and sample):  # the first call starts Numba's threads: not a fair sample either
@@ -164,6 +238,11 @@ class ThreadChoice:
         if trying and not (math.isnan(old) or math.isnan(self._cost[1 - i])):  # a try, not a first measurement
             changed = (self._cost[1] < self._cost[0]) != before
             self._interval = _FIRST_INTERVAL if changed else min(2 * self._interval, _MAX_INTERVAL)
+
+
+def _free_for_parallel() -> bool:
+    free = free_cores()
+    return free is None or free >= _FREE_FOR_PARALLEL
 
 
 def thread_count() -> int:
