@@ -24,7 +24,7 @@ from numba import prange
 from .._jit import kernel, kernel_parallel
 from .._threads import ThreadChoice
 from ..raster.edt import row_envelope
-from ..raster.ring import slot, wrap_point
+from ..raster.ring import run_of, slot, wrap_point
 from ..raster.update import UNSEEN, clamp_add, hit_stamp
 from ..raster.walk2d import cell_of, dda_setup, dda_span, dda_step, miss_walk
 
@@ -361,13 +361,10 @@ def lethal(cells, stamps, sr, sc, g, l_prior, l_occupied, out):
     """Cells (bool, window order) into ``out`` whose log-odds, as :func:`log_odds` gives it
     (float32), is at least ``l_occupied``; False where never observed."""
     H, W = out.shape
-    split = wrap_point(sc, W)  # a row's storage columns wrap once, at window column W − sc
     for y in range(H):
         r = slot(y, sr, H)
-        for seg in range(2):
-            x0 = 0 if seg == 0 else split
-            x1 = split if seg == 0 else W
-            off = sc if seg == 0 else -split
+        for seg in range(2):  # a row's storage columns wrap once
+            x0, x1, off = run_of(seg, sc, W)
             for x in range(x0, x1):  # branch-free, so it vectorises
                 c = x + off
                 out[y, x] = (stamps[r, c, 1] != UNSEEN) & (np.float32(l_prior + g * cells[r, c, 0]) >= l_occupied)
@@ -434,15 +431,12 @@ def costmap(cells, stamps, sr, sc, thr_occ, thr_free, R, lut, inscribed_d2, g, e
     H, W = out.shape
     C = R + 1
     # pass 1: classes and downward column distances, one window row at a time; the row's storage
-    # columns wrap once, at window column W − sc
-    split = wrap_point(sc, W)
+    # columns wrap once
     for y in range(H):
         r = slot(y, sr, H)
         yp = y - 1 if y > 0 else 0
         for seg in range(2):
-            x0 = 0 if seg == 0 else split
-            x1 = split if seg == 0 else W
-            off = sc if seg == 0 else -split
+            x0, x1, off = run_of(seg, sc, W)
             for x in range(x0, x1):  # branch-free, so it vectorises
                 c = x + off
                 u = cells[r, c, 0]

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from .._jit import kernel
 
-__all__ = ["wrap", "slot", "wrap_point"]
+__all__ = ["wrap", "slot", "wrap_point", "run_of"]
 
 
 @kernel
@@ -43,3 +43,14 @@ def wrap_point(start, n):
     ``start`` is 0): window indices ``[0, p)`` live in slots ``i + start``, ``[p, n)`` in slots
     ``i + start − n``. A window range therefore lies in at most two runs of slots."""
     return n - start
+
+
+@kernel
+def run_of(k, start, n):
+    """Run ``k`` (0 or 1) of a window of ``n`` indices in a ring that starts at slot ``start``
+    (:func:`wrap_point`): ``(first, end, offset)``, window indices ``[first, end)`` living in
+    slots ``i + offset``. Loops over the two runs have no wrap test per index (they vectorise)."""
+    p = n - start
+    if k == 0:
+        return 0, p, start
+    return p, n, -p
