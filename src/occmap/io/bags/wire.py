@@ -140,17 +140,13 @@ def _read_column(buf, starts, at, code, swap, n, out):
         else:
             b[:nbytes] = buf[s: s + nbytes]
         if code == 0:
-            for j in range(n):
-                out[i, j] = f4[j]
+            out[i, :n] = f4[:n]
         elif code == 1:
-            for j in range(n):
-                out[i, j] = f8[j]
+            out[i, :n] = f8[:n]
         elif code == 2:
-            for j in range(n):
-                out[i, j] = i4[j]
+            out[i, :n] = i4[:n]
         elif code == 3:
-            for j in range(n):
-                out[i, j] = u4[j]
+            out[i, :n] = u4[:n]
         else:
             out[i, 0] = np.float64(i4[0]) + np.float64(u4[1]) * 1e-9
 
