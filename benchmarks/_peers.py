@@ -1,11 +1,14 @@
-"""Mappers timed in processes of their own pinned to one CPU, fed the same scans through one file.
+"""Mappers timed in processes of their own (pinned to one CPU, or for occmap on two threads not), fed
+the same scans through one file.
 
 **Scan file** (:func:`write_scans`): scans one after another until the end of the file, each as
 little-endian float64 ``origin[3]``, int64 ``n``, float64 ``points[n][3]`` (metres, map frame).
 
-**occmap on one core** (:class:`OneCoreOccmap`): a Python process started with
-``NUMBA_NUM_THREADS=1`` (occmap then runs every kernel on the calling thread) and its CPU affinity
-set to one CPU before it runs anything, so that any thread at all shares that one core.
+**occmap in a process of its own** (:class:`OccmapProcess`): a Python process started with
+``NUMBA_NUM_THREADS`` set; on one core with 1 (occmap then runs every kernel on the calling thread)
+and its CPU affinity set to one CPU before it runs anything, so that any thread at all shares that
+one core. Its two-thread figures come from such a process too (unpinned), so that both are timed
+alike: in a process that does nothing else, its caches and allocator its own.
 
 **A native peer** (:func:`run_native`): a program called as ``PROGRAM SCANS RESOLUTION MAX_RANGE
 ROUNDS`` (MAX_RANGE ``inf``: none) that inserts every scan, in order, into a fresh map each round
@@ -57,18 +60,19 @@ def _pin(cpu: int):
     return lambda: os.sched_setaffinity(0, {cpu})
 
 
-class OneCoreOccmap:
-    """occmap's ``OcTree.insert_point_clouds`` timed in a child process pinned to one CPU.
+class OccmapProcess:
+    """occmap's ``OcTree.insert_point_clouds`` timed in a child process with ``threads`` Numba
+    threads, pinned to CPU ``cpu`` unless it is None.
 
     Each :meth:`seconds` call builds a fresh tree from a scan file, read once while calls name
     it (a file of a name called before is not read again); the first call for a scan file,
     resolution and max range first inserts the first scan into a tree it throws away (so that
     loading compiled kernels stays out of the figures)."""
 
-    def __init__(self, cpu: int):
-        env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+    def __init__(self, cpu: int | None, threads: int = 1):
+        env = {**os.environ, "NUMBA_NUM_THREADS": str(threads)}
         self._child = subprocess.Popen([sys.executable, __file__], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                       text=True, env=env, preexec_fn=_pin(cpu))
+                                       text=True, env=env, preexec_fn=None if cpu is None else _pin(cpu))
 
     def seconds(self, scans: Path, resolution: float, max_range: float) -> float:
         """Seconds to insert the scans of the file ``scans`` into a fresh tree (``max_range`` < 0: none)."""
@@ -76,7 +80,7 @@ class OneCoreOccmap:
         self._child.stdin.flush()
         answer = self._child.stdout.readline()
         if not answer:
-            raise RuntimeError(f"the one-core occmap process ended (exit status {self._child.wait()})")
+            raise RuntimeError(f"the occmap process ended (exit status {self._child.wait()})")
         return float(answer)
 
     def close(self) -> None:
@@ -85,7 +89,7 @@ class OneCoreOccmap:
 
 
 def _serve() -> None:
-    """The child of :class:`OneCoreOccmap`: one request a line on stdin, seconds a line on stdout."""
+    """The child of :class:`OccmapProcess`: one request a line on stdin, seconds a line on stdout."""
     from occmap.octree import OcTree
 
     loaded, warm = {}, set()
