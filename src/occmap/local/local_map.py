@@ -68,6 +68,8 @@ MAX_CELL_INDEX = 2.0 ** 40
 #: farther than this many cells (of each level) from every occupied cell left out, ...
 REGISTER_LEVELS = 3
 REGISTER_CUTOFF_CELLS = 3.0
+#: ... at most this many Gauss–Newton steps a level, ...
+REGISTER_ITERATIONS = 10
 #: ... kept when at least this share of the scan's returns fit (the rest: objects, and space not
 #: mapped yet) and the pose moved no more than this (m, rad).
 REGISTER_MIN_SHARE = 0.3
@@ -429,14 +431,16 @@ class LocalMap(OneCallAtATime):
         tracker = self._objects.tracker
         if len(tracker) and len(ret):  # what the tracks explain moves: it says nothing of the pose
             ret = ret[~tracker.covers(ends[ret], self._time, self._objects.cover_margin)]
+        if len(ret) < MIN_INLIERS:
+            return None
         occupied = self.lethal()
-        if len(ret) < MIN_INLIERS or not occupied.any():
+        if not occupied.any():
             return None
         cutoff = REGISTER_CUTOFF_CELLS * self.resolution
         fields = distance_fields(occupied, self.origin, self.resolution, REGISTER_LEVELS, cutoff, score=False)
         bx = np.ascontiguousarray(R[ret] * np.cos(A[ret]))
         by = np.ascontiguousarray(R[ret] * np.sin(A[ret]))
-        x, inliers = refine(fields, P, bx, by, cutoff, 10)
+        x, inliers = refine(fields, P, bx, by, cutoff, REGISTER_ITERATIONS)
         if x is None or inliers < REGISTER_MIN_SHARE * len(ret):
             return None
         x, _ = keep_prior_where_unconstrained(x, P, bx, by)
