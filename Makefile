@@ -9,7 +9,8 @@ CLEAR_KERNEL_CACHE := find src -type d -path '*/__pycache__/occmap-*' -prune -ex
 
 .PHONY: demo test bench clean clean-cache
 
-$(STAMP): pyproject.toml
+# setup.py and the C file: the extension (geometry/_single.c) is built at install
+$(STAMP): pyproject.toml setup.py src/occmap/geometry/_single.c
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'

@@ -11,16 +11,16 @@ million points is never copied a million times.
 
 from __future__ import annotations
 
-from functools import partial
-
 import numpy as np
+from numba import carray, get_num_threads, types
+from numba.core.caching import FunctionCache
+from numba.core.ccallback import CFunc
 
 from ..errors import InvalidArgumentError, NonFiniteError, NotARotationError, NotUnitQuaternionError, ShapeError
 from ._kernels import UNIT_TOL, Rejected
+from ._single import SingleCall
 
 _F64 = np.dtype(np.float64)
-# bound once: single calls are counted in tenths of a microsecond
-_asarray, _empty = np.asarray, np.empty
 
 #: Largest accepted Frobenius norm of RᵀR − I for a rotation matrix.
 ROTATION_TOL = 1e-6
@@ -104,7 +104,7 @@ def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (
     the faster path single elements take before they come here."""
     arrays, lead = broadcast(*operands)
     flat = [a.reshape(-1) if a.ndim > 1 and not op[1] else a for a, op in zip(arrays, operands)]  # scalars: 1-D
-    out = _empty(lead + out_trailing)
+    out = np.empty(lead + out_trailing)
     try:
         kernel(*args, *flat, out)
     except Rejected as e:
@@ -112,96 +112,99 @@ def run(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (
     return out
 
 
+#: The C signature of a single-element kernel (:class:`._single.SingleCall`): the operands' data
+#: pointers (a scalar's: one double), the output's; 0 when the output is filled, 1 when rejected.
+_SINGLE_SIGNATURE = ((types.CPointer(types.CPointer(types.float64)), types.CPointer(types.float64)), types.int32)
+
+
+class _NamedCache(FunctionCache):
+    """Numba's disk cache for the single-element cfuncs, keyed by a name for what each holds.
+
+    They are one closure (:func:`_single_kernel`) over a kernel and its shapes; Numba keys a
+    closure by its pickled cells, and a kernel pickles with an id drawn anew in each process, so
+    each process would compile them again (~0.5 s each). The package's cache folder is already
+    one per version of its sources (:mod:`occmap._jit`): within it, the name is key enough."""
+
+    def __init__(self, py_func, name: str):
+        super().__init__(py_func)
+        self._name = name
+
+    def _index_key(self, sig, codegen):
+        return (sig, codegen.magic_tuple(), self._name)
+
+
+def _single_kernel(kernel, shapes: tuple, out_trailing: tuple[int, ...], args: tuple, one) -> CFunc:
+    """One element through ``one(*operands, out)`` (scalars as floats) or, without it,
+    ``kernel(*args, *operands, out)`` (scalars as one-element arrays, as :func:`run` passes a
+    batch's), compiled with the C signature :class:`._single.SingleCall` calls: the operands are
+    read in place from their data pointers; a rejection (any exception) returns 1. ``args`` holds
+    at most one constant. The branches are decided by the closure's constants when Numba compiles:
+    each cfunc keeps only its own call."""
+    n, has_arg, floats = len(shapes), len(args) == 1, one is not None
+    arg = args[0] if has_arg else 0
+    s0, s1, s2 = [shape or (1,) for shape in shapes] + [(1,)] * (3 - n)
+    three_floats = floats and n == 3 and not shapes[0]
+
+    def single(ops, out):
+        o = carray(out, out_trailing)
+        try:
+            if three_floats:  # Euler angles, a planar pose
+                one(ops[0][0], ops[1][0], ops[2][0], o)
+            elif floats and n == 3:  # two arrays and a float (slerp)
+                one(carray(ops[0], s0), carray(ops[1], s1), ops[2][0], o)
+            elif floats:
+                one(carray(ops[0], s0), carray(ops[1], s1), o)
+            elif n == 1 and has_arg:
+                kernel(arg, carray(ops[0], s0), o)
+            elif n == 1:
+                kernel(carray(ops[0], s0), o)
+            elif n == 2:
+                kernel(carray(ops[0], s0), carray(ops[1], s1), o)
+            elif has_arg:
+                kernel(arg, carray(ops[0], s0), carray(ops[1], s1), carray(ops[2], s2), o)
+            else:
+                kernel(carray(ops[0], s0), carray(ops[1], s1), carray(ops[2], s2), o)
+        except Exception:  # noqa: BLE001 - the Python path raises the error that names the element
+            return 1
+        return 0
+
+    which = one or kernel
+    name = f"{which.py_func.__module__}.{which.__name__}{args}{shapes}->{out_trailing}"
+    compiled = CFunc(single, _SINGLE_SIGNATURE, locals={}, options={"nopython": True, "error_model": "numpy"})
+    compiled._cache = _NamedCache(single, name)
+    get_num_threads()  # starts Numba's threading layer, which kernels with a parallel pass link to
+    compiled.compile()
+    return compiled
+
+
 def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple = (), otherwise=None, one=None):
     """The Python face of ``kernel``: a function of the operand values, each operand described by
     ``(trailing, name, kind)`` as in :func:`run`.
 
-    A single element (every operand exactly its trailing shape) takes a path unrolled for one,
-    two or three operands: a conversion and a comparison each, the output allocated, the kernel
-    called — half the overhead of the loops in :func:`run`. Three operands are three scalars
-    (Euler angles, planar poses) or two arrays and a scalar (slerp's ``t``); floats among them
-    (Python's, or NumPy's float64) go to the kernel as they are, which costs less than a 0-d
-    array each, and three floats skip the array handling altogether.
-
-    ``one``, when given, is the kernel's single-element form, which that path calls instead:
-    with the same operands, but without ``args`` (each argument costs a call ~40 ns) and, with
-    three operands, with floats for scalars only. It reads its operands as they are, without the
-    reshapes and broadcast steps of the row loops (tens of ns each).
-
-    Anything else — batches, rejected input — goes to ``otherwise`` (by default :func:`run`,
-    which names what is wrong).
+    A single element — every operand a C-contiguous float64 array of exactly its trailing shape,
+    a scalar a Python or NumPy float — is handled in C (:class:`._single.SingleCall`: ~0.1 µs),
+    which calls the kernel compiled for one element (:func:`_single_kernel`, compiled or loaded
+    from the disk cache at the function's first call). ``one``, when given, is the kernel's
+    single-element form, which that path calls instead, without ``args`` and with floats for
+    scalars: no loop over rows, no parallel pass to decide against (a quaternion product through
+    ``quat_multiply_one`` 0.10 µs, through ``quat_multiply`` 0.26 µs). Anything else — batches,
+    other types, rejected input — goes to ``otherwise`` (by default :func:`run`, which names what
+    is wrong).
     """
 
     def general(*values):
         return run(kernel, out_trailing, *[(v, *op) for v, op in zip(values, operands)], args=args)
 
     otherwise = otherwise or general
-    bound = partial(kernel, *args) if args else kernel
-    single = one or bound
-    trailing = [op[0] for op in operands]
-    if len(operands) == 1:
-        (t1,) = trailing
+    shapes = tuple(op[0] for op in operands)
 
-        def call(x):
-            a = _asarray(x, _F64, "C")
-            if a.shape == t1:
-                out = _empty(out_trailing)
-                try:
-                    single(a, out)
-                    return out
-                except Rejected:
-                    pass
-            return otherwise(x)
+    def first(*values):
+        if not call.bound:
+            compiled = _single_kernel(kernel, shapes, out_trailing, args, one)
+            call.bind(compiled.address, compiled)
+        return otherwise(*values)
 
-    elif len(operands) == 2:
-        t1, t2 = trailing
-
-        def call(x, y):
-            a, b = _asarray(x, _F64, "C"), _asarray(y, _F64, "C")
-            if a.shape == t1 and b.shape == t2:
-                out = _empty(out_trailing)
-                try:
-                    single(a, b, out)
-                    return out
-                except Rejected:
-                    pass
-            return otherwise(x, y)
-
-    elif not any(trailing):
-
-        def call(x, y, z):
-            f = one
-            if f is None or not (isinstance(x, float) and isinstance(y, float) and isinstance(z, float)):
-                f = bound
-                x = x if type(x) is float else _asarray(x, _F64, "C")
-                y = y if type(y) is float else _asarray(y, _F64, "C")
-                z = z if type(z) is float else _asarray(z, _F64, "C")
-                if not ((type(x) is float or x.shape == ()) and (type(y) is float or y.shape == ())
-                        and (type(z) is float or z.shape == ())):
-                    return otherwise(x, y, z)
-            out = _empty(out_trailing)
-            try:
-                f(x, y, z, out)
-                return out
-            except Rejected:
-                return otherwise(x, y, z)  # converted values name the same element
-
-    elif trailing[0] and trailing[1] and not trailing[2]:
-        t1, t2, _ = trailing
-
-        def call(x, y, z):
-            a, b = _asarray(x, _F64, "C"), _asarray(y, _F64, "C")
-            if a.shape == t1 and b.shape == t2 and isinstance(z, float):
-                out = _empty(out_trailing)
-                try:
-                    single(a, b, z, out)
-                    return out
-                except Rejected:
-                    pass
-            return otherwise(x, y, z)
-
-    else:
-        raise ValueError(f"three operands are three scalars or two arrays and a scalar, not {trailing}")
+    call = SingleCall(shapes, out_trailing, first)
     return call
 
 

@@ -172,9 +172,9 @@ def _atan2(y, x):
 
 @kernel
 def _flat(x):
-    """A scalar operand as a 1-D array: single calls pass Python floats or 0-d arrays as they are
-    (``_arrays.entry``), batches come 1-D and may be strided (a column of an (N, 3) array is read in
-    place; :func:`._arrays.broadcast` flattens the others)."""
+    """A scalar operand as a 1-D array: a single element comes as a one-element array (the C path,
+    ``_arrays.entry``) or a 0-d one, batches come 1-D and may be strided (a column of an (N, 3) array
+    is read in place; :func:`._arrays.broadcast` flattens the others)."""
     return np.atleast_1d(np.asarray(x))
 
 
