@@ -119,8 +119,9 @@ def test_free_cores_sees_a_busy_process_and_not_this_one():
     finally:
         busy.kill()
         busy.wait()
-    # the busy process takes a whole core (or all there is, on one): a core less than this one's own work left
-    assert theirs <= mine - min(0.7, cpus - 0.3), (mine, theirs)
+    # the busy process takes a whole core (or all there is, on one): a core less than this one's own work left;
+    # on a machine other processes already load (less than a core free) it takes what there was: 0.3 at most left
+    assert theirs <= max(mine - min(0.7, cpus - 0.3), 0.3), (mine, theirs)
 
 
 def test_small_work_takes_one_thread_unmeasured():
