@@ -293,6 +293,7 @@ class MonteCarloLocalizer(OneCallAtATime):
         self._dr_best = None  # past the cap: the dead-reckoning hypothesis's best pose (moved by the odometry)
         self._confirm = 0  # past the cap: consecutive filter runs whose (cloud's) estimate the scan fits
         self._evidence = 0.0  # past the cap: summed log-likelihood ratio, cloud's estimate over the held pose's best
+        self._dr_confirm = 0  # past the cap: consecutive filter runs whose scan fits the held pose's best
         self._usual_fit = None  # long-term average of the estimates' fit while not lost
         self._lost_runs = 0  # consecutive filter runs whose estimate was lost (or, searching, was not)
         self._right_travel = 0.0  # searching: odometry travel (m) over those runs that were not lost
@@ -551,7 +552,7 @@ class MonteCarloLocalizer(OneCallAtATime):
         """Drop the held pose: the cloud carries the estimate again."""
         self._held = self._held_cov = self._dr_best = None
         self._coasted = (0.0, 0.0)
-        self._confirm = 0
+        self._confirm = self._dr_confirm = 0
         self._evidence = 0.0
 
     def _choose(self, pose: np.ndarray, coast: bool, bx, by, mr: float, bx_all: np.ndarray,
@@ -590,7 +591,8 @@ class MonteCarloLocalizer(OneCallAtATime):
         if ratio >= prm.coast_evidence and self._confirm >= prm.coast_confirm:
             self._release()
             return pose
-        if ratio <= -prm.coast_evidence and d_fit >= need:
+        self._dr_confirm = self._dr_confirm + 1 if d_fit >= need else 0
+        if ratio <= -prm.coast_evidence and self._dr_confirm >= prm.coast_confirm:
             self._move_cloud(self._mean()[0], d)
             self._release()
             return d
