@@ -33,32 +33,31 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
   robot is (after a local scan match from there: less than ``coast_fit`` of the usual ``fit``) is
   left out: the odometry alone carries the estimate and moves the cloud rigidly (without motion
   noise: with AMCL's noise terms a cloud coasting 4 m spreads 4 m × 2 m × 160°, and the first scan
-  weighed afterwards picks any pose in it that fits). Where the map shows a place poorly
-  (Freiburg 079: a room visited once, where the robot turns on the spot and the corrected poses
-  fit their own map 0.3–0.45 m off) such scans fit better at wrong poses a metre and 50–90° away,
-  and weighing them drags the cloud there a few degrees per scan. After ``coast_max_d`` metres or
-  ``coast_max_a`` radians of coasting the filter keeps **two hypotheses**: the scans weigh the
-  cloud again (a filter that is really lost, or an odometry gone wrong, is found by it), while the
-  estimate stays the odometry's. The held pose is **dead reckoning**: it carries a covariance
-  grown from the cloud's by the odometry's noise (``coast_motion``, the extended Kalman filter's
-  prediction), and its best pose is the local scan match, from it and from its 1- and 2-sigma
-  points, that scores highest (the scan's log-likelihood plus the log of that Gaussian prior).
-  Where that pose and the cloud's estimate agree, the cloud's estimate is taken once it is not
-  ``lost`` (its fit at least ``lost_fit`` of the usual) on ``coast_confirm`` filter runs in a row.
-  Where they differ, a sequential likelihood ratio decides: the scans' log-likelihood at the
-  cloud's estimate minus that at the held pose's best, summed over the runs since the cap, plus
-  the two priors, must reach ``coast_evidence`` for the cloud, ``−coast_evidence`` for the held
-  pose's best (which must then have fitted on ``coast_confirm`` runs in a row; the cloud is moved
-  to it). If the odometry's pose itself fits a scan (``coast_fit``) first, the cloud is moved back
-  to it. (Freiburg 079, refs 1090–1240: the reference's own scans fit the map 0.2–1.1 m off for
-  13 m of travel; weighed, those scans pulled the cloud 2–4 m away and it never came back. The
-  cloud's wrong poses there fit at ``coast_fit`` for 10 runs in a row while the robot turned on
-  the spot, hence the stricter ``lost_fit``; and at ref 1,238 a cloud 1.07 m off fitted five
-  runs in a row, while the held pose's neighbourhood had explained the scans since the cap by
-  hundreds of nats more: taken on fits alone it was confirmed and the filter coasted from there,
-  1.08 m off; weighed by the ratio (−480 nats), the held pose's best, 0.08–0.34 m from the
-  reference on refs 1,227–1,238 while the held pose drifted to 0.49 m, is taken at ref 1,239,
-  0.04 m off.)
+  weighed afterwards picks any pose in it that fits). Where the map shows a place poorly (Freiburg
+  079: a room visited once, where the robot turns on the spot and the corrected poses fit their own
+  map 0.3–0.45 m off) such scans fit better at wrong poses a metre and 50–90° away, and weighing
+  them drags the cloud there a few degrees per scan. After ``coast_max_d`` metres or ``coast_max_a``
+  radians of coasting the filter keeps **two hypotheses**: the scans weigh the cloud again (a filter
+  that is really lost, or an odometry gone wrong, is found by it), while the estimate stays the
+  odometry's. The held pose is **dead reckoning**: it carries a covariance grown from the cloud's by
+  the odometry's noise (``coast_motion``, the extended Kalman filter's prediction), and its best
+  pose is the local scan match, from it and from its 1- and 2-sigma points, that scores highest (the
+  scan's log-likelihood plus the log of that Gaussian prior). Where that pose and the cloud's
+  estimate agree, the cloud's estimate is taken once it is not ``lost`` (its fit at least
+  ``lost_fit`` of the usual) on ``coast_confirm`` filter runs in a row. Where they differ, a
+  sequential likelihood ratio decides: the scans' log-likelihood at the cloud's estimate minus that
+  at the held pose's best, summed over the runs since the cap on which they differ, plus the two
+  priors, must reach ``coast_evidence`` for the cloud, ``−coast_evidence`` for the held pose's best
+  (each must also have fitted on ``coast_confirm`` runs in a row; taking the held pose's best moves
+  the cloud to it). If the odometry's pose itself fits a scan (``coast_fit``) first, the cloud is
+  moved back to it. (Freiburg 079, refs 1090–1240: the reference's own scans fit the map 0.2–1.1 m
+  off for 13 m of travel; weighed, those scans pulled the cloud 2–4 m away and it never came back.
+  The cloud's wrong poses there fit at ``coast_fit`` for 10 runs in a row while the robot turned on
+  the spot, hence the stricter ``lost_fit``; and at ref 1,238 a cloud 1.07 m off fitted five runs in
+  a row, while the held pose's neighbourhood had explained the scans since the cap by hundreds of
+  nats more: taken on fits alone it was confirmed and the filter coasted from there, 1.08 m off;
+  weighed by the ratio (−480 nats), the held pose's best, 0.08–0.34 m from the reference on refs
+  1,227–1,238 while the held pose drifted to 0.49 m, is taken at ref 1,239, 0.04 m off.)
 * **estimate** — the weighted mean of the dominant mode of the cloud (circular mean for the
   heading), its covariance and the effective sample size. A multi-modal cloud (global
   localization before it converges) reports its heaviest mode and the share of weight in it.
@@ -579,9 +578,10 @@ class MonteCarloLocalizer(OneCallAtATime):
         ``refine_cutoff`` and 0.1 rad) the scans cannot tell them apart and ``pose`` is taken once it
         has not been lost (fit at least ``lost_fit`` of the usual) on ``coast_confirm`` filter runs
         in a row. Where they differ, a sequential (generalized) likelihood ratio decides: the scans'
-        log-likelihood differences summed over the filter runs since the cap, plus the two priors,
-        must reach ``coast_evidence`` for ``pose`` or ``−coast_evidence`` for ``d`` (the cloud is
-        then moved to it), each having fitted on ``coast_confirm`` runs in a row. Until then the
+        log-likelihood differences summed over the filter runs since the cap on which they
+        differ, plus the two priors, must reach ``coast_evidence`` for ``pose`` or
+        ``−coast_evidence`` for ``d`` (the cloud is then moved to it), each having fitted on
+        ``coast_confirm`` runs in a row. Until then the
         estimate is the held pose. A cloud the scans of a place the map shows wrongly dragged a
         metre off, but as far from the odometry as its drift allows, is no longer confirmed by the
         first scans that fit it: the place it fits must also beat the held pose's neighbourhood."""
