@@ -109,7 +109,8 @@ class LocalizationParams:
         the hold began. Measured: over 10 m of travel the raw odometry's error against the corrected
         poses has a median normalized squared error (3 degrees of freedom: 3 when consistent) of 7.0 on
         Intel and 0.49 on Freiburg 079 with 0.05 (0.01: 35 and 2.5); the filter's own ``motion`` (AMCL's
-        0.2) is a particle-diffusion setting, 1-2 m after 10 m on Freiburg 079, where the odometry drifted 0.5 m.
+        0.2) is a particle-diffusion setting, 1-2 m after 10 m on Freiburg 079, where the odometry drifted 0.5 m
+        (there 0.2 makes the filter diverge, 0.02 no longer reaches the place that fits; 0.1 is as 0.05).
     coast_evidence : float, default 4.6
         Past the coasting cap, the log-likelihood ratio (nats, ``log 99``) by which the scans must
         favour the cloud's estimate over the best pose of the held pose's neighbourhood (or that pose
