@@ -25,7 +25,9 @@ def test_defaults_are_amcls():
 
 def test_numpy_scalars_are_accepted_and_normalised():
     p = LocalizationParams(n_particles=np.int64(300), sigma_hit=np.float32(0.25), max_beams=np.uint16(30),
-                           motion=(0.1, 0.1, 0.1, 0.1), sensor_offset=np.array([0.2, 0.0, np.float32(0.5)]))
+                           motion=(0.1, 0.1, 0.1, 0.1), coast_motion=(0.01, 0.02, 0.03, 0.04),
+                           sensor_offset=np.array([0.2, 0.0, np.float32(0.5)]))
+    assert isinstance(p.coast_motion, OdometryMotionModel) and p.coast_motion.alphas == (0.01, 0.02, 0.03, 0.04)
     assert type(p.n_particles) is int and p.n_particles == 300 and type(p.max_beams) is int
     assert type(p.sigma_hit) is float and p.sigma_hit == float(np.float32(0.25))
     assert isinstance(p.motion, OdometryMotionModel) and p.motion.alphas == (0.1, 0.1, 0.1, 0.1)
@@ -49,6 +51,8 @@ def test_numpy_scalars_are_accepted_and_normalised():
     (dict(sensor_offset=(0.0, 0.0)), "sensor_offset must be three"),
     (dict(relocalize_after=-1), "relocalize_after must be an integer ≥ 0"),
     (dict(relocalize_confirm_d=-1.0), "relocalize_confirm_d must be a non-negative"),
+    (dict(coast_evidence=-1.0), "coast_evidence must be a non-negative"),
+    (dict(coast_motion=(0.1, 0.1, -0.1, 0.1)), "alphas\\[2\\]"),
 ])
 def test_bad_values_name_the_field(changes, match):
     with pytest.raises(InvalidArgumentError, match=match):

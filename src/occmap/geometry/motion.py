@@ -351,6 +351,26 @@ class OdometryMotionModel:
         """
         return apply_odometry(poses, self.delta(prev_odom, curr_odom), self.alphas, rng)
 
+    def covariance(self, pose, cov, delta) -> np.ndarray:
+        """Covariance (3×3) of the pose after the motion ``delta = (rot1, trans, rot2)`` from
+        ``pose`` ``(x, y, theta)`` with covariance ``cov``: the extended Kalman filter's prediction
+        (*Probabilistic Robotics* Table 7.3), ``G Σ Gᵀ + V M Vᵀ`` with ``G`` and ``V`` the Jacobians of
+        :func:`apply_odometry` with respect to the pose and to ``(rot1, trans, rot2)``, and ``M`` the
+        variances of :func:`apply_odometry`'s noise (the same ``alpha`` terms, rotations charged as
+        AMCL does, so reversing is not a half-turn). Dead reckoning: the uncertainty the odometry
+        alone accumulates, growing with the distance and the turns driven."""
+        rot1, trans, rot2 = (float(v) for v in delta)
+        h = float(pose[2]) + rot1
+        c, s = np.cos(h), np.sin(h)
+        g = np.array([[1.0, 0.0, -trans * s], [0.0, 1.0, trans * c], [0.0, 0.0, 1.0]])
+        v = np.array([[-trans * s, c, 0.0], [trans * c, s, 0.0], [1.0, 0.0, 1.0]])
+        r1 = float(_rotation_noise_term(np.asarray(rot1)))
+        r2 = float(_rotation_noise_term(np.asarray(rot2)))
+        a1, a2, a3, a4 = self.alphas
+        m = np.diag([a1 * r1 * r1 + a2 * trans * trans, a3 * trans * trans + a4 * (r1 * r1 + r2 * r2),
+                     a1 * r2 * r2 + a2 * trans * trans])
+        return g @ np.asarray(cov, dtype=np.float64) @ g.T + v @ m @ v.T
+
 
 def _arc(p: np.ndarray, d, phi, shape: tuple[int, ...]) -> np.ndarray:
     """Poses ``p`` moved along an arc of length ``d`` that turns the heading by ``phi``."""

@@ -33,18 +33,31 @@ The filter is ROS AMCL's (Thrun, Burgard & Fox, *Probabilistic Robotics*, ch. 4,
   robot is (after a local scan match from there: less than ``coast_fit`` of the usual ``fit``) is
   left out: the odometry alone carries the estimate and moves the cloud rigidly (without motion
   noise: with AMCL's noise terms a cloud coasting 4 m spreads 4 m × 2 m × 160°, and the first scan
-  weighed afterwards picks any pose in it that fits). Where the map shows a place poorly
-  (Freiburg 079: a room visited once, where the robot turns on the spot and the corrected poses
-  fit their own map 0.3–0.45 m off) such scans fit better at wrong poses a metre and 50–90° away,
-  and weighing them drags the cloud there a few degrees per scan. After ``coast_max_d`` metres or
-  ``coast_max_a`` radians of coasting the filter keeps **two hypotheses**: the scans weigh the
-  cloud again (a filter that is really lost, or an odometry gone wrong, is found by it), while the
-  estimate stays the odometry's until the cloud's estimate is not ``lost`` (its fit at least
-  ``lost_fit`` of the usual) on ``coast_confirm`` filter runs in a row; if the odometry's pose fits
-  a scan (``coast_fit``) first, the cloud is moved back to it. (Freiburg 079, refs 1090–1240: the
-  reference's own scans fit the map 0.2–1.1 m off for 13 m of travel; weighed, those scans pulled
-  the cloud 2–4 m away and it never came back. The cloud's wrong poses there fit at ``coast_fit``
-  for 10 runs in a row while the robot turned on the spot, hence the stricter ``lost_fit``.)
+  weighed afterwards picks any pose in it that fits). Where the map shows a place poorly (Freiburg
+  079: a room visited once, where the robot turns on the spot and the corrected poses fit their own
+  map 0.3–0.45 m off) such scans fit better at wrong poses a metre and 50–90° away, and weighing
+  them drags the cloud there a few degrees per scan. After ``coast_max_d`` metres or ``coast_max_a``
+  radians of coasting the filter keeps **two hypotheses**: the scans weigh the cloud again (a filter
+  that is really lost, or an odometry gone wrong, is found by it), while the estimate stays the
+  odometry's. The held pose is **dead reckoning**: it carries a covariance grown from the cloud's by
+  the odometry's noise (``coast_motion``, the extended Kalman filter's prediction), and its best
+  pose is the local scan match, from it and from its 1- and 2-sigma points, that scores highest (the
+  scan's log-likelihood plus the log of that Gaussian prior). Where that pose and the cloud's
+  estimate agree, the cloud's estimate is taken once it is not ``lost`` (its fit at least
+  ``lost_fit`` of the usual) on ``coast_confirm`` filter runs in a row. Where they differ, a
+  sequential likelihood ratio decides: the scans' log-likelihood at the cloud's estimate minus that
+  at the held pose's best, summed over the runs since the cap on which they differ, plus the two
+  priors, must reach ``coast_evidence`` for the cloud, ``−coast_evidence`` for the held pose's best
+  (each must also have fitted on ``coast_confirm`` runs in a row; taking the held pose's best moves
+  the cloud to it). If the odometry's pose itself fits a scan (``coast_fit``) first, the cloud is
+  moved back to it. (Freiburg 079, refs 1090–1240: the reference's own scans fit the map 0.2–1.1 m
+  off for 13 m of travel; weighed, those scans pulled the cloud 2–4 m away and it never came back.
+  The cloud's wrong poses there fit at ``coast_fit`` for 10 runs in a row while the robot turned on
+  the spot, hence the stricter ``lost_fit``; and at ref 1,238 a cloud 1.07 m off fitted five runs in
+  a row, while the held pose's neighbourhood had explained the scans since the cap by hundreds of
+  nats more: taken on fits alone it was confirmed and the filter coasted from there, 1.08 m off;
+  weighed by the ratio (−480 nats), the held pose's best, 0.08–0.34 m from the reference on refs
+  1,227–1,238 while the held pose drifted to 0.49 m, is taken at ref 1,239, 0.04 m off.)
 * **estimate** — the weighted mean of the dominant mode of the cloud (circular mean for the
   heading), its covariance and the effective sample size. A multi-modal cloud (global
   localization before it converges) reports its heaviest mode and the share of weight in it.
@@ -289,7 +302,11 @@ class MonteCarloLocalizer(OneCallAtATime):
         # odometry travel (m) and summed turns (rad) since the last applied scan; None once past the cap
         self._coasted: tuple[float, float] | None = (0.0, 0.0)
         self._held = None  # coasting: the pose the odometry alone carried from the last scan that fitted
+        self._held_cov = None  # covariance (3×3) of the held pose: dead reckoning since the hold began
+        self._dr_best = None  # past the cap: the dead-reckoning hypothesis's best pose (moved by the odometry)
         self._confirm = 0  # past the cap: consecutive filter runs whose (cloud's) estimate the scan fits
+        self._evidence = 0.0  # past the cap: summed log-likelihood ratio, cloud's estimate over the held pose's best
+        self._dr_confirm = 0  # past the cap: consecutive filter runs whose scan fits the held pose's best
         self._usual_fit = None  # long-term average of the estimates' fit while not lost
         self._lost_runs = 0  # consecutive filter runs whose estimate was lost (or, searching, was not)
         self._right_travel = 0.0  # searching: odometry travel (m) over those runs that were not lost
@@ -341,8 +358,7 @@ class MonteCarloLocalizer(OneCallAtATime):
         self.w_slow = self.w_fast = 0.0
         self._filter_odom = None
         self._coasted = (0.0, 0.0)
-        self._held = None
-        self._confirm = 0
+        self._release()
         self._lost_runs = 0
         self._search = None
         self._search_confirm = (0, 0.0, 0)
@@ -427,7 +443,7 @@ class MonteCarloLocalizer(OneCallAtATime):
         if prm.refine and not self._global and bx_all.size and not coast:
             pose = self._refine(pose, bx_all, by_all)
         if self._held is not None:
-            pose = self._choose(pose, coast, bx_all, by_all)
+            pose = self._choose(pose, coast, bx, by, mr, bx_all, by_all)
         fit, lost = math.nan, False
         if bx_all.size:
             fit = self._fit(pose, bx_all, by_all)
@@ -491,9 +507,8 @@ class MonteCarloLocalizer(OneCallAtATime):
         s = self._search
         self.particles, self.weights, self._filter_odom = s.particles, s.weights, s._filter_odom
         self.w_slow, self.w_fast, self._count = s.w_slow, s.w_fast, s._count
-        self._held = None
-        self._coasted = (0.0, 0.0)
-        self._confirm = self._lost_runs = 0
+        self._release()
+        self._lost_runs = 0
         self._search = None
         self.stats.relocalized += 1
         e = self._estimate
@@ -523,18 +538,21 @@ class MonteCarloLocalizer(OneCallAtATime):
         prm = self.params
         if prm.coast_fit <= 0 or self._global or self._usual_fit is None or self._estimate is None:
             return False
-        prior = apply_odometry(self._estimate.pose if self._held is None else self._held, delta)
+        base, cov = (self._estimate.pose, self._estimate.covariance) if self._held is None else \
+            (self._held, self._held_cov)
+        prior = apply_odometry(base, delta)
         x = self._local_match(prior, bx_all, by_all)
         at = prior if x is None else x
         fit = self._fit(at, bx_all, by_all)
         if fit >= prm.coast_fit * self._usual_fit:
             if self._held is not None and self._coasted is None:
                 self._move_cloud(self._mean()[0], at)
-            self._held = None
-            self._coasted = (0.0, 0.0)
-            self._confirm = 0
+            self._release()
             return False
         self._held = prior
+        self._held_cov = prm.coast_motion.covariance(base, cov, delta)
+        if self._dr_best is not None:
+            self._dr_best = apply_odometry(self._dr_best, delta)
         if self._coasted is None:
             return False  # coasted as far as allowed: the scans weigh the cloud again (see _choose)
         rot1, trans, rot2 = delta
@@ -543,22 +561,89 @@ class MonteCarloLocalizer(OneCallAtATime):
         self._coasted = (d, a) if d <= prm.coast_max_d and a <= prm.coast_max_a else None
         return self._coasted is not None
 
-    def _choose(self, pose: np.ndarray, coast: bool, bx_all: np.ndarray, by_all: np.ndarray) -> np.ndarray:
-        """The estimate while the odometry's pose is held: that pose while coasting; past the cap,
-        the cloud's estimate ``pose`` once it has not been lost (fit at least ``lost_fit`` of the
-        usual) on ``coast_confirm`` filter runs in a row (then the odometry's pose is dropped), else
-        still the odometry's."""
+    def _release(self) -> None:
+        """Drop the held pose: the cloud carries the estimate again."""
+        self._held = self._held_cov = self._dr_best = None
+        self._coasted = (0.0, 0.0)
+        self._confirm = self._dr_confirm = 0
+        self._evidence = 0.0
+
+    def _choose(self, pose: np.ndarray, coast: bool, bx, by, mr: float, bx_all: np.ndarray,
+                by_all: np.ndarray) -> np.ndarray:
+        """The estimate while the odometry's pose is held: that pose while coasting. Past the cap two
+        hypotheses are weighed, the cloud's estimate ``pose`` and dead reckoning, the held pose with
+        its covariance ``Σ`` (:meth:`_dead_reckoning` gives its best pose ``d``); each scores a pose
+        by the scan's log-likelihood (the filter's beam model) plus the prior ``−½ mᵀ Σ⁻¹ m``
+        (``m`` the pose's offset from the held one). Where ``pose`` and ``d`` agree (within half
+        ``refine_cutoff`` and 0.1 rad) the scans cannot tell them apart and ``pose`` is taken once it
+        has not been lost (fit at least ``lost_fit`` of the usual) on ``coast_confirm`` filter runs
+        in a row. Where they differ, a sequential (generalized) likelihood ratio decides: the scans'
+        log-likelihood differences summed over the filter runs since the cap on which they
+        differ, plus the two priors, must reach ``coast_evidence`` for ``pose`` or
+        ``−coast_evidence`` for ``d`` (the cloud is then moved to it), each having fitted on
+        ``coast_confirm`` runs in a row. Until then the
+        estimate is the held pose. A cloud the scans of a place the map shows wrongly dragged a
+        metre off, but as far from the odometry as its drift allows, is no longer confirmed by the
+        first scans that fit it: the place it fits must also beat the held pose's neighbourhood."""
         if coast or not bx_all.size:
             return self._held
         prm = self.params
-        fits = self._fit(pose, bx_all, by_all) >= prm.lost_fit * self._usual_fit
+        need = prm.lost_fit * self._usual_fit
+        fits = self._fit(pose, bx_all, by_all) >= need
         self._confirm = self._confirm + 1 if fits else 0
-        if self._confirm < prm.coast_confirm:
-            return self._held
-        self._held = None
-        self._coasted = (0.0, 0.0)
-        self._confirm = 0
-        return pose
+        d, d_fit, d_score, info = self._dead_reckoning(bx, by, mr, bx_all, by_all)
+        c_score = self._score(pose, bx, by, mr)
+        c_prior = self._prior_at(pose, info)
+        if math.hypot(d[0] - pose[0], d[1] - pose[1]) <= 0.5 * prm.refine_cutoff and \
+                abs(wrap_angle_one(float(d[2] - pose[2]))) <= 0.1:
+            if self._confirm < prm.coast_confirm:
+                return self._held
+            self._release()
+            return pose
+        self._evidence += c_score - d_score
+        ratio = self._evidence + c_prior - self._prior_at(d, info)
+        if ratio >= prm.coast_evidence and self._confirm >= prm.coast_confirm:
+            self._release()
+            return pose
+        self._dr_confirm = self._dr_confirm + 1 if d_fit >= need else 0
+        if ratio <= -prm.coast_evidence and self._dr_confirm >= prm.coast_confirm:
+            self._move_cloud(self._mean()[0], d)
+            self._release()
+            return d
+        return self._held
+
+    def _prior_at(self, x: np.ndarray, info: np.ndarray) -> float:
+        """Log of the dead-reckoning prior at ``x`` (up to a constant): ``−½ mᵀ Σ⁻¹ m``."""
+        m = np.array([x[0] - self._held[0], x[1] - self._held[1], wrap_angle_one(float(x[2] - self._held[2]))])
+        return -0.5 * float(m @ info @ m)
+
+    def _score(self, x: np.ndarray, bx, by, mr: float) -> float:
+        """The scan's log-likelihood at ``x`` under the filter's beam model."""
+        return float(self.field.score(np.asarray(x, dtype=np.float64)[None], bx, by, mr, self.params.sigma_hit)[0])
+
+    def _dead_reckoning(self, bx, by, mr: float, bx_all: np.ndarray, by_all: np.ndarray):
+        """The dead-reckoning hypothesis's best pose: local scan matches from the held pose and
+        from the points 1 and 2 standard deviations from it along each axis of its covariance,
+        the one with the highest score (log-likelihood plus the log prior). Returns the pose, its
+        fit, its score (log-likelihood only) and the prior's information matrix ``Σ⁻¹``."""
+        cov = self._held_cov + np.diag([1e-6, 1e-6, 1e-8])
+        info = np.linalg.inv(cov)
+        vals, vecs = np.linalg.eigh(cov)
+        steps = (vecs * np.sqrt(np.maximum(vals, 0.0))).T
+        starts = [self._held] + [self._held + k * s for s in steps for k in (-2.0, -1.0, 1.0, 2.0)]
+        if self._dr_best is not None:
+            starts.append(self._dr_best)
+        best, best_total, best_score = self._held, -math.inf, -math.inf
+        for x0 in starts:
+            x0 = np.array([x0[0], x0[1], wrap_angle_one(float(x0[2]))])
+            x = self._local_match(x0, bx_all, by_all)
+            x = x0 if x is None else x
+            score = self._score(x, bx, by, mr)
+            total = score + self._prior_at(x, info)
+            if total > best_total:
+                best, best_total, best_score = x, total, score
+        self._dr_best = best
+        return best, self._fit(best, bx_all, by_all), best_score, info
 
     def _move_cloud(self, pose: np.ndarray, x: np.ndarray) -> None:
         """Move the cloud rigidly so that ``pose`` lands on ``x``: rotate about ``pose`` by the

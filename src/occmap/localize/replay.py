@@ -339,7 +339,8 @@ PLAIN = dict(motion=(0.2, 0.2, 0.2, 0.2), sigma_hit=0.2, z_hit=0.95, z_rand=0.05
 #: Settings that meet the accuracy targets on the Intel log (measured in benchmarks/bench_localize.py):
 #: a filter run every 5 cm / 0.1 rad, the estimate refined by a scan match that also moves the cloud,
 #: and coasting on odometry through scans the map explains at under 78 % of the usual (3 m, then
-#: the odometry's pose and the scan-weighted cloud are both kept until one is confirmed). Measured on
+#: the odometry's pose, with its dead-reckoning covariance, and the scan-weighted cloud are both kept
+#: until a likelihood ratio over the scans since then decides between them). Measured on
 #: both runs, seeds 7, 1, 2, 3: 0.75 and 0.80 let Freiburg 079 slide off for good on some seeds (at
 #: refs 650-660, where its map is poor), 0.85 let Intel's coasting odometry drift 0.5 m; 0.78 holds both.
 #: After 10 lost filter runs in a row a global search runs beside the track and replaces it once
