@@ -149,7 +149,9 @@ def main() -> None:
         "## Tracking on real logs",
         "",
         "`python benchmarks/bench_tracking_logs.py`: each CARMEN log replayed as `occmap local LOG --tracking "
-        f"--resolution {RESOLUTION}` does (20 m window, half-life 30 s); a confirmed track is on structure when the "
+        f"--resolution {RESOLUTION}` does (20 m window, half-life 30 s, each scan registered to the map and inserted "
+        "where it fits: `register=True`; track centres carried back into the log's frame by the map's correction); "
+        "a confirmed track is on structure when the "
         f"map of the corrected log ({RESOLUTION} m) calls its centre occupied (within {NEAR} m) at half its samples or "
         "more, else in free space (people, doors); a raw run's centres carried into the corrected frame by the "
         "correction of the nearest paired scan. Target: none on structure.",
