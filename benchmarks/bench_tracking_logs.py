@@ -1,9 +1,9 @@
 """Tracking on real logs: where the confirmed tracks lie, on the structure the log's own map shows
 or in its free space.
 
-Each CARMEN log is replayed as ``occmap local LOG --tracking --resolution 0.05`` replays it (a
-20 m window at 0.05 m, half-life 30 s, each scan registered to the map and inserted where it fits
-(``register=True``), stamps going backwards held) and every confirmed track's centre is kept at
+Each CARMEN log is replayed as ``occmap local LOG --tracking --register --resolution 0.05`` replays
+it (a 20 m window at 0.05 m, half-life 30 s, each scan registered to the map and inserted where it
+fits, stamps going backwards held) and every confirmed track's centre is kept at
 every scan it is confirmed in, carried from the map's frame into the log's by the map's
 correction. The map of the corrected log (``map_scans`` at
 0.05 m) tells the two apart: a track is **on structure** when the map calls its centre occupied
@@ -148,9 +148,9 @@ def main() -> None:
     body = "\n".join([
         "## Tracking on real logs",
         "",
-        "`python benchmarks/bench_tracking_logs.py`: each CARMEN log replayed as `occmap local LOG --tracking "
+        "`python benchmarks/bench_tracking_logs.py`: each CARMEN log replayed as `occmap local LOG --tracking --register "
         f"--resolution {RESOLUTION}` does (20 m window, half-life 30 s, each scan registered to the map and inserted "
-        "where it fits: `register=True`; track centres carried back into the log's frame by the map's correction); "
+        "where it fits; track centres carried back into the log's frame by the map's correction); "
         "a confirmed track is on structure when the "
         f"map of the corrected log ({RESOLUTION} m) calls its centre occupied (within {NEAR} m) at half its samples or "
         "more, else in free space (people, doors); a raw run's centres carried into the corrected frame by the "
