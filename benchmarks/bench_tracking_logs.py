@@ -1,9 +1,11 @@
 """Tracking on real logs: where the confirmed tracks lie, on the structure the log's own map shows
 or in its free space.
 
-Each CARMEN log is replayed as ``occmap local LOG --tracking --resolution 0.05`` replays it (a
-20 m window at 0.05 m, half-life 30 s, stamps going backwards held) and every confirmed track's
-centre is kept at every scan it is confirmed in. The map of the corrected log (``map_scans`` at
+Each CARMEN log is replayed as ``occmap local LOG --tracking --register --resolution 0.05`` replays
+it (a 20 m window at 0.05 m, half-life 30 s, each scan registered to the map and inserted where it
+fits, stamps going backwards held) and every confirmed track's centre is kept at
+every scan it is confirmed in, carried from the map's frame into the log's by the map's
+correction. The map of the corrected log (``map_scans`` at
 0.05 m) tells the two apart: a track is **on structure** when the map calls its centre occupied
 (probability over 0.5 within 0.1 m) at half its samples or more — a wall, a door frame, furniture
 that pose errors or a cut view made look moving — and **in free space** otherwise: where the map,
@@ -52,7 +54,7 @@ NEAR = 0.1  # m: a centre within this of an occupied cell is on it
 def replay(path: Path) -> tuple[dict, int, int]:
     """Confirmed tracks' samples ``{id: (K, 5) of (stamp, x, y, speed, scan index)}``, scans, tracks
     started."""
-    lm = LocalMap((20.0, 20.0), RESOLUTION, half_life=30.0, tracking=True)
+    lm = LocalMap((20.0, 20.0), RESOLUTION, half_life=30.0, tracking=True, register=True)
     samples: dict[int, list] = {}
     last, n = None, 0
     for scan in CarmenScans(path):
@@ -62,8 +64,11 @@ def replay(path: Path) -> tuple[dict, int, int]:
         lm.move_to(float(scan.pose[0]), float(scan.pose[1]))
         lm.insert_scan(scan.pose, scan.ranges, scan.angles, stamp, max_range=scan.max_range)
         tr = lm.tracks()
-        for i in np.flatnonzero(tr.confirmed):
-            samples.setdefault(int(tr.id[i]), []).append((stamp, tr.x[i], tr.y[i], math.hypot(tr.vx[i], tr.vy[i]), n))
+        keep = np.flatnonzero(tr.confirmed)
+        # the tracks lie in the map's frame: carried back into the log's by the map's correction
+        at = relative_poses(lm.correction, np.c_[tr.x[keep], tr.y[keep], np.zeros(len(keep))])
+        for k, i in enumerate(keep):
+            samples.setdefault(int(tr.id[i]), []).append((stamp, at[k, 0], at[k, 1], math.hypot(tr.vx[i], tr.vy[i]), n))
         n += 1
     return {k: np.array(v) for k, v in samples.items()}, n, lm.stats["tracks_started"]
 
@@ -143,8 +148,10 @@ def main() -> None:
     body = "\n".join([
         "## Tracking on real logs",
         "",
-        "`python benchmarks/bench_tracking_logs.py`: each CARMEN log replayed as `occmap local LOG --tracking "
-        f"--resolution {RESOLUTION}` does (20 m window, half-life 30 s); a confirmed track is on structure when the "
+        "`python benchmarks/bench_tracking_logs.py`: each CARMEN log replayed as `occmap local LOG --tracking --register "
+        f"--resolution {RESOLUTION}` does (20 m window, half-life 30 s, each scan registered to the map and inserted "
+        "where it fits; track centres carried back into the log's frame by the map's correction); "
+        "a confirmed track is on structure when the "
         f"map of the corrected log ({RESOLUTION} m) calls its centre occupied (within {NEAR} m) at half its samples or "
         "more, else in free space (people, doors); a raw run's centres carried into the corrected frame by the "
         "correction of the nearest paired scan. Target: none on structure.",

@@ -60,18 +60,20 @@ def test_scan_match_and_tiles_are_refused(tmp_path, run, capsys):
 def test_local_with_scan_match_sees_a_still_world_still(tmp_path, run, capsys):
     """``occmap local LOG --tracking --scan-match``: the same log, poses matched scan by scan; the
     walls do not move, so nothing is taken for a moving object — without matching the walls swim
-    with the robot's motion and turn into tracks."""
+    with the robot's motion and turn into tracks. ``--register`` (the local map inserts each scan
+    where it fits) keeps them still too, though every pose of the log is zero."""
     import re
 
     _, truth, scans = run
     log = tmp_path / "zero_poses.log"
     log.write_text("".join(_flaser(s, np.zeros(3), t) for s, t in zip(scans, truth)))
     found = {}
-    for flag in ("--scan-match", None):
+    for flag in ("--scan-match", "--register", None):
         argv = ["local", str(log), "--tracking", "--max-range", "10", "-o", str(tmp_path / "l.gif"), "--max-frames", "80"]
         assert main(argv + ([flag] if flag else [])) == 0
         out = capsys.readouterr().out
         m = re.search(r"tracking: (\d+) tracks confirmed of \d+ started, ([\d,]+) returns taken as moving", out)
         found[flag] = int(m.group(1)), int(m.group(2).replace(",", ""))
-        assert ("scan matching: 150 scans" in out) == (flag is not None)
-    assert found["--scan-match"][0] == 0 and found["--scan-match"][1] * 10 < found[None][1]
+        assert ("scan matching: 150 scans" in out) == (flag == "--scan-match")
+    for flag in ("--scan-match", "--register"):
+        assert found[flag][0] == 0 and found[flag][1] * 10 < found[None][1]

@@ -41,6 +41,9 @@ def add_parser(subparsers):
     p.add_argument("--tracking", action="store_true",
                    help="track moving objects: they stay out of the static layer, and the frames show the confirmed "
                    "tracks and where they will be in one second")
+    p.add_argument("--register", action="store_true",
+                   help="insert each scan where it fits the map, not at the log's pose (LocalMap(register=True), "
+                   "for poses that drift: raw odometry); the frames are then in the map's frame")
     p.add_argument("--record", metavar="RUN.npz",
                    help="also record each frame's costmap, pose and tracks to scrub through with occmap view RUN.npz")
     _scan_match.add_option(p)
@@ -72,7 +75,8 @@ def run(args) -> int:
         from ..slam.scan_matching import describe
 
         matcher = ScanMatcher()
-    lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None, tracking=args.tracking)
+    lm = LocalMap((args.size, args.size), args.resolution, half_life=args.half_life or None, tracking=args.tracking,
+                  register=args.register)
     title = args.title if args.title is not None else f"local costmap: {Path(args.log).name}"
     frames = CostmapAnimation(lm.shape, args.resolution, args.scale, title, args.tracking)
     recorder = LocalMapRecorder() if args.record is not None else None
@@ -100,11 +104,13 @@ def run(args) -> int:
             lm.insert_scan(scan.pose, scan.ranges, scan.angles, stamp, max_range=scan.max_range)
             cost = lm.costmap()[0] if used % args.frame_every == 0 else None
         if cost is not None:
-            robot = lm.world_to_cell(np.array([x, y]))
+            # where the scan went in, in the map's frame (with --register registered, not the log's pose)
+            pose = np.asarray(scan.pose, np.float64) if lm.pose is None else lm.pose
+            robot = lm.world_to_cell(pose[:2])
             frames.add(cost, (int(robot[0]), int(robot[1])), tracked_objects(lm, 1.0) if args.tracking else None,
                        f"t = {stamp - first:.1f} s")
             if recorder is not None:
-                recorder.add(lm, stamp, scan.pose, cost)
+                recorder.add(lm, stamp, pose, cost)
         used += 1
         if len(frames) >= max_frames:
             break

@@ -40,7 +40,7 @@ import numpy as np
 from .. import checks
 from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
-from ..geometry.so2 import wrap_angle_one
+from ..geometry.so2 import wrap_angle, wrap_angle_one
 from ..grid2d.sensor_models import LidarModel, RadarModel, radar_sweeps
 from ..logodds import logit, occupancy_classes, occupancy_values
 from ..raster.ring import slot
@@ -122,12 +122,30 @@ class LocalMap(OneCallAtATime):
         :meth:`predicted_occupancy`, ``costmap(at=t)``, ``check_path(..., stamps=...)``).
     tracker : TrackerParams or None
         The tracker's settings.
+    register : bool
+        Insert each planar scan where it fits the map, not at the pose given (a lidar odometry on
+        top of the caller's): the map keeps a running :attr:`correction` from the caller's pose
+        frame to its own (ROS's ``map → odom``, as AMCL or slam_toolbox publish it); each scan is
+        registered to the static layer from the correction applied to its pose
+        (:meth:`_registered`), a fit a cell or more away updates the correction, and the scan goes
+        in at the registered pose (:attr:`pose`). For poses that drift (odometry): their walls,
+        inserted where they were, would smear over the map's memory and look like objects
+        moving. Off by default: the map's frame then is the caller's, as it was.
+
+    Frames: the poses and points given to :meth:`move_to`, :meth:`insert_scan`,
+    :meth:`insert_point_cloud` and :meth:`insert_radar` are in the caller's frame; everything the
+    map reads out or is asked about — :attr:`origin`, :attr:`center`, :attr:`pose`, cells and
+    :meth:`world_to_cell`, :meth:`costmap`, :meth:`tracks`, :meth:`predicted_occupancy`,
+    :meth:`occupancy_at`, :meth:`cost_at`, :meth:`check_path` — is in the map's frame, the
+    caller's carried by :attr:`correction` (a planner plans in it, from :attr:`pose`). Without
+    ``register`` the two are one.
     """
 
     def __init__(self, size=(40.0, 40.0), resolution: float = 0.1, half_life: float | None = None, *,
                  occupied_threshold: float = 0.65, free_threshold: float = 0.196, model: LidarModel | None = None, prior: float = 0.5,
                  clamp=(0.1192, 0.971), inflation_radius: float = 0.55, cost_scaling_factor: float = 10.0,
-                 footprint=0.1, center=(0.0, 0.0), tracking: bool = False, tracker: TrackerParams | None = None):
+                 footprint=0.1, center=(0.0, 0.0), tracking: bool = False, tracker: TrackerParams | None = None,
+                 register: bool = False):
         self.resolution = checks.resolution(resolution)
         self.half_life = None if half_life is None else checks.positive("half_life", half_life, "seconds")
         try:
@@ -156,6 +174,9 @@ class LocalMap(OneCallAtATime):
         self.inflation = InflationParams(self.resolution, inflation_radius, cost_scaling_factor,
                                          _inscribed_radius(footprint))
         self._objects = ObjectLayer(tracker) if tracking else None
+        self.register = bool(register)
+        self._correction = np.zeros(3)  # (x, y, θ): the caller's pose frame in the map's frame
+        self._pose = None
         self._no_objects = np.zeros((H, W), dtype=bool)
         self._cells = np.zeros((H, W, 2), dtype=np.float32)
         self._stamps = self._cells.view(np.int32)
@@ -198,6 +219,36 @@ class LocalMap(OneCallAtATime):
         return self.origin + 0.5 * self.resolution * np.array([W, H])
 
     @property
+    def correction(self) -> np.ndarray:
+        """The running correction ``(x, y, θ)`` (m, m, rad): the caller's pose frame seen in the
+        map's frame (ROS's ``map → odom``), so that a pose ``p`` the caller gives lies at
+        ``compose_poses(correction, p)`` (:func:`occmap.geometry.se2.compose_poses`) in the map.
+        Zero without ``register`` (the two frames are one)."""
+        return self._correction.copy()
+
+    @property
+    def pose(self) -> np.ndarray | None:
+        """The sensor pose ``(x, y, θ)`` of the last planar scan (:meth:`insert_scan`) in the map's
+        frame, where it was inserted (with ``register``: registered, or the caller's pose carried by
+        :attr:`correction` when the scan did not fit); ``None`` before the first."""
+        return None if self._pose is None else self._pose.copy()
+
+    def _to_map(self, points: np.ndarray, heading: bool = False) -> np.ndarray:
+        """Points (..., k ≥ 2) of the caller's frame in the map's frame (:attr:`correction` applied
+        to their x and y; with ``heading``, poses ``(x, y, θ)`` whose θ turns too); the array
+        itself while the correction is zero."""
+        cx, cy, ct = self._correction
+        if cx == 0.0 and cy == 0.0 and ct == 0.0:
+            return points
+        c, s = math.cos(ct), math.sin(ct)
+        out = np.array(points, dtype=np.float64)
+        out[..., 0] = cx + c * points[..., 0] - s * points[..., 1]
+        out[..., 1] = cy + s * points[..., 0] + c * points[..., 1]
+        if heading:
+            out[..., 2] = wrap_angle(points[..., 2] + ct)
+        return out
+
+    @property
     def time(self) -> float | None:
         """Stamp of the latest update (seconds), ``None`` before the first."""
         return self._time
@@ -232,13 +283,15 @@ class LocalMap(OneCallAtATime):
     # ------------------------------------------------------------------ moving
 
     def move_to(self, x: float, y: float) -> int:
-        """Centre the window on (x, y): the window moves by whole cells, the storage start shifts,
+        """Centre the window on (x, y) (the caller's frame: with ``register``, carried into the map's
+        by :attr:`correction`): the window moves by whole cells, the storage start shifts,
         and only the rows and columns that left are cleared (they re-enter as unknown cells on
         the other side). Returns the number of cells cleared (0 when the window stays).
         A position more than :data:`MAX_CELL_INDEX` cells from the world origin raises
         :class:`~occmap.errors.InvalidArgumentError` and leaves the map as it was."""
         if not (math.isfinite(x) and math.isfinite(y)):
             raise NonFiniteError(f"move_to needs a finite position, got ({x!r}, {y!r})")
+        x, y = self._to_map(np.array([x, y], dtype=np.float64))
         gx0, gy0 = self._corner_for(float(x), float(y))
         dx, dy = gx0 - self._gx0, gy0 - self._gy0
         if dx == 0 and dy == 0:
@@ -368,7 +421,10 @@ class LocalMap(OneCallAtATime):
         ``stats["dropped_poses"]``; time still advances). Stamps must not go backwards
         (:class:`~occmap.errors.InvalidArgumentError`). With tracking, what moves is judged in
         the scan registered to the static layer, and nothing in a scan that does not fit it
-        (:meth:`_registered`). Returns this scan's counts.
+        (:meth:`_registered`). With ``register`` the pose is the caller's: the scan is
+        registered from it carried by :attr:`correction`, and inserted where it fits (where the
+        correction carries it when it does not fit); :attr:`pose` says where. Returns this
+        scan's counts.
         """
         P = np.asarray(pose, dtype=np.float64)
         if P.shape != (3,):
@@ -394,14 +450,34 @@ class LocalMap(OneCallAtATime):
         kinds = np.empty(R.size, dtype=np.int8)
         dropped, maxed = K.scan_ends(P, R, A, mr, ends, kinds)
         judged = None
-        if self._objects is not None:
+        if self.register:
+            M = self._to_map(P, heading=True)
+            if M is not P:
+                K.scan_ends(M, R, A, mr, ends, kinds)
+            Q = self._registered(M, R, A, kinds, ends)
+            if Q is None:
+                judged = False  # inserted where the correction puts it, nothing judged to move
+            elif Q is not M:
+                self._correct(P, Q)
+                K.scan_ends(Q, R, A, mr, ends, kinds)
+                M = Q
+            P = M
+        elif self._objects is not None:
             Q = self._registered(P, R, A, kinds, ends)
             if Q is None:
                 judged = False
             elif Q is not P:
                 judged = (np.empty_like(ends), Q[:2])
                 K.scan_ends(Q, R, A, mr, judged[0], np.empty_like(kinds))
+        self._pose = P
         return self._insert(P[0], P[1], ends, kinds, dropped, maxed, mr, judged=judged)
+
+    def _correct(self, P: np.ndarray, Q: np.ndarray) -> None:
+        """Take the registration of a scan given at ``P`` (the caller's frame) to ``Q`` (the map's)
+        as the running :attr:`correction`: ``Q ⊖ P``, the transform that carries ``P`` onto ``Q``."""
+        ct = wrap_angle_one(float(Q[2] - P[2]))
+        c, s = math.cos(ct), math.sin(ct)
+        self._correction = np.array([Q[0] - (c * P[0] - s * P[1]), Q[1] - (s * P[0] + c * P[1]), ct])
 
     def _registered(self, P: np.ndarray, R: np.ndarray, A: np.ndarray, kinds: np.ndarray, ends: np.ndarray):
         """The sensor pose at which a planar scan's static returns (``kinds == 1``, at ``ends``
@@ -413,24 +489,32 @@ class LocalMap(OneCallAtATime):
         saw free, and looks like an object moving; from a pose far off (a heading error of
         odometry while turning), the whole scan does. Whether a return moves is a question about
         the world only once the scan's own pose error is taken out: before the returns are judged
-        (what moves, and where: the detections), the scan is registered to the static layer,
-        Gauss–Newton coarse to fine on the distance fields of its lethal cells from ``P``
-        (:func:`occmap.slam.scan_matching.refine`, :data:`REGISTER_LEVELS` levels, cutoff
-        :data:`REGISTER_CUTOFF_CELLS` cells of each); the position is moved only along the
-        directions the scan's surfaces constrain (a corridor pins it across, not along). Returns on
-        a track's footprint are left out (they move: they say nothing of the pose). The scan fits
-        when at least :data:`REGISTER_MIN_SHARE` of its returns lie within the finest cutoff and
-        the correction is within :data:`REGISTER_MAX_CORRECTION`; otherwise (or while the layer has
-        no occupied cell) nothing in it can be told to move. A correction that moves the returns by
-        less than a cell (their median) is within the map's own precision and ``P`` is kept (on
-        the simulated street, whose poses are exact, registration is off by 3 cm at the median,
-        12 cm at most, at 0.1 m cells). The scan is still inserted at ``P``: the map stays in the
-        frame of the poses it is given (it follows their drift as it forgets), and only the
-        judgement of what moves is made in the scan's fit to the map."""
+        (what moves, and where: the detections), the scan is registered to the static layer by
+        Gauss–Newton on the distance fields of its lethal cells from ``P``
+        (:func:`occmap.slam.scan_matching.refine`, cutoff :data:`REGISTER_CUTOFF_CELLS` cells):
+        at the finest level first, and coarse to fine over :data:`REGISTER_LEVELS` levels only
+        when that does not fit (on a young map the coarse levels pull a scan moved along a street
+        back toward the last one by a cell or more); the position is moved only along the
+        directions the scan's surfaces constrain (a corridor pins it across, not along). Returns
+        on a track's footprint (they move: they say nothing of the pose) and returns in cells the
+        map has never seen (surfaces it has not mapped yet, beyond the last scan's range or
+        behind what hid them: they pull the scan back onto the map's edge) are left out. The scan
+        fits when at least :data:`REGISTER_MIN_SHARE` of those returns lie within the finest
+        cutoff and the correction is within :data:`REGISTER_MAX_CORRECTION`; otherwise (or while
+        the layer has no occupied cell) nothing in it can be told to move. A correction that
+        moves the returns by less than a cell (their median) is within the map's own precision
+        and ``P`` is kept (on the simulated street, whose poses are exact, registration is off by
+        3 cm at the median, at 0.1 m cells; taken, such corrections move a registering map 0.1 –
+        0.2 m off the exact poses in 20 s). Without ``register`` the scan is still inserted at the
+        caller's pose (the map stays in the caller's frame and follows the poses' drift as it
+        forgets) and only the judgement of what moves is made in the scan's fit to the map; with
+        it, the scan is inserted where it fits (:meth:`insert_scan`)."""
         ret = np.flatnonzero(kinds == 1)
-        tracker = self._objects.tracker
-        if len(tracker) and len(ret):  # what the tracks explain moves: it says nothing of the pose
+        tracker = None if self._objects is None else self._objects.tracker
+        if tracker is not None and len(tracker) and len(ret):  # what the tracks explain moves: it says nothing of the pose
             ret = ret[~tracker.covers(ends[ret], self._time, self._objects.cover_margin)]
+        if len(ret):
+            ret = ret[~np.isnan(self.log_odds_at(ends[ret]))]
         if len(ret) < MIN_INLIERS:
             return None
         occupied = self.lethal()
@@ -440,9 +524,12 @@ class LocalMap(OneCallAtATime):
         fields = distance_fields(occupied, self.origin, self.resolution, REGISTER_LEVELS, cutoff, score=False)
         bx = np.ascontiguousarray(R[ret] * np.cos(A[ret]))
         by = np.ascontiguousarray(R[ret] * np.sin(A[ret]))
-        x, inliers = refine(fields, P, bx, by, cutoff, REGISTER_ITERATIONS)
-        if x is None or inliers < REGISTER_MIN_SHARE * len(ret):
-            return None
+        enough = REGISTER_MIN_SHARE * len(ret)
+        x, inliers = refine(fields[-1:], P, bx, by, cutoff, REGISTER_ITERATIONS)
+        if x is None or inliers < enough:
+            x, inliers = refine(fields, P, bx, by, cutoff, REGISTER_ITERATIONS)
+            if x is None or inliers < enough:
+                return None
         x, _ = keep_prior_where_unconstrained(x, P, bx, by)
         if (math.hypot(x[0] - P[0], x[1] - P[1]) > REGISTER_MAX_CORRECTION[0]
                 or abs(wrap_angle_one(float(x[2] - P[2]))) > REGISTER_MAX_CORRECTION[1]):
@@ -455,7 +542,9 @@ class LocalMap(OneCallAtATime):
 
     def insert_point_cloud(self, points, origin, stamp, z_min: float, z_max: float) -> dict:
         """Insert a 3D cloud: ``points`` (N, 3) in the world frame, seen from the sensor at
-        ``origin`` (2 or 3 numbers) at ``stamp`` seconds. With tracking, a 3D origin gives each
+        ``origin`` (2 or 3 numbers) at ``stamp`` seconds (the caller's frame: with ``register``
+        both are carried into the map's by :attr:`correction`, as the scans are; clouds are not
+        registered themselves). With tracking, a 3D origin gives each
         return its elevation seen from the sensor, so that only returns of about the same elevation
         hide an object's ends (:func:`~occmap.local.tracking.detection.elevation_layers`); with a 2D
         one, every in-band return can.
@@ -479,6 +568,7 @@ class LocalMap(OneCallAtATime):
         self._advance(stamp)
         if not np.isfinite(o[:2]).all():
             return self._dropped_pose(len(pts))
+        pts, o = self._to_map(pts), self._to_map(o)
         ends = np.empty((len(pts), 2))
         kinds = np.empty(len(pts), dtype=np.int8)
         dropped = K.cloud_ends(pts, z_min, z_max, ends, kinds)
@@ -487,7 +577,9 @@ class LocalMap(OneCallAtATime):
 
     def insert_radar(self, pose, ranges, azimuths, stamp, max_range: float, radial_velocity=None, ego_velocity=None,
                      model: RadarModel | None = None) -> dict:
-        """Insert one radar sweep from sensor pose ``(x, y, theta)`` taken at ``stamp`` seconds.
+        """Insert one radar sweep from sensor pose ``(x, y, theta)`` taken at ``stamp`` seconds (the
+        caller's frame: with ``register`` the pose and ``ego_velocity`` are carried into the map's
+        by :attr:`correction`, as the scans are; sweeps are not registered themselves).
 
         ``ranges``, ``azimuths`` (M,) the detections (metres; radians from the heading); with
         ``radial_velocity`` (M,) (m/s, positive away, the sensor's motion included) and
@@ -509,6 +601,12 @@ class LocalMap(OneCallAtATime):
         self._advance(stamp)
         if not np.isfinite(P).all():
             return self._dropped_pose(int(np.size(ranges)))
+        P = self._to_map(P, heading=True)
+        if ego_velocity is not None and self._correction[2] != 0.0:  # a world velocity turns with the frame
+            E = np.asarray(ego_velocity, dtype=np.float64)
+            if E.shape[-1:] == (2,):
+                c, s = math.cos(self._correction[2]), math.sin(self._correction[2])
+                ego_velocity = np.stack([c * E[..., 0] - s * E[..., 1], s * E[..., 0] + c * E[..., 1]], -1)
         d = radar_sweeps(P, ranges, azimuths, max_range, model, None, radial_velocity, ego_velocity)
         ends = np.empty((d.range.size, 2))
         kinds = np.empty(d.range.size, dtype=np.int8)
