@@ -40,7 +40,8 @@ import numpy as np
 from .. import checks
 from .._threads import OneCallAtATime
 from ..errors import InvalidArgumentError, NonFiniteError, ShapeError
-from ..geometry.so2 import wrap_angle, wrap_angle_one
+from ..geometry.se2 import SE2, compose_poses, relative_poses
+from ..geometry.so2 import wrap_angle_one
 from ..grid2d.sensor_models import LidarModel, RadarModel, radar_sweeps
 from ..logodds import logit, occupancy_classes, occupancy_values
 from ..raster.ring import slot
@@ -237,15 +238,12 @@ class LocalMap(OneCallAtATime):
         """Points (..., k ≥ 2) of the caller's frame in the map's frame (:attr:`correction` applied
         to their x and y; with ``heading``, poses ``(x, y, θ)`` whose θ turns too); the array
         itself while the correction is zero."""
-        cx, cy, ct = self._correction
-        if cx == 0.0 and cy == 0.0 and ct == 0.0:
+        if not self._correction.any():
             return points
-        c, s = math.cos(ct), math.sin(ct)
-        out = np.array(points, dtype=np.float64)
-        out[..., 0] = cx + c * points[..., 0] - s * points[..., 1]
-        out[..., 1] = cy + s * points[..., 0] + c * points[..., 1]
         if heading:
-            out[..., 2] = wrap_angle(points[..., 2] + ct)
+            return compose_poses(self._correction, points)
+        out = np.array(points, dtype=np.float64)
+        out[..., :2] = SE2(self._correction).apply(points[..., :2])
         return out
 
     @property
@@ -474,10 +472,8 @@ class LocalMap(OneCallAtATime):
 
     def _correct(self, P: np.ndarray, Q: np.ndarray) -> None:
         """Take the registration of a scan given at ``P`` (the caller's frame) to ``Q`` (the map's)
-        as the running :attr:`correction`: ``Q ⊖ P``, the transform that carries ``P`` onto ``Q``."""
-        ct = wrap_angle_one(float(Q[2] - P[2]))
-        c, s = math.cos(ct), math.sin(ct)
-        self._correction = np.array([Q[0] - (c * P[0] - s * P[1]), Q[1] - (s * P[0] + c * P[1]), ct])
+        as the running :attr:`correction`: ``Q ⊕ P⁻¹``, the transform that carries ``P`` onto ``Q``."""
+        self._correction = compose_poses(Q, relative_poses(P, np.zeros(3)))
 
     def _registered(self, P: np.ndarray, R: np.ndarray, A: np.ndarray, kinds: np.ndarray, ends: np.ndarray):
         """The sensor pose at which a planar scan's static returns (``kinds == 1``, at ``ends``
