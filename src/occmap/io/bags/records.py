@@ -78,12 +78,12 @@ MAP_BYTES = 64 << 10
 def read_span(file: BinaryIO, offset: int, n: int) -> bytes | memoryview:
     """The ``n`` bytes of the open binary ``file`` from byte ``offset``, read-only (fewer when
     the file ends before). A span of :data:`MAP_BYTES` or more is a view of a memory map of its
-    pages: nothing is copied, the pages come from the page cache as they are read, and
-    the map goes when the view and every view of it do, so a chunk's memory is no more bound to
-    the bag than when read. A shorter span, or one of a file that cannot be mapped, is read (the
-    bytes a fresh buffer, which costs a page fault a page on first touch: a quarter of reading a
-    bag of laser scans). The file must not shrink while a view is held (reading a mapped page past
-    its end kills the process with SIGBUS): bags are read once they are written."""
+    pages: nothing is copied, and the pages come from the page cache as they are read, many at a
+    fault, where bytes read into fresh memory cost a fault a page (a 0.9 MB chunk: 0.04 ms
+    against 0.35 ms). The map goes when the view and every view of it do, so a chunk is held no
+    longer than when read. A shorter span, or one of a file that cannot be mapped, is read. The
+    file must not shrink while a view is held (reading a mapped page past its end kills the
+    process with SIGBUS): bags are read once written."""
     if n >= MAP_BYTES:
         try:
             fd = file.fileno()
