@@ -60,3 +60,25 @@ def _add_if(op: str, doc: str):
 # becomes a branch.
 add_if_le = _add_if("<=", "``t + g`` where ``t <= bound``, else ``t``: no branch.")
 add_if_lt = _add_if("<", "``t + g`` where ``t < bound``, else ``t``: no branch.")
+
+
+@intrinsic
+def load_at(typingctx, buf, at, kind, swap):
+    """The number of NumPy type ``kind`` (``np.float32``, ..., or an array's ``dtype``) whose
+    bytes start at byte ``at`` of the uint8 array ``buf``, at any alignment (a message's fields lie
+    where its bag put them), in the machine's byte order or, when ``swap``, the other: one
+    unaligned load (and a byte swap), where copying the bytes to an aligned place first cost
+    seven times as much."""
+    if not (isinstance(buf, types.Array) and buf.dtype == types.uint8
+            and isinstance(kind, (types.NumberClass, types.DType))):
+        return None
+    dtype = kind.dtype
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        bits = ir.IntType(context.get_abi_sizeof(context.get_data_type(dtype)) * 8)
+        raw = builder.load(builder.bitcast(builder.gep(data, [args[1]]), bits.as_pointer()), align=1)
+        value = builder.select(args[3], builder.bswap(raw), raw) if bits.width > 8 else raw
+        return builder.bitcast(value, context.get_value_type(dtype))
+
+    return dtype(buf, types.intp, kind, types.boolean), codegen

@@ -11,7 +11,7 @@ import pytest
 
 from occmap.errors import FormatError
 from occmap.io.bags import open_bag
-from occmap.io.bags.records import Raws, chunk_records
+from occmap.io.bags.records import MAP_BYTES, Raws, chunk_records, read_span
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
@@ -197,3 +197,37 @@ def test_raws_take_join_and_concat():
     own = raws.take(slice(2, 4)).compact()  # in a buffer of its own: the chunk's can go
     assert [own[i].tobytes() for i in range(2)] == [b"cde", b"f"] and len(own.buf) == 4
     assert not np.shares_memory(own.buf, raws.buf)
+
+
+def test_read_span_maps_long_spans_and_reads_short_ones(tmp_path):
+    """A span of a file from MAP_BYTES on is a read-only view of a map of its pages (from any
+    byte, not only a page's first), a shorter one is read; both are the file's bytes and stay so
+    once the file is closed, and a span past the file's end gives the bytes it has."""
+    data = np.random.default_rng(1).integers(0, 256, 3 * MAP_BYTES, np.uint8).tobytes()
+    path = tmp_path / "f"
+    path.write_bytes(data)
+    with open(path, "rb") as f:
+        long, short, tail = read_span(f, 5000, 2 * MAP_BYTES), read_span(f, 7, 100), read_span(f, len(data) - 10, MAP_BYTES)
+    assert isinstance(long, memoryview) and long.readonly and isinstance(short, bytes)
+    assert bytes(long) == data[5000: 5000 + 2 * MAP_BYTES] and short == data[7:107] and tail == data[-10:]
+
+
+@pytest.mark.parametrize("kind, widen", [("ros1", 1), ("mcap", 120)])
+def test_what_a_stream_hands_out_stays_as_it_was_while_it_reads_on(tmp_path, carmen_scans, kind, widen):
+    """Runs (views of their chunk) and the scan stacks a source decodes from them keep their
+    contents while the next chunks are read and after the bag is closed: no buffer is reused or
+    let go under what was handed out."""
+    from occmap.scan import stack_scans
+    from occmap.sources import BagScans
+
+    path = write(tmp_path / "b", kind, carmen_scans, widen=widen)
+    with open_bag(path) as bag:
+        runs = [(run, flattened([run])) for run in bag.runs(["/scan", "/tf"])]
+    assert len(runs) > 2 and all(flattened([run]) == seen for run, seen in runs)
+    stacks = [(s, s.ranges.copy(), s.poses.copy()) for s in BagScans(path).stacks()]
+    assert len(stacks) > 1
+    for s, ranges, poses in stacks:
+        np.testing.assert_array_equal(s.ranges, ranges)
+        np.testing.assert_array_equal(s.poses, poses)
+    whole = np.concatenate([s.ranges for s, _, _ in stacks])
+    np.testing.assert_array_equal(whole, np.tile(stack_scans(carmen_scans).ranges.astype(np.float32), widen))

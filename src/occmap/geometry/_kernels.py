@@ -670,6 +670,30 @@ def quat_slerp(q0, q1, t, out):
 
 
 @kernel
+def interpolate_samples(stamps, trans, quats, t, q_out, t_out):
+    """Rows ``i`` of ``q_out`` (m, 4) and ``t_out`` (m, 3): a time-stamped link's pose at ``t[i]``
+    from its samples (``stamps`` (n,) sorted and distinct, n ≥ 2; translations (n, 3); unit
+    quaternions (n, 4)). Between the sample before ``t[i]`` and the one after (the last two at
+    the last stamp; ``t`` within the stamps), at the fraction ``a`` of the way: the translation
+    ``lo + a (hi − lo)``, the rotation :func:`_slerp`; at ``a`` 0 or 1 the sample itself, bit for
+    bit."""
+    n = stamps.shape[0]
+    for i in range(t.shape[0]):
+        hi = min(max(np.searchsorted(stamps, t[i], side="right"), 1), n - 1)
+        lo = hi - 1
+        a = (t[i] - stamps[lo]) / (stamps[hi] - stamps[lo])
+        if a == 0.0 or a == 1.0:
+            k = lo if a == 0.0 else hi
+            q_out[i, :] = quats[k]
+            t_out[i, :] = trans[k]
+            continue
+        for c in range(3):
+            t_out[i, c] = trans[lo, c] + a * (trans[hi, c] - trans[lo, c])
+        q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = _slerp(
+            quats[lo, 0], quats[lo, 1], quats[lo, 2], quats[lo, 3], quats[hi, 0], quats[hi, 1], quats[hi, 2], quats[hi, 3], a)
+
+
+@kernel
 def quat_slerp_one(q0, q1, t, out):
     """Single-element form of :func:`quat_slerp`: (4,) arrays and a float ``t``."""
     if not (_unit4(q0[0], q0[1], q0[2], q0[3]) and _unit4(q1[0], q1[1], q1[2], q1[3]) and t - t == 0.0):

@@ -43,13 +43,13 @@ from ..errors import (
     TransformError,
     UnknownFrameError,
 )
-from .quaternion import quat_conjugate, quat_multiply, quat_rotate, quat_slerp
+from ._kernels import interpolate_samples
+from .quaternion import quat_conjugate, quat_multiply, quat_rotate
 from .se3 import SE3
 
 __all__ = ["FrameTree"]
 
 _MIN_CAPACITY = 16
-_SORT_KEYS_ABOVE = 256  # lookups with more stamps than this sort unsorted stamps first
 
 
 class _Link:
@@ -158,41 +158,10 @@ class _Link:
         A static or one-sample link returns arrays of length 1, which broadcast. The caller has
         checked that every stamp lies within the stored range.
         """
-        m = t.shape[0]
         if self.static or len(self) == 1:
             return self.quaternions[:1], self.translations[:1]
-        stamps, trans, quats = self.stamps, self.translations, self.quaternions
-        if m == 1:
-            # The same arithmetic as below on scalars: a single lookup costs a third as much.
-            hi = min(max(int(np.searchsorted(stamps, t[0], side="right")), 1), stamps.shape[0] - 1)
-            lo = hi - 1
-            a = float((t[0] - stamps[lo]) / (stamps[hi] - stamps[lo]))
-            if a == 0.0 or a == 1.0:
-                k = lo if a == 0.0 else hi
-                return quats[k : k + 1], trans[k : k + 1]
-            tr = trans[lo] + a * (trans[hi] - trans[lo])
-            return quat_slerp(quats[lo], quats[hi], a)[None], tr[None]
-        if m > _SORT_KEYS_ABOVE and (t[1:] < t[:-1]).any():
-            # searchsorted narrows each search with the previous key's result: on sorted keys it
-            # is several times faster, more than paying for the argsort.
-            order = np.argsort(t)
-            hi = np.empty(m, dtype=np.intp)
-            hi[order] = np.searchsorted(stamps, t[order], side="right")
-        else:
-            hi = np.searchsorted(stamps, t, side="right")
-        hi = np.clip(hi, 1, stamps.shape[0] - 1)
-        lo = hi - 1
-        s_lo = stamps[lo]
-        alpha = (t - s_lo) / (stamps[hi] - s_lo)
-        # np.take gathers rows several times faster than fancy indexing.
-        t_lo, t_hi = np.take(trans, lo, axis=0), np.take(trans, hi, axis=0)
-        q_lo, q_hi = np.take(quats, lo, axis=0), np.take(quats, hi, axis=0)
-        tr = t_lo + alpha[:, None] * (t_hi - t_lo)
-        q = quat_slerp(q_lo, q_hi, alpha)
-        # An exact hit returns the stored sample bit for bit, not a rounded interpolation of it.
-        at_lo, at_hi = (alpha == 0.0)[:, None], (alpha == 1.0)[:, None]
-        tr = np.where(at_lo, t_lo, np.where(at_hi, t_hi, tr))
-        q = np.where(at_lo, q_lo, np.where(at_hi, q_hi, q))
+        q, tr = np.empty((t.shape[0], 4)), np.empty((t.shape[0], 3))
+        interpolate_samples(self.stamps, self.translations, self.quaternions, t, q, tr)
         return q, tr
 
 

@@ -22,14 +22,17 @@ end, a ROS 1 header field without ``=``, or a message record lacking its fields 
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import io
+import mmap
+import os
+from typing import BinaryIO, NamedTuple
 
 import numpy as np
 
-from ..._jit import kernel
+from ..._jit import inline_kernel, kernel
 from ...errors import FormatError
 
-__all__ = ["Raws", "Records", "chunk_records"]
+__all__ = ["Raws", "Records", "chunk_records", "read_span"]
 
 _ROS1, _MCAP = 1, 2
 # what went wrong at a byte (the kernel's status codes)
@@ -58,14 +61,36 @@ def chunk_records(chunk, kind: str, path, where: str) -> Records:
     array) of ``kind`` ``"ros1"`` or ``"mcap"``. ``path`` and ``where`` (the chunk, e.g. ``"chunk
     at byte 4117"``) name it in a :class:`FormatError`."""
     buf = np.frombuffer(chunk, np.uint8)
-    code = _ROS1 if kind == "ros1" else _MCAP
-    empty = np.empty(0, np.int64)
-    n, status, at = _walk(buf, code, empty, empty, empty, empty)
+    table, n, status, at = _walk(buf, _ROS1 if kind == "ros1" else _MCAP)
     if status:
         raise FormatError(path, f"{where}: {_PROBLEMS[status]}, at byte {at} of its {len(buf)} unpacked bytes")
-    records = Records(*(np.empty(n, np.int64) for _ in range(4)))
-    _walk(buf, code, *records)
-    return records
+    return Records(*table[:, :n])
+
+
+#: Spans of a file at least this long are mapped, not read (:func:`read_span`)
+MAP_BYTES = 64 << 10
+
+
+def read_span(file: BinaryIO, offset: int, n: int) -> bytes | memoryview:
+    """The ``n`` bytes of the open binary ``file`` from byte ``offset``, read-only (fewer when
+    the file ends before). A span of :data:`MAP_BYTES` or more is a view of a memory map of its
+    pages: nothing is copied, and the pages come from the page cache as they are read, many at a
+    fault, where bytes read into fresh memory cost a fault a page (a 0.9 MB chunk: 0.04 ms
+    against 0.35 ms). The map goes when the view and every view of it do, so a chunk is held no
+    longer than when read. A shorter span, or one of a file that cannot be mapped, is read. The
+    file must not shrink while a view is held (reading a mapped page past its end kills the
+    process with SIGBUS): bags are read once written."""
+    if n >= MAP_BYTES:
+        try:
+            fd = file.fileno()
+            if offset + n <= os.fstat(fd).st_size:
+                start = offset - offset % mmap.ALLOCATIONGRANULARITY
+                view = mmap.mmap(fd, offset + n - start, access=mmap.ACCESS_READ, offset=start)
+                return memoryview(view)[offset - start: offset - start + n]
+        except (OSError, ValueError, io.UnsupportedOperation):
+            pass
+    file.seek(offset)
+    return file.read(n)
 
 
 class Raws:
@@ -153,58 +178,57 @@ def _uint(buf, at, nbytes):
 
 
 @kernel
-def _walk(buf, kind, conn, time_ns, start, size):
-    """Count the message records of ``buf`` (and, with arrays of that length, fill them in):
-    ``(count, status, byte)``, status 0 when the chunk reads to its end, else what went wrong
+def _walk(buf, kind):
+    """The message records of ``buf`` in one pass: ``(table, count, status, byte)``, the table's
+    rows conn, time_ns, start and size (:class:`Records`) in its first ``count`` columns (a table
+    that doubles when full), status 0 when the chunk reads to its end, else what went wrong
     (:data:`_PROBLEMS`) at the record starting at that byte."""
-    store = len(conn) > 0
+    table = np.empty((4, 256), np.int64)
     end = len(buf)
     pos = 0
     n = 0
     while pos < end:
         if kind == _MCAP:
             if end - pos < 9:
-                return n, 1, pos
+                return table, n, 1, pos
             op = buf[pos]
             length = _uint(buf, pos + 1, 8)
             body = pos + 9
             if length < 0 or length > end - body:
-                return n, 1, pos
+                return table, n, 1, pos
             if op == 0x05:
                 if length < 22:
-                    return n, 5, pos
-                if store:
-                    conn[n] = _uint(buf, body, 2)
-                    time_ns[n] = _uint(buf, body + 6, 8)
-                    start[n] = body + 22
-                    size[n] = length - 22
+                    return table, n, 5, pos
+                table = _room(table, n)
+                table[0, n], table[1, n] = _uint(buf, body, 2), _uint(buf, body + 6, 8)
+                table[2, n], table[3, n] = body + 22, length - 22
                 n += 1
             pos = body + length
             continue
         if end - pos < 4:
-            return n, 1, pos
+            return table, n, 1, pos
         header = pos + 4
         header_end = header + _uint(buf, pos, 4)
         if header_end > end - 4:
-            return n, 1, pos
+            return table, n, 1, pos
         data = header_end + 4
         data_end = data + _uint(buf, header_end, 4)
         if data_end > end:
-            return n, 1, pos
+            return table, n, 1, pos
         op, c, t = -1, np.int64(-1), np.int64(-1)
         at = header
         while at < header_end:
             if header_end - at < 4:
-                return n, 2, pos
+                return table, n, 2, pos
             field = at + 4
             field_end = field + _uint(buf, at, 4)
             if field_end > header_end:
-                return n, 2, pos
+                return table, n, 2, pos
             eq = field
             while eq < field_end and buf[eq] != 61:  # '='
                 eq += 1
             if eq == field_end:
-                return n, 2, pos
+                return table, n, 2, pos
             name, value = eq - field, field_end - eq - 1
             if name == 2 and value == 1 and buf[field] == 111 and buf[field + 1] == 112:  # op
                 op = buf[eq + 1]
@@ -217,14 +241,21 @@ def _walk(buf, kind, conn, time_ns, start, size):
             at = field_end
         if op == 0x02:
             if c < 0 or t < 0:
-                return n, 3, pos
-            if store:
-                conn[n] = c
-                time_ns[n] = t
-                start[n] = data
-                size[n] = data_end - data
+                return table, n, 3, pos
+            table = _room(table, n)
+            table[0, n], table[1, n], table[2, n], table[3, n] = c, t, data, data_end - data
             n += 1
         elif op != 0x07:
-            return n, 4, pos
+            return table, n, 4, pos
         pos = data_end
-    return n, 0, 0
+    return table, n, 0, 0
+
+
+@inline_kernel
+def _room(table, n):
+    """``table``, or a copy twice as wide when its ``n`` columns fill it."""
+    if n < table.shape[1]:
+        return table
+    wider = np.empty((4, 2 * n), np.int64)
+    wider[:, :n] = table
+    return wider

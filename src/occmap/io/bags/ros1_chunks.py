@@ -34,7 +34,7 @@ import struct
 from typing import BinaryIO, Iterator, NamedTuple
 
 from ...errors import FormatError
-from .records import Records, chunk_records
+from .records import Records, chunk_records, read_span
 
 _U32 = struct.Struct("<I")
 _OP_BAG_HEADER, _OP_CHUNK, _OP_CONNECTION, _OP_CHUNK_INFO = 0x03, 0x05, 0x07, 0x06
@@ -127,14 +127,14 @@ class Ros1Chunks:
         for data, records in self.chunks_of(connections):
             for conn, time_ns, start, size in zip(*(a.tolist() for a in records)):
                 if conn in connections:
-                    yield conn, time_ns, data[start: start + size]
+                    yield conn, time_ns, bytes(data[start: start + size])
 
-    def chunks_of(self, connections: set[int]) -> Iterator[tuple[bytes, Records]]:
+    def chunks_of(self, connections: set[int]) -> Iterator[tuple[object, Records]]:
         """``(unpacked chunk, its message records)`` of each chunk holding messages of
         ``connections`` (and maybe others), in time order (:meth:`records_of`)."""
         return self.records_of([c for c in self.chunks if connections.intersection(c.counts)])
 
-    def records_of(self, chunks: list[ChunkInfo]) -> Iterator[tuple[bytes, Records]]:
+    def records_of(self, chunks: list[ChunkInfo]) -> Iterator[tuple[object, Records]]:
         """``(unpacked chunk, its message records)`` of each of ``chunks``, the records listed by
         :func:`~.records.chunk_records`."""
         for chunk in chunks:
@@ -143,13 +143,17 @@ class Ros1Chunks:
 
     # ------------------------------------------------------------------ records
 
-    def _unpack(self, position: int) -> bytes:
-        """The records held by the chunk at ``position``, decompressed."""
-        fields, data, _ = self._record(position, _OP_CHUNK)
+    def _unpack(self, position: int):
+        """The records held by the chunk at ``position``, decompressed: bytes, or for a chunk
+        stored uncompressed a read-only view of the file (:func:`~.records.read_span`)."""
+        fields, (at, n), _ = self._record(position, _OP_CHUNK, read_data=False)
         compression = fields.get(b"compression", b"").decode(errors="replace")
         size = self._uint(fields, "size", position)
         if compression not in ("none", "bz2", "lz4"):
             raise FormatError(self.path, f"chunk compression {compression!r} is not none, bz2 or lz4", offset=position)
+        data = read_span(self._file, at, n)
+        if len(data) != n:
+            raise FormatError(self.path, f"the file ends inside a record (wanted {n} bytes, found {len(data)})", offset=at)
         try:
             if compression == "bz2":
                 unpacked = bz2.decompress(data)
@@ -165,20 +169,21 @@ class Ros1Chunks:
             raise FormatError(self.path, f"chunk unpacks to {len(unpacked)} bytes, its header says {size}", offset=position)
         return unpacked
 
-    def _record(self, pos: int, op: int) -> tuple[dict[bytes, bytes], bytes, int]:
+    def _record(self, pos: int, op: int, read_data: bool = True) -> tuple[dict[bytes, bytes], object, int]:
         """Header fields, data and the next position of the record at ``pos``, which must be
-        of kind ``op``."""
+        of kind ``op``; unless ``read_data``, the data's ``(start, length)`` in its place."""
         self._file.seek(pos)
         head = self._read(pos, 4)
         header = self._read(pos + 4, _U32.unpack(head)[0])
-        size = self._read(pos + 4 + len(header), 4)
-        data = self._read(pos + 8 + len(header), _U32.unpack(size)[0])
+        at = pos + 8 + len(header)
+        n = _U32.unpack(self._read(at - 4, 4))[0]
+        data = self._read(at, n) if read_data else (at, n)
         fields = _fields(self.path, header, pos)
         found = fields.get(b"op")
         if found != bytes([op]):
             what = "no op field" if found is None else f"op 0x{found.hex()}"
             raise FormatError(self.path, f"expected a record with op 0x{op:02x}, found {what}", offset=pos)
-        return fields, data, pos + 8 + len(header) + len(data)
+        return fields, data, at + n
 
     def _read(self, pos: int, n: int) -> bytes:
         raw = self._file.read(n)
