@@ -12,7 +12,7 @@ million points is never copied a million times.
 from __future__ import annotations
 
 import numpy as np
-from numba import carray, get_num_threads, types
+from numba import carray, get_num_threads, njit, types
 from numba.core.caching import FunctionCache
 from numba.core.ccallback import CFunc
 
@@ -133,37 +133,39 @@ class _NamedCache(FunctionCache):
         return (sig, codegen.magic_tuple(), self._name)
 
 
+def _element_call(kernel, shapes: tuple, out_trailing: tuple[int, ...], args: tuple, one):
+    """``call(ops, o)``, inlined into the cfunc: one element through ``one(*operands, o)``
+    (scalars as floats) or, without it, ``kernel(*args, *operands, o)`` (scalars as one-element
+    arrays, as :func:`run` passes a batch's), the operands read in place from their data
+    pointers ``ops``. ``args`` holds at most one constant."""
+    s0, s1, s2 = [shape or (1,) for shape in shapes] + [(1,)] * (3 - len(shapes))
+    if one is not None and not shapes[0]:  # Euler angles, a planar pose
+        call = lambda ops, o: one(ops[0][0], ops[1][0], ops[2][0], o)  # noqa: E731
+    elif one is not None and len(shapes) == 3:  # two arrays and a float (slerp)
+        call = lambda ops, o: one(carray(ops[0], s0), carray(ops[1], s1), ops[2][0], o)  # noqa: E731
+    elif one is not None:
+        call = lambda ops, o: one(carray(ops[0], s0), carray(ops[1], s1), o)  # noqa: E731
+    elif args:
+        arg = args[0]
+        call = {1: lambda ops, o: kernel(arg, carray(ops[0], s0), o),
+                3: lambda ops, o: kernel(arg, carray(ops[0], s0), carray(ops[1], s1), carray(ops[2], s2), o)}[len(shapes)]
+    else:
+        call = {1: lambda ops, o: kernel(carray(ops[0], s0), o),
+                2: lambda ops, o: kernel(carray(ops[0], s0), carray(ops[1], s1), o),
+                3: lambda ops, o: kernel(carray(ops[0], s0), carray(ops[1], s1), carray(ops[2], s2), o)}[len(shapes)]
+    return njit(inline="always", error_model="numpy")(call)
+
+
 def _single_kernel(kernel, shapes: tuple, out_trailing: tuple[int, ...], args: tuple, one) -> CFunc:
-    """One element through ``one(*operands, out)`` (scalars as floats) or, without it,
-    ``kernel(*args, *operands, out)`` (scalars as one-element arrays, as :func:`run` passes a
-    batch's), compiled with the C signature :class:`._single.SingleCall` calls: the operands are
-    read in place from their data pointers; a rejection (any exception) returns 1. ``args`` holds
-    at most one constant. The branches are decided by the closure's constants when Numba compiles:
-    each cfunc keeps only its own call."""
-    n, has_arg, floats = len(shapes), len(args) == 1, one is not None
-    arg = args[0] if has_arg else 0
-    s0, s1, s2 = [shape or (1,) for shape in shapes] + [(1,)] * (3 - n)
-    three_floats = floats and n == 3 and not shapes[0]
+    """The cfunc :class:`._single.SingleCall` calls for one element (:func:`_element_call`), with
+    its C signature: 0 when the output is filled, 1 when the kernel rejected the element (any
+    exception). Each arity's call is a closure of its own: one closure branching over all of them
+    made Numba's untyped passes take ~1 s a cfunc instead of ~0.15 s."""
+    call = _element_call(kernel, shapes, out_trailing, args, one)
 
     def single(ops, out):
-        o = carray(out, out_trailing)
         try:
-            if three_floats:  # Euler angles, a planar pose
-                one(ops[0][0], ops[1][0], ops[2][0], o)
-            elif floats and n == 3:  # two arrays and a float (slerp)
-                one(carray(ops[0], s0), carray(ops[1], s1), ops[2][0], o)
-            elif floats:
-                one(carray(ops[0], s0), carray(ops[1], s1), o)
-            elif n == 1 and has_arg:
-                kernel(arg, carray(ops[0], s0), o)
-            elif n == 1:
-                kernel(carray(ops[0], s0), o)
-            elif n == 2:
-                kernel(carray(ops[0], s0), carray(ops[1], s1), o)
-            elif has_arg:
-                kernel(arg, carray(ops[0], s0), carray(ops[1], s1), carray(ops[2], s2), o)
-            else:
-                kernel(carray(ops[0], s0), carray(ops[1], s1), carray(ops[2], s2), o)
+            call(ops, carray(out, out_trailing))
         except Exception:  # noqa: BLE001 - the Python path raises the error that names the element
             return 1
         return 0
