@@ -223,7 +223,11 @@ def test_scans_the_map_does_not_explain_are_coasted_through(sim_map, world):
     cloud (error within the odometry's drift); without it they drag the estimate over a metre off.
     ``coast_max_d`` bounds how far the filter coasts: past it the scans weigh the cloud again (and
     drag it), but the estimate stays the odometry's until the cloud's is confirmed, and the cloud
-    is brought back once a scan fits the odometry's pose again."""
+    is brought back once a scan fits the odometry's pose again. The scans fit the wrong pose
+    perfectly, so the cloud is confirmed there once it has been not lost on ``coast_confirm`` (5)
+    runs: the wrong view must end before cap + drag + confirmation. With the refinement's finishing
+    pass (``refine_finish``) the cloud is dragged there in 2 runs instead of 3, so the cap here is
+    1.2 m (6 steps), not 1.0 m, for the 12-step view."""
     rng = np.random.default_rng(41)
     truth = world.default_trajectory(n=600)[100:300]
     odo = _drifting_odometry(truth, rng)
@@ -246,8 +250,8 @@ def test_scans_the_map_does_not_explain_are_coasted_through(sim_map, world):
     assert coasted == 12 and err[10:60].max() < 0.1 and err[60:72].max() < 0.3 and err[80:].max() < 0.1
     err, coasted = run()
     assert coasted == 0 and err[60:72].max() > 1.0
-    err, _ = run(coast_fit=0.75, coast_max_d=1.0)  # about 1 m (5 steps) of coasting, then the scans weigh again
-    assert err[60:65].max() < 0.1 and run.cloud_err[68:72].min() > 1.0  # the cloud is dragged ...
+    err, _ = run(coast_fit=0.75, coast_max_d=1.2)  # about 1.2 m (6 steps) of coasting, then the scans weigh again
+    assert err[60:66].max() < 0.1 and run.cloud_err[69:72].min() > 1.0  # the cloud is dragged ...
     assert err[60:72].max() < 0.1 and err[72:].max() < 0.1  # ... the estimate is not, and the cloud comes back
 
 

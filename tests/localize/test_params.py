@@ -53,6 +53,7 @@ def test_numpy_scalars_are_accepted_and_normalised():
     (dict(relocalize_confirm_d=-1.0), "relocalize_confirm_d must be a non-negative"),
     (dict(coast_evidence=-1.0), "coast_evidence must be a non-negative"),
     (dict(coast_motion=(0.1, 0.1, -0.1, 0.1)), "alphas\\[2\\]"),
+    (dict(refine_finish=0.0), "refine_finish must be a positive"),
 ])
 def test_bad_values_name_the_field(changes, match):
     with pytest.raises(InvalidArgumentError, match=match):

@@ -89,6 +89,11 @@ class LocalizationParams:
     refine_cutoff : float, default 0.3
         End points farther (m) than this from any obstacle are left out of the scan match, and
         count as unexplained in an estimate's ``fit``.
+    refine_finish : float, default 0.15
+        Once a scan match of the filter (refinement, coasting) has converged with
+        ``refine_cutoff``, it is finished on the end points within this distance (m) of an obstacle
+        (:func:`~occmap.localize.scan_match.match`); at least ``refine_cutoff``: no finishing pass.
+        The dead-reckoning hypothesis's local matches (past ``coast_max_d``) are not finished.
     lost_fit : float, default 0.85
         An estimate whose ``fit`` (share of the scan's beams the map explains there) is below this
         share of its usual value is reported ``lost``.
@@ -173,6 +178,7 @@ class LocalizationParams:
     refine: bool = False
     refine_feedback: bool = False
     refine_cutoff: float = 0.3
+    refine_finish: float = 0.15
     lost_fit: float = 0.85
     # coasting through what the map does not explain
     coast_fit: float = 0.0
@@ -207,7 +213,7 @@ class LocalizationParams:
         if self.z_hit + self.z_rand <= 0:
             raise InvalidArgumentError("z_hit + z_rand must be positive")
         for name in ("sigma_hit", "laser_likelihood_max_dist", "beam_exponent", "kld_err", "kld_z",
-                     "refine_cutoff", "global_sigma_hit"):
+                     "refine_cutoff", "refine_finish", "global_sigma_hit"):
             put(name, checks.positive(name, getattr(self, name)))
         if self.z_rand_span not in ("field", "range"):
             raise InvalidArgumentError(f"z_rand_span must be 'field' or 'range', got {self.z_rand_span!r}")

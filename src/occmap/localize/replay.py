@@ -249,7 +249,8 @@ def reference_fit(field, scans) -> np.ndarray:
 def reference_offset(field, scans) -> tuple[np.ndarray, np.ndarray]:
     """Where the map places each scan, seen from its own pose (a corrected log's): the position (m)
     and absolute heading (rad) offsets from the pose to the scan match
-    (:func:`~occmap.localize.scan_match.match`, cutoff ``field.params.refine_cutoff``) started there;
+    (:func:`~occmap.localize.scan_match.match` with ``field.params``' ``refine_cutoff`` and
+    ``refine_finish``, as the localizer's refinement) started there;
     NaN where the match fails or the scan has no valid reading. An estimate that follows the map
     (the scan-match refinement) lands where the match does, so these offsets are the error it shows
     against the reference even when it is right about the map: a floor under the measured error."""
@@ -259,7 +260,7 @@ def reference_offset(field, scans) -> tuple[np.ndarray, np.ndarray]:
         _, _, bx, by = beam_end_points(s.ranges, s.angles, s.max_range, field.params)
         if not bx.size:
             continue
-        x, _ = match(field, s.pose, bx, by, field.params.refine_cutoff)
+        x, _ = match(field, s.pose, bx, by, field.params.refine_cutoff, finish=field.params.refine_finish)
         if x is not None:
             dist[k] = math.hypot(x[0] - s.pose[0], x[1] - s.pose[1])
             turn[k] = abs(float(wrap_angle(x[2] - s.pose[2])))

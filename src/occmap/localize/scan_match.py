@@ -5,6 +5,17 @@ centres at integer + 0.5); end points farther than ``cutoff`` from every obstacl
 unmapped objects) are left out. Each step solves ``(JᵀJ + 10⁻⁶·n·I) δ = −Jᵀr`` for the pose
 correction ``δ = (dx, dy, dθ)`` and stops when it is below 10⁻⁵ (m and rad). The matcher places
 a pose between a particle filter's samples and below the grid's resolution.
+
+``finish`` adds a finishing pass: once a match has converged with its ``cutoff`` (wide enough to
+draw in a pose some decimetres off), it goes on from there on the end points within the smaller
+cutoff ``finish``. At the converged pose an end point still ``finish``..``cutoff`` from every
+obstacle is mostly an object the map does not hold (furniture, people, a wall the map shows
+smeared), not a wall the pose is off from, and with a square loss each such point pulls the pose
+by a share of its distance. Measured (corrected scans matched from their own poses in the 5 cm map
+of their log, :func:`occmap.localize.replay.reference_offset`, cutoff 0.3 m): the match moves
+Freiburg 079's 0.062 m / 0.94° on average, 0.055 m / 0.79° finished at 0.15 m, 0.054 m / 0.76°
+finished again at 0.075 m (as the localizer's, that second halving let one seed of the raw run
+slide off where the map is poor); Intel's 0.026 m / 0.33°, 0.024 m / 0.32° finished at 0.15 m.
 """
 
 from __future__ import annotations
@@ -21,10 +32,24 @@ __all__ = ["match"]
 MIN_INLIERS = 10
 
 
-def match(field: LikelihoodField, pose, bx: np.ndarray, by: np.ndarray, cutoff: float, iterations: int = 10):
+def match(field: LikelihoodField, pose, bx: np.ndarray, by: np.ndarray, cutoff: float, iterations: int = 10,
+          finish: float | None = None):
     """Match end points ``(bx, by)`` (sensor/robot frame, m) from ``pose`` ``(x, y, theta)``
     against ``field``; returns ``(pose, inliers)``, the pose None when the match failed (too few
-    inliers or a singular system)."""
+    inliers or a singular system). With ``finish`` below ``cutoff`` the converged match is finished
+    on the end points within ``finish`` (m) of an obstacle (see above); a finishing pass that fails
+    leaves the pose as converged. ``inliers`` counts the end points within ``cutoff``."""
+    x, used = _gauss_newton(field, pose, bx, by, cutoff, iterations)
+    if x is not None and finish is not None and finish < cutoff:
+        y, _ = _gauss_newton(field, x, bx, by, finish, iterations)
+        if y is not None:
+            x = y
+    return x, used
+
+
+def _gauss_newton(field: LikelihoodField, pose, bx: np.ndarray, by: np.ndarray, cutoff: float, iterations: int):
+    """Gauss–Newton steps from ``pose`` on the end points within ``cutoff``: ``(pose, inliers)``, the
+    pose None when fewer than :data:`MIN_INLIERS` are left or the system is singular."""
     x = np.array(pose, dtype=np.float64)
     Hm = np.empty((3, 3))
     g = np.empty(3)
