@@ -435,8 +435,9 @@ def quat_multiply(a, b, out):
 
 @kernel
 def quat_multiply_one(a, b, out):
-    """Single-element form of :func:`quat_multiply`: (4,) arrays read as they are, no reshapes
-    (each costs a single call tens of ns)."""
+    """Single-element form of :func:`quat_multiply` for the C single path (``_arrays.entry``): (4,)
+    arrays read as they are, no row loop and no branch-free pass before it (0.10 µs a call through
+    it, 0.26 µs through :func:`quat_multiply`)."""
     if not _quat_product(a, _U(0), b, _U(0), out, _U(0)):
         raise Rejected(0)
 
@@ -1027,8 +1028,8 @@ def matrix_of_three(kind, x, y, z, out):
 
 @kernel
 def euler_zyx_to_matrix_one(yaw, pitch, roll, out):
-    """Single-element form of :func:`matrix_of_three` for :data:`EULER_ZYX`: floats pass without array
-    conversion, and without a kind to pass (each argument costs a single call ~40 ns)."""
+    """Single-element form of :func:`matrix_of_three` for :data:`EULER_ZYX` (the C single path,
+    ``_arrays.entry``): three floats, no row loop."""
     if not _three_entries(EULER_ZYX, yaw, pitch, roll, out.reshape((1, 3, 3)), 0):
         raise Rejected(0)
 
