@@ -444,27 +444,22 @@ class LocalMap(OneCallAtATime):
                 R = np.where(np.isinf(R), np.nan, R)
         else:
             mr = checks.positive("max_range", max_range, "metres")
+        given = P
+        if self.register:
+            P = self._to_map(P, heading=True)  # where the running correction puts the scan
         ends = np.empty((R.size, 2))
         kinds = np.empty(R.size, dtype=np.int8)
         dropped, maxed = K.scan_ends(P, R, A, mr, ends, kinds)
         judged = None
-        if self.register:
-            M = self._to_map(P, heading=True)
-            if M is not P:
-                K.scan_ends(M, R, A, mr, ends, kinds)
-            Q = self._registered(M, R, A, kinds, ends)
-            if Q is None:
-                judged = False  # inserted where the correction puts it, nothing judged to move
-            elif Q is not M:
-                self._correct(P, Q)
-                K.scan_ends(Q, R, A, mr, ends, kinds)
-                M = Q
-            P = M
-        elif self._objects is not None:
+        if self.register or self._objects is not None:
             Q = self._registered(P, R, A, kinds, ends)
             if Q is None:
-                judged = False
-            elif Q is not P:
+                judged = False  # nothing in it judged to move (with register: inserted where the correction puts it)
+            elif Q is not P and self.register:  # inserted, and judged, where it fits
+                self._correct(given, Q)
+                K.scan_ends(Q, R, A, mr, ends, kinds)
+                P = Q
+            elif Q is not P:  # inserted at the caller's pose, judged where it fits
                 judged = (np.empty_like(ends), Q[:2])
                 K.scan_ends(Q, R, A, mr, judged[0], np.empty_like(kinds))
         self._pose = P
