@@ -1,4 +1,5 @@
-"""Compiled kernels are never stale: a change to any source recompiles the kernels that use it."""
+"""Compiled kernels are never stale: a change to any source recompiles the kernels that use it; and
+processes compiling at once keep every kernel's cache index whole."""
 
 from __future__ import annotations
 
@@ -6,9 +7,13 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
+from numba.core.caching import IndexDataCacheFile
+
 import occmap
+from occmap._jit import cache_lock
 
 CALLER = '''
 from ._jit import kernel
@@ -50,3 +55,21 @@ def test_a_kernel_recompiles_when_a_kernel_it_calls_from_another_file_changes(tm
     # the new version's kernels live in a folder of their own; the old version's folder is gone
     now = list((package / "__pycache__").glob("occmap-*/_probe_caller.probe-*.nbi"))
     assert len(now) == 1 and now[0].parent != cached[0].parent
+
+
+def test_a_kernel_saved_while_another_process_adds_to_its_index_keeps_both_entries(tmp_path):
+    # Numba reads a kernel's index, picks the next free data file and writes both back: interleaved
+    # with another process doing the same, both signatures got one data file, the index one of them.
+    folder = tmp_path / ("occmap-" + "0" * 16)
+    folder.mkdir()
+    mine, other = (IndexDataCacheFile(str(folder), "kernel-1.py311", "stamp") for _ in range(2))
+    with cache_lock(str(folder)):  # the other process, between reading the index and writing it
+        index = other._load_index()
+        saving = threading.Thread(target=mine.save, args=(("sig-a",), b"a"))
+        saving.start()
+        saving.join(0.5)
+        index[("sig-b",)] = other._data_name(1)
+        other._save_index(index)
+        other._save_data(index[("sig-b",)], b"b")
+    saving.join()
+    assert mine.load(("sig-a",)) == b"a" and mine.load(("sig-b",)) == b"b"

@@ -11,10 +11,18 @@ calls from other files compiled into it: after an edit or an upgrade a stale ker
 digest of all the package's sources (:func:`sources_stamp`), inside the folder Numba would use:
 any change anywhere starts an empty one (and removes the folders of other versions), and two
 processes running different versions at once never read each other's files.
+
+Several processes may compile the same kernel at once (``occmap warmup``'s workers, Dask workers
+on a fresh machine). Numba adds an entry to a kernel's index by reading the index, choosing the
+next free data file and writing both back; two processes doing that together both choose the same
+data file, and the index then points one signature at the other's machine code. Here those saves
+hold an exclusive ``flock`` on the cache folder's ``.lock`` (:func:`cache_lock`).
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import functools
 import hashlib
 import os
@@ -22,7 +30,8 @@ import shutil
 from pathlib import Path
 
 from numba import njit
-from numba.core.caching import CacheImpl, InTreeCacheLocator, UserProvidedCacheLocator, UserWideCacheLocator
+from numba.core.caching import (CacheImpl, IndexDataCacheFile, InTreeCacheLocator, UserProvidedCacheLocator,
+                                 UserWideCacheLocator)
 
 from ._threads import prefer_tbb
 
@@ -75,6 +84,28 @@ CacheImpl._locator_classes = [
       for base in (UserProvidedCacheLocator, InTreeCacheLocator, UserWideCacheLocator)),
     *CacheImpl._locator_classes,
 ]
+
+
+@contextlib.contextmanager
+def cache_lock(folder: str):
+    """Held while a kernel is added to the cache folder ``folder``: an exclusive ``flock`` on its
+    ``.lock`` file, which waits for another process's."""
+    fd = os.open(os.path.join(folder, ".lock"), os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the flock
+
+
+def _save_locked(self, key, data, _save=IndexDataCacheFile.save):
+    if not os.path.basename(self._cache_path).startswith(_FOLDER_PREFIX):
+        return _save(self, key, data)
+    with cache_lock(self._cache_path):  # Numba's save reads the index again, under the lock
+        return _save(self, key, data)
+
+
+IndexDataCacheFile.save = _save_locked
 
 kernel = njit(cache=True, error_model="numpy", nogil=True)
 kernel_parallel = njit(cache=True, error_model="numpy", nogil=True, parallel=True)

@@ -240,7 +240,20 @@ class ThreadChoice:
             self._interval = _FIRST_INTERVAL if changed else min(2 * self._interval, _MAX_INTERVAL)
 
 
+_as_if_idle = False
+
+
+def choose_as_if_idle() -> None:
+    """From now on this process's :class:`ThreadChoice` blocks ignore the other processes' load
+    (``occmap warmup``: its processes compile the parallel paths too, while they keep the cores
+    busy themselves)."""
+    global _as_if_idle
+    _as_if_idle = True
+
+
 def _free_for_parallel() -> bool:
+    if _as_if_idle:
+        return True
     free = free_cores()
     return free is None or free >= _FREE_FOR_PARALLEL
 
