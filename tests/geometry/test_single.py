@@ -2,7 +2,10 @@
 values of that element in a batch, every other form of input through the Python path with the same
 result or the same error, and compiled code that the next process loads instead of compiling."""
 
+import copy
+import inspect
 import json
+import pickle
 import subprocess
 import sys
 
@@ -94,6 +97,32 @@ def test_an_unbound_call_and_a_wrong_call_go_to_the_fallback():
     q = np.array([1.0, 0, 0, 0])
     assert fresh(q) == "fallback" and fresh(q, q) == "fallback" and fresh(q=q) == "fallback"
     assert [len(v) for v, _ in calls] == [1, 2, 0] and calls[2][1] == {"q": q}
+
+
+def test_a_public_function_that_is_its_single_call_behaves_as_the_python_function_it_wraps(rng):
+    """Most public functions are their SingleCall itself (``_arrays.public``): the wrapped
+    function's name, docstring and signature; keyword arguments and a wrong number of arguments
+    handled by that function (the same values, the same TypeError); bound as a method in a class;
+    pickled and copied by reference."""
+    published = [f for f, _ in CALLS if isinstance(f, SingleCall)]
+    assert len(published) >= 20
+    for f in published:
+        assert f.__doc__ and pickle.loads(pickle.dumps(f)) is f and copy.deepcopy(f) is f
+        assert f.__wrapped__.__name__ == f.__name__ and repr(f) == f"<function {f.__name__}>"
+    q, q2 = _batch_of(rng)["q"][:2]
+    f = g.quat_multiply
+    assert list(inspect.signature(f).parameters) == ["q1", "q2"] and "Hamilton" in f.__doc__
+    np.testing.assert_array_equal(f(q2=q2, q1=q), f(q, q2))
+    np.testing.assert_array_equal(g.quat_slerp(q, q2, t=0.25), g.quat_slerp(q, q2, 0.25))
+    for wrong in ((q,), (q, q2, q)):
+        with pytest.raises(TypeError, match="quat_multiply"):
+            f(*wrong)
+
+    class Holder:
+        multiply = g.quat_multiply
+
+    h = Holder()
+    assert h.multiply.__self__ is h and h.multiply.__func__ is f and Holder.multiply is f
 
 
 def test_rejected_elements_raise_the_python_paths_named_error():

@@ -11,6 +11,8 @@ million points is never copied a million times.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numba import carray, get_num_threads, njit, types
 from numba.core.caching import FunctionCache
@@ -25,7 +27,7 @@ _F64 = np.dtype(np.float64)
 #: Largest accepted Frobenius norm of RᵀR − I for a rotation matrix.
 ROTATION_TOL = 1e-6
 
-__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "entry", "index_batch", "reject", "run", "unstack", "where"]
+__all__ = ["ROTATION_TOL", "UNIT_TOL", "Rejected", "batch", "broadcast", "entry", "index_batch", "public", "reject", "run", "unstack", "where"]
 
 
 def batch(x, trailing: tuple[int, ...], name: str) -> tuple[np.ndarray, tuple[int, ...]]:
@@ -200,7 +202,9 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
     otherwise = otherwise or general
     shapes = tuple(op[0] for op in operands)
 
-    def first(*values):
+    def first(*values, **named):
+        if named or len(values) != len(operands):  # the public function's own signature sorts them out
+            return call.__wrapped__(*values, **named)
         if not call.bound:
             compiled = _single_kernel(kernel, shapes, out_trailing, args, one)
             call.bind(compiled.address, compiled)
@@ -208,6 +212,18 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
 
     call = SingleCall(shapes, out_trailing, first)
     return call
+
+
+def public(call: SingleCall):
+    """Decorator: the function it decorates is published as ``call`` itself (its single path then
+    has no Python frame in front, ~40 ns of a ~140 ns call) wearing the function's name, docstring
+    and signature (``functools.wraps``). The function stays the one that takes keyword arguments,
+    defaults and any other number of arguments: it calls ``call`` with the operands in order."""
+
+    def publish(f):
+        return functools.update_wrapper(call, f)
+
+    return publish
 
 
 def where(index: int, lead: tuple[int, ...]) -> str:

@@ -14,7 +14,7 @@ matrix to rounding error (≤ 2e-15 per entry).
 from __future__ import annotations
 
 from . import _kernels as K
-from ._arrays import entry, unstack
+from ._arrays import entry, public, unstack
 
 _to_matrix = entry(
     K.matrix_of_three, (3, 3), ((), "yaw", "finite"), ((), "pitch", "finite"), ((), "roll", "finite"),
@@ -23,6 +23,7 @@ _to_matrix = entry(
 _to_euler = entry(K.matrix_to_euler_zyx, (3,), ((3, 3), "R", "rotation"))
 
 
+@public(_to_matrix)
 def euler_zyx_to_matrix(yaw, pitch, roll):
     """Rotation matrices (..., 3, 3) from yaw, pitch, roll (radians; broadcast against each other)."""
     return _to_matrix(yaw, pitch, roll)

@@ -10,7 +10,7 @@ ROS messages store ``(x, y, z, w)``: convert with :func:`quat_from_xyzw` / :func
 from __future__ import annotations
 
 from . import _kernels as K
-from ._arrays import batch, entry
+from ._arrays import batch, entry, public
 
 _Q = (4,)
 _multiply = entry(K.quat_multiply, _Q, (_Q, "q1", "finite"), (_Q, "q2", "finite"), one=K.quat_multiply_one)
@@ -25,37 +25,44 @@ _to_axis_angle = entry(K.quat_to_axis_angle, _Q, (_Q, "q", "unit"))
 _slerp = entry(K.quat_slerp, _Q, (_Q, "q0", "unit"), (_Q, "q1", "unit"), ((), "t", "finite"), one=K.quat_slerp_one)
 
 
+@public(_multiply)
 def quat_multiply(q1, q2):
     """Hamilton product ``q1 ⊗ q2`` (rotation by ``q2`` then ``q1``) of any finite quaternions."""
     return _multiply(q1, q2)
 
 
+@public(_conjugate)
 def quat_conjugate(q):
     """``(w, −x, −y, −z)``: the inverse rotation of a unit quaternion."""
     return _conjugate(q)
 
 
+@public(_inverse)
 def quat_inverse(q):
     """Multiplicative inverse ``q* / ‖q‖²`` of any non-zero finite quaternion."""
     return _inverse(q)
 
 
+@public(_normalize)
 def quat_normalize(q):
     """``q / ‖q‖`` for any non-zero finite quaternion (exact also for tiny or huge ones);
     raises NotUnitQuaternionError for a zero quaternion, NonFiniteError for NaN/inf."""
     return _normalize(q)
 
 
+@public(_rotate)
 def quat_rotate(q, v):
     """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4): ``q ⊗ (0, v) ⊗ q*``."""
     return _rotate(q, v)
 
 
+@public(_to_matrix)
 def quat_to_matrix(q):
     """Rotation matrices (..., 3, 3) of unit quaternions (..., 4)."""
     return _to_matrix(q)
 
 
+@public(_from_matrix)
 def matrix_to_quat(R):
     """Unit quaternions (..., 4) with ``w ≥ 0`` of rotation matrices (..., 3, 3).
 
@@ -66,6 +73,7 @@ def matrix_to_quat(R):
     return _from_matrix(R)
 
 
+@public(_from_axis_angle)
 def axis_angle_to_quat(axis, angle):
     """Quaternions of rotations by ``angle`` (radians, right-handed) about ``axis`` (non-zero, any length)."""
     return _from_axis_angle(axis, angle)
@@ -80,6 +88,7 @@ def quat_to_axis_angle(q):
     return out[..., :3], out[..., 3]
 
 
+@public(_slerp)
 def quat_slerp(q0, q1, t):
     """Spherical linear interpolation from ``q0`` (t = 0) to ``q1`` (t = 1) along the shorter arc.
 

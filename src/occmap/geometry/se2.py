@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import entry, reject, unstack
+from ._arrays import entry, public, reject, unstack
 from ._batch import Batch
 from .so2 import SO2, wrap_angle
 
@@ -22,6 +22,7 @@ _from_matrix = entry(K.se2_from_matrix, (3,), ((3, 3), "T", "rigid2"))
 _apply = entry(K.transform_points2, (2,), ((3, 3), "pose", "rigid2"), ((2,), "points", "finite"))
 
 
+@public(_matrix)
 def se2_matrix(x, y, theta):
     """Homogeneous matrices (..., 3, 3) of poses; ``x``, ``y``, ``theta`` broadcast."""
     return _matrix(x, y, theta)

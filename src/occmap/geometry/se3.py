@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import entry, run
+from ._arrays import entry, public, run
 from ._batch import Batch
 from .euler import euler_zyx_to_matrix
 from .se2 import se2_matrix
@@ -68,11 +68,13 @@ def make_transform(R, t):
     return _make(r, t)
 
 
+@public(_invert)
 def invert_transform(T):
     """Inverses ``[[Rᵀ, −Rᵀt], [0, 1]]`` of rigid transforms (..., 4, 4) or 2D (..., 3, 3)."""
     return _invert(T)
 
 
+@public(_transform)
 def transform_points(T, points):
     """Apply rigid transforms to points: (..., 4, 4) with (..., 3), or 2D (..., 3, 3) with (..., 2).
 
@@ -81,17 +83,20 @@ def transform_points(T, points):
     return _transform(T, points)
 
 
+@public(_compose)
 def compose_transforms(A, B):
     """``A @ B`` for rigid transforms (..., 4, 4), broadcasting; faster than ``np.matmul`` on batches.
     The inputs are assumed rigid (only their top three rows are read)."""
     return _compose(A, B)
 
 
+@public(_exp)
 def exp_se3(twist):
     """Transforms (..., 4, 4) of twists ``(ρ, φ)`` (..., 6): rotation ``exp(φ^)``, translation ``V ρ``."""
     return _exp(twist)
 
 
+@public(_log)
 def log_se3(T):
     """Twists ``(ρ, φ)`` (..., 6) of rigid transforms, with ‖φ‖ ∈ [0, π]; inverse of :func:`exp_se3`."""
     return _log(T)

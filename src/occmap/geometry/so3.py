@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import ShapeError
 from . import _kernels as K
-from ._arrays import batch, entry, reject
+from ._arrays import batch, entry, public, reject
 from ._batch import Batch
 from .euler import euler_zyx_to_matrix, matrix_to_euler_zyx
 from .quaternion import axis_angle_to_quat, matrix_to_quat, quat_slerp, quat_to_matrix
@@ -28,31 +28,37 @@ _rotate = entry(K.rotate_points, (3,), ((3, 3), "rotation", "rotation"), ((3,), 
 _compose = entry(K.compose_rotations, (3, 3), ((3, 3), "A", "finite"), ((3, 3), "B", "finite"))
 
 
+@public(_hat)
 def hat(w):
     """Skew-symmetric matrices (..., 3, 3) with ``hat(w) @ v == cross(w, v)``."""
     return _hat(w)
 
 
+@public(_vee)
 def vee(W):
     """Inverse of :func:`hat`; takes the skew-symmetric part ``(W − Wᵀ)/2`` of any 3×3 matrix."""
     return _vee(W)
 
 
+@public(_rot[0])
 def rot_x(angle):
     """Rotations (..., 3, 3) by ``angle`` radians about x (counter-clockwise seen from +x)."""
     return _rot[0](angle)
 
 
+@public(_rot[1])
 def rot_y(angle):
     """Rotations (..., 3, 3) by ``angle`` radians about y."""
     return _rot[1](angle)
 
 
+@public(_rot[2])
 def rot_z(angle):
     """Rotations (..., 3, 3) by ``angle`` radians about z."""
     return _rot[2](angle)
 
 
+@public(_exp)
 def exp_so3(rotvec):
     """Rodrigues' formula: rotation matrices of rotation vectors (..., 3), any angle.
 
@@ -73,6 +79,7 @@ def matrix_to_axis_angle(R):
     return out[..., :3], out[..., 3]
 
 
+@public(_log)
 def log_so3(R):
     """Rotation vectors (..., 3) (axis · angle, angle ∈ [0, π]) of rotation matrices; accurate to
     rounding relative to the angle from 0 up to π (see :func:`matrix_to_axis_angle`)."""
