@@ -3,7 +3,8 @@
 1. One update (motion, measurement, resampling, estimate) with 2,000 particles and 60 beams,
    against the target of 10 ms on this machine; the measurement kernel alone, serial and parallel.
 2. Two development runs, one set of defaults: Intel Research Lab and Freiburg building 079. For
-   each, the map is built at 5 cm from the SLAM-corrected log, then the raw run (drifting wheel
+   each, the map is built at 5 cm from the SLAM-corrected log (with the laser model of a map to
+   localize in, :data:`~occmap.localize.replay.MAP_MODEL`), then the raw run (drifting wheel
    odometry) is localized in it. Raw scans pair with the corrected log's by logger timestamp and
    identical ranges (:func:`~occmap.localize.replay.pair_scans`), so the corrected poses are the
    reference. Tracking from the first corrected pose with plain AMCL and with each addition
@@ -46,7 +47,7 @@ from occmap.localize import _kernels as K  # noqa: E402
 from occmap.localize.likelihood_field import LikelihoodField, beam_end_points  # noqa: E402
 from occmap.localize.params import LocalizationParams  # noqa: E402
 from occmap.localize.replay import (  # noqa: E402
-    convergence_distance, make_localizer, pair_scans, reference_fit, reference_offset, replay, replay_kidnapped,
+    MAP_MODEL, convergence_distance, make_localizer, pair_scans, reference_fit, reference_offset, replay, replay_kidnapped,
     save_error_png, save_track_png, track_errors, travelled,
 )
 from occmap.mapping2d import map_scans  # noqa: E402
@@ -89,7 +90,7 @@ def load(carmen: Path, run: Run, quick: bool) -> Loaded:
     t0 = time.perf_counter()
     ref_log = read_carmen(carmen / run.corrected)
     raw_log = read_carmen(carmen / run.raw)
-    grid = map_scans(ref_log.stack(), 0.05).grid
+    grid = map_scans(ref_log.stack(), 0.05, model=MAP_MODEL).grid
     pairs = pair_scans(raw_log.scans, ref_log.scans)
     field = LikelihoodField(grid, LocalizationParams())
     fit = reference_fit(field, ref_log.scans)
@@ -240,7 +241,7 @@ def tracking_section(d: Loaded, quick: bool) -> list[str]:
     return [
         f"### {d.run.title}",
         "",
-        f"{d.run.title} ({d.run.credit}): map built at 5 cm from `{d.run.corrected}`, the raw run `{d.run.raw}` "
+        f"{d.run.title} ({d.run.credit}): map built at 5 cm from `{d.run.corrected}` (a passing beam's evidence `prob_miss` = {MAP_MODEL.prob_miss}, `MAP_MODEL`), the raw run `{d.run.raw}` "
         f"({len(d.raw):,} scans{' (quick run)' if quick else ''}, raw wheel odometry; laser offset "
         f"{d.offset[0]:+.2f} m) localized in it with 2,000 particles and 60 beams; errors against the "
         f"{int(ok.sum()):,} corrected poses, {n_fit:,} of which fit their own map (median end-point distance ≤ "

@@ -42,7 +42,9 @@ class LocalizationParams:
         Odometry noise; four floats ``(alpha1 .. alpha4)`` are made into one.
     update_min_d, update_min_a : float, default 0.0, 0.0
         Odometry translation (m) / rotation (rad) since the last filter run that triggers the next
-        (0 and 0: every scan).
+        (0 and 0: every scan). With ``refine`` and ``refine_feedback`` a scan whose match from the
+        estimate turns it by ``update_min_a`` on the spot triggers one too (wheels slip in a turn on
+        the spot: the odometry misses it).
     sensor_offset : (float, float, float), default (0, 0, 0)
         Pose ``(x, y, theta)`` of the sensor in the robot frame.
     laser_min_range : float, default 0.0
