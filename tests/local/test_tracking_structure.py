@@ -53,31 +53,3 @@ def test_a_track_does_not_explain_returns_beside_known_occupied_cells():
                   walled=[False] * 9 + [True] * 9)
     assert (kinds[:9] == 2).all()  # the person's own returns, in open space, still move
     assert (kinds[9:] == 1).all()  # the wall's stay static: they mark the map
-
-
-def test_a_surface_revealed_further_is_not_travel():
-    # raw Intel: a wall seen edge-on in cells the map held free grew scan by scan (0.15 -> 0.9 m of it
-    # in view), its centre moving along it by half the growth: counted as travel, it was confirmed
-    layer = ObjectLayer()
-    for k in range(30):
-        line = np.stack([np.full(4 + 2 * k, 3.0), np.linspace(0.0, 0.15 + 0.1 * k, 4 + 2 * k)], -1)
-        _scan(layer, line, 0.1 * k, free=True)
-        assert not layer.tracker.tracks().confirmed.any(), k
-    # the same line walking along itself (both ends moving) has travelled
-    layer = ObjectLayer()
-    for k in range(30):
-        _scan(layer, np.stack([np.full(8, 3.0), np.linspace(0.0, 0.35, 8) + 0.1 * k], -1), 0.1 * k, free=True)
-    assert layer.tracker.tracks().confirmed.any()
-
-
-def test_travel_made_slower_than_confirm_speed_does_not_confirm():
-    # raw Intel: a static object in cells the map held free crept 0.9 m in 7 s (pose errors, its
-    # cluster growing), a step of it faster than confirm_speed, and was confirmed for 18 s. Here a
-    # person-sized object steps 0.3 m at 1 m/s every 2 s (0.15 m/s on average)
-    layer = ObjectLayer()
-    x = 0.0
-    for k in range(100):
-        x += 0.1 if k % 20 < 3 else 0.0
-        _scan(layer, _person((x, 3.0)), 0.1 * k, free=True)
-        assert not layer.tracker.tracks().confirmed.any(), k
-    assert x > 1.0  # it went far, slowly

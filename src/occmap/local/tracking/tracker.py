@@ -24,11 +24,7 @@ A scan's detections (:class:`~.detection.Detections`) update the tracks in four 
    :meth:`Tracker._correct`). A tentative track is *confirmed* once it has been detected in
    ``confirm_hits`` of its last ``confirm_window`` scans (a scan in which a confirmed track's box,
    nearer to the sensor, hid its centre counts: see :meth:`Tracker._shadowed`), has moved at least ``min_travel`` from
-   where it started (walls and parked cars that leak into the detections do not move) — between
-   whole views only as far as both ends of the object moved the same way (a surface that more of
-   it comes into view grows, it does not move), and within ``min_travel / confirm_speed`` seconds
-   (else it counts anew from where it is: a static object that pose errors make creep does not
-   add up to travel) —, knows its
+   where it started (walls and parked cars that leak into the detections do not move), knows its
    speed to ``confirm_speed_sigma`` and moves at ``confirm_speed`` at least. The speed is known
    when the filter's covariance says so, or, for a round object (a person), when its own whole
    views say so (see :meth:`Tracker._measured_speed_known`): the filter's centre noise is set for
@@ -569,30 +565,7 @@ class Tracker:
         self.centres[rows[whole_view], 0] = np.stack([det.x[cols[whole_view]], det.y[cols[whole_view]],
                                                       np.full(int(whole_view.sum()), self.time)], -1)
         d = self.state[rows, :2] - self.birth[rows]
-        moved = np.hypot(d[:, 0], d[:, 1])
-        # between whole views an object has moved only as far as both its ends have, the same way:
-        # a surface revealed further (a wall line growing as more of it shows, a cluster joining
-        # returns beside it) moves one end, or the two apart, and its centre with them
-        e = det.ends[cols] - self.birth_ends[rows]
-        agreed = np.where(np.einsum("ki,ki->k", e[:, 0], e[:, 1]) > 0.0,
-                          np.minimum(np.hypot(e[:, 0, 0], e[:, 0, 1]), np.hypot(e[:, 1, 0], e[:, 1, 1])), 0.0)
-        known = np.isfinite(e).all(axis=(1, 2))  # the ends are NaN when the sensor is not known
-        moved = np.where(whole & known, np.minimum(moved, agreed), moved)
-        self.travel[rows] = np.maximum(self.travel[rows], moved)
-        # the travel must be made at confirm_speed at least: a tentative track that has not moved
-        # min_travel within the time an object at confirm_speed takes to (min_travel / confirm_speed)
-        # counts it anew from where it is (a static object that pose errors and cluster growth let
-        # creep 0.9 m in 7 s, at 0.1 m/s, was confirmed on the raw Intel run)
-        stale = ((self.status[rows] == TENTATIVE) & (self.updates[rows] > 0) & (self.travel[rows] < p.min_travel)
-                 & (self.time - self.born[rows] >= p.min_travel / p.confirm_speed - STAMP_TOLERANCE))
-        if stale.any():
-            r, c = rows[stale], cols[stale]
-            self.birth[r] = self.state[r, :2]
-            self.born[r] = self.time
-            self.birth_ends[r] = det.ends[c]
-            self.birth_bare[r] = det.bare[c]
-            self.birth_whole[r] = ~det.occluded[c]
-            self.travel[r] = 0.0
+        self.travel[rows] = np.maximum(self.travel[rows], np.hypot(d[:, 0], d[:, 1]))
         return rows[~waiting], cols[~waiting]
 
     def _resize(self, rows, cols, det: Detections, sensor) -> None:
