@@ -4,7 +4,9 @@ where they will be.
 Per scan (:meth:`ObjectLayer.sort_returns`) a return is taken as *moving* when its cell and its
 neighbours are known free in the static layer and no cell within ``open_margin`` of it known
 occupied (something stands where the map has seen through, away from walls), when it falls on a
-confirmed track's footprint predicted to the scan (grown by ``cover_margin``), when its cell has
+confirmed track's footprint predicted to the scan (grown by ``cover_margin``) with no cell within
+``open_margin`` known occupied (a track explains its object, not the wall or door frame it passes),
+when its cell has
 never been seen and it lies within ``vacated_reach`` of a vacated cell or of the last scan's moving
 returns in such cells (an object that stood when first seen walks on inside its own shadow: the
 cells it stood on, first seen by a hit in the last ``vacated_within`` seconds, are then seen
@@ -97,9 +99,14 @@ class ObjectLayer:
         moving = known_free[hit]
         blocked = np.ascontiguousarray(known_occupied[hit])
         if len(self.tracker) and len(pts):
-            # a track explains the returns on its footprint, not those on mapped structure beside it
-            # (a wall a person passes: taken as the track's, they would hold it on the wall)
-            moving = moving | (self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True) & ~blocked)
+            # a track explains the returns on its footprint, not those on or beside mapped structure
+            # (within open_margin of a known occupied cell, as for open returns: a wall a person
+            # passes, a cell off after a registration slip). Taken as the track's, they were cleared
+            # instead of marked and held it confirmed on the wall with no return in open space:
+            # Freiburg 079 (corrected and raw) and raw Intel confirmed tracks on walls, door frames
+            # and cubicles that way (tests/local/test_tracking_structure.py)
+            near_wall = blocked if walled is None else walled[hit]
+            moving = moving | (self.tracker.covers(pts, stamp, self.cover_margin, confirmed_only=True) & ~near_wall)
         shadow = np.zeros(len(pts), bool) if unseen is None else unseen[hit]
         clear = shadow if walled is None else shadow & ~walled[hit]
         # an object standing when first seen, then walking on inside its own shadow: its returns
