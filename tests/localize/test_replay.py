@@ -19,7 +19,7 @@ from occmap.grid2d import OccupancyGrid2D
 from occmap.io.carmen import iter_carmen, read_carmen
 from occmap.localize.recording import LocalizationRecording
 from occmap.localize.replay import (
-    anchor_odometry, convergence_distance, kidnapped, make_localizer, pair_scans, replay, replay_kidnapped,
+    MAP_MODEL, anchor_odometry, convergence_distance, kidnapped, make_localizer, pair_scans, replay, replay_kidnapped,
     save_error_png, save_track_png, track_errors, travelled, write_track_csv,
 )
 from occmap.mapping2d import map_scans
@@ -270,7 +270,13 @@ def fr079(data_dir):
     return map_scans(ref.stack(), 0.05).grid, ref.scans, raw.scans, raw.laser_offset()
 
 
-def test_fr079_map_to_localize_in_keeps_its_walls_where_the_scans_end(fr079):
+@pytest.fixture(scope="module")
+def fr079_to_localize_in(fr079):
+    """Freiburg 079's 5 cm map built with ``MAP_MODEL`` (the map to localize in, as the benchmark's)."""
+    return map_scans(stack_scans(fr079[1]), 0.05, model=MAP_MODEL).grid
+
+
+def test_fr079_map_to_localize_in_keeps_its_walls_where_the_scans_end(fr079, fr079_to_localize_in):
     """Freiburg 079's corrected scans matched to their own 5 cm map from their own poses (every 4th).
     With the grid's default laser model the beams passing close to a surface clear its near cells,
     so the map's walls lie behind the end points as the forward-looking laser saw them: the scans
@@ -279,7 +285,7 @@ def test_fr079_map_to_localize_in_keeps_its_walls_where_the_scans_end(fr079):
     ``MAP_MODEL`` (a pass weak evidence) the offset is halved, no bias across, and every pose fits."""
     from occmap.localize.likelihood_field import LikelihoodField, beam_end_points
     from occmap.localize.params import LocalizationParams
-    from occmap.localize.replay import MAP_MODEL, reference_fit
+    from occmap.localize.replay import reference_fit
     from occmap.localize.scan_match import match
 
     grid, ref, _, _ = fr079
@@ -301,7 +307,7 @@ def test_fr079_map_to_localize_in_keeps_its_walls_where_the_scans_end(fr079):
 
     along, across, dist, fits = offsets(grid)
     assert np.nanmean(along) > 0.025 and np.nanmean(dist) > 0.05 and fits < 0.9
-    along, across, dist, fits = offsets(map_scans(stack_scans(ref), 0.05, model=MAP_MODEL).grid)
+    along, across, dist, fits = offsets(fr079_to_localize_in)
     assert np.isfinite(dist).mean() > 0.99
     assert abs(np.nanmean(across)) < 0.005 and np.nanmean(along) < 0.02 and np.nanmean(dist) < 0.04
     assert fits > 0.99
@@ -420,3 +426,23 @@ def test_fr079_kidnapped_is_found_again(fr079):
     off = replay_kidnapped(make_localizer(grid, seed=3, sensor_offset=offset, relocalize_after=0), raw, pairs,
                            ref_poses, **args)
     assert off.first == math.inf and off.result.lost[-50:].mean() > 0.5
+
+
+def test_fr079_search_replaces_a_wrong_track_that_fits_some_scans(fr079, fr079_to_localize_in):
+    """Freiburg 079 kidnapped from reference pose 2,579 (seed 3, as in the benchmark's table): the
+    track is left 5-8 m off, where the scans fit 80-97 % of what they fit at the robot's pose, so
+    it is not flagged lost on every filter run. The global search beside it converges on the robot
+    within about 5 m and fits every scan (0.98-1.00) where the track fits less. Before, each run on
+    which the wrong track was not lost reset the search's 5 m confirmation, and it replaced the
+    track only after 21.5 m; the track's error passed 0.09 m on the way (it crossed the robot's
+    path while lost), which the table had counted as back. Now a run counts for the search also
+    when the scan favours its estimate over the track's by ``coast_evidence``."""
+    _, ref, raw, offset = fr079
+    grid = fr079_to_localize_in
+    pairs = pair_scans(raw, ref)
+    ref_poses = np.array([s.pose for s in ref])
+    args = dict(start=2579, at=int(pairs[2579]) + 150, skip=400, travel=25.0, cov=KIDNAP_COV)
+    loc = make_localizer(grid, seed=3, sensor_offset=offset)
+    k = replay_kidnapped(loc, raw, pairs, ref_poses, **args)
+    _assert_found_again(k)
+    assert k.recovered <= 15.0 and loc.stats.relocalized == 1

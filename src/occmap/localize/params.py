@@ -127,8 +127,9 @@ class LocalizationParams:
         as a second hypothesis beside the tracking filter, and replaces it once confirmed (0: off).
     relocalize_confirm_d : float, default 5.0
         Odometry travel (m) over which that hypothesis must fit the scans at least as well as the
-        tracking filter's estimate (which stays lost), with a compact cloud, on every filter run
-        before it replaces the cloud (:mod:`occmap.localize.mcl`).
+        tracking filter's estimate (which stays lost, or which the scan's log-likelihood puts
+        ``coast_evidence`` below it), with a compact cloud, on every filter run before it replaces
+        the cloud (:mod:`occmap.localize.mcl`).
     global_particles : int, default 20000
         Particles a global localization spreads over the free space.
     global_sigma_hit : float, default 1.0
