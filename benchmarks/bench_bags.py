@@ -353,7 +353,7 @@ def main():
         "+ tf (the laser's pose as `odom → laser`) into a grid at 0.05 m as `occmap map2d BAG` does, beside "
         "`map_scans` of the same placed scans (checked to be the log's poses). "
         f"The maps are checked equal; medians of {3 * args.repeat} alternating rounds. Both read ahead on a thread of their own (`occmap._threads.read_ahead`) "
-        "while the kernels insert, which hides the reading only where a core is idle. The last column times the bag's part alone (open, tf, stream, decode, "
+        "while the kernels insert, which hides the reading only where a core is idle. \"Reading and placing alone\" times the bag's part alone (open, tf, stream, decode, "
         "place: `world_points` for clouds; for scans the runs of stacked scans `BagScans.stacks()` gives), the "
         "figure that the machine's load disturbs least. The octree's insertion hands work to Python worker "
         "threads, which the interpreter's switch interval delays: the 3D insertion alone is timed through the same "
