@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import multiprocessing as mp
 import os
 import platform
@@ -88,6 +89,18 @@ def test_a_call_that_is_no_fair_sample_runs_the_chosen_path_unlearnt(clock):
         clock.now += 0.05
     assert parallel and choice.costs[1] > choice.costs[0]
     assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=1) == [False]
+
+
+@two_threads
+def test_forget_starts_the_choice_over_as_a_new_process(clock):
+    choice = ThreadChoice(min_work=1.0)
+    _run(choice, clock, serial_s=0.001, parallel_s=0.004, calls=40)  # learnt: one thread
+    assert choice.costs[0] < choice.costs[1]
+    choice.forget()
+    assert all(math.isnan(c) for c in choice.costs)
+    # as a new choice: a first call unmeasured on several threads, then each path measured once
+    assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=9) == [True, True, False] + [True] * 6
+    assert choice.costs == pytest.approx((0.004, 0.001))
 
 
 @two_threads

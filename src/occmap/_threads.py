@@ -190,6 +190,12 @@ class ThreadChoice:
         self._interval = _FIRST_INTERVAL
         self._warm = False
 
+    def forget(self) -> None:
+        """Forget what the calls taught, as a new process starts: the next call is again a first
+        call (a benchmark that times two ways of making a map gives each the state the command's
+        fresh process has, not the state the other left)."""
+        self.__init__(self.min_work)
+
     @property
     def costs(self) -> tuple[float, float]:
         """Average seconds per unit of work on one thread and on several (NaN: not measured)."""

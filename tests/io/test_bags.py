@@ -188,10 +188,13 @@ def test_point_cloud2_layouts_round_trip(tmp_path, hdl, kind, reader_for):
         decoded = {m.topic: decode_point_cloud2(m.msg) for m in bag.messages(msgtype=CLOUD)}
         assert list(decoded) == list(layouts)  # time order
         organised = next(bag.messages("/organised_nan"))
+        alone = {m.topic: decode_point_cloud2(m.msg, fields=False) for m in bag.messages(msgtype=CLOUD)}
     for topic, (kw, pts, extra) in layouts.items():
         got = decoded[topic]
         keep = np.isfinite(pts).all(axis=1)
         np.testing.assert_array_equal(got.points, pts[keep], err_msg=topic)
+        assert alone[topic].fields == {} and alone[topic].dropped == got.dropped
+        np.testing.assert_array_equal(alone[topic].points, got.points)
         assert got.points.dtype == np.float64 and got.dropped == int((~keep).sum())
         assert sorted(got.fields) == sorted(extra)
         for name, values in extra.items():
@@ -206,13 +209,18 @@ def test_point_cloud2_layouts_round_trip(tmp_path, hdl, kind, reader_for):
 
 
 def test_point_cloud2_every_datatype_and_counts(rng):
-    """All eight PointField datatypes, a field of count 3, both byte orders, and a padded row."""
+    """All eight PointField datatypes, a field of count 3, both byte orders, a padded row, and
+    points with a NaN or infinite coordinate of those types left out."""
     m = Msgs(get_typestore(Stores.LATEST))
     n = 50
     values = {"x": rng.normal(size=n), "y": rng.normal(size=n).astype(np.float32), "z": rng.integers(-9, 9, n).astype(np.int16),
               "a": rng.integers(-128, 127, n).astype(np.int8), "b": rng.integers(0, 255, n).astype(np.uint8),
               "c": rng.integers(0, 60000, n).astype(np.uint16), "d": rng.integers(-2**31, 2**31 - 1, n).astype(np.int32),
               "e": rng.integers(0, 2**32 - 1, n).astype(np.uint32), "normal": rng.normal(size=(n, 3)).astype(np.float32)}
+    values["x"][[3, 30]] = np.nan
+    values["y"][[7, 30]] = -np.inf
+    keep = np.ones(n, dtype=bool)
+    keep[[3, 7, 30]] = False
     layout = [("x", 0, 8), ("y", 8, 7), ("z", 12, 3), ("a", 14, 1), ("b", 15, 2), ("c", 16, 4), ("d", 20, 5),
               ("e", 24, 6), ("normal", 28, 7)]
     for order in "<>":
@@ -223,14 +231,15 @@ def test_point_cloud2_every_datatype_and_counts(rng):
         for name in values:
             rec[name] = values[name]
         rows = np.frombuffer(rec.tobytes(), np.uint8).reshape(2, 25 * 48)
-        data = np.concatenate([rows, np.zeros((2, 5), np.uint8)], axis=1).tobytes()
+        data = bytearray(np.concatenate([rows, np.zeros((2, 5), np.uint8)], axis=1).tobytes())  # writable
         fields = [(name, off, kind, 3 if name == "normal" else 1) for name, off, kind in layout]
-        got = decode_point_cloud2(m.cloud(0.0, "s", 2, 25, fields, 48, 25 * 48 + 5, data, order == ">", True))
-        np.testing.assert_array_equal(got.points, np.c_[values["x"], values["y"], values["z"]])
+        got = decode_point_cloud2(m.cloud(0.0, "s", 2, 25, fields, 48, 25 * 48 + 5, data, order == ">", False))
+        np.testing.assert_array_equal(got.points, np.c_[values["x"], values["y"], values["z"]][keep])
+        assert got.dropped == 3
         assert sorted(got.fields) == ["a", "b", "c", "d", "e", "normal"]
         for name, field in got.fields.items():
             assert field.dtype == values[name].dtype and field.dtype.isnative
-            np.testing.assert_array_equal(field, values[name])
+            np.testing.assert_array_equal(field, values[name][keep])
 
 
 def test_point_cloud2_bad_layouts():

@@ -352,7 +352,8 @@ def city(folder: Path) -> None:
 
 def bags(folder: Path) -> None:
     """A ROS 1 bag and an MCAP file of laser scans and tf, written by rosbags and streamed: the
-    kernel that lists a chunk's records, and the one that gathers messages."""
+    kernel that lists a chunk's records, and the one that gathers messages; and PointCloud2
+    coordinates of both types the decoder's kernel reads, with a point to leave out."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -388,6 +389,17 @@ def bags(folder: Path) -> None:
                 writer.write(scan, (k + 1) * 10**9, serialize(message, "sensor_msgs/msg/LaserScan"))
         for _ in BagScans(path).stacks():
             pass
+    from ..io.bags import decode_point_cloud2
+
+    T = get_typestore(Stores.LATEST).types
+    header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=1, nanosec=0), frame_id="s")
+    for datatype, kind in ((7, np.float32), (8, np.float64)):
+        xyz = np.array([[1.0, 2.0, 3.0], [np.nan, 0.0, 0.0]], kind)
+        fields = [T["sensor_msgs/msg/PointField"](name=axis, offset=k * xyz.itemsize, datatype=datatype, count=1)
+                  for k, axis in enumerate("xyz")]
+        decode_point_cloud2(T["sensor_msgs/msg/PointCloud2"](
+            header=header, height=1, width=2, fields=fields, is_bigendian=False, point_step=3 * xyz.itemsize,
+            row_step=6 * xyz.itemsize, data=np.frombuffer(xyz.tobytes(), np.uint8), is_dense=False))
 
 
 #: longest first (seconds on a fresh cache, 2 cores): 60, 30, 20, 15, 13, ...

@@ -429,7 +429,7 @@ class BagClouds(_BagSource):
         clouds = []
         for i in range(len(raws)):
             m = Message(self.topic, self.MSGTYPE, int(times_ns[i]), raws[i], bag.encoding, bag)
-            clouds.append(decode_point_cloud2(m.msg, where=where(i)))
+            clouds.append(decode_point_cloud2(m.msg, where=where(i), fields=False))
         keep = np.array([len(c.points) > 0 for c in clouds], dtype=bool)
         for c in clouds:
             if not len(c.points):
