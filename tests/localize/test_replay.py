@@ -397,16 +397,22 @@ def _assert_found_again(k):
     assert k.after[k.travel >= k.recovered].max() <= 0.2
 
 
+def _kidnap(grid, ref, raw, start: int, skip: int, travel: float, **settings):
+    """The raw run tracked from reference pose ``start`` and carried past ``skip`` scans 150 scans
+    later, seed 3 (as the benchmark's tables): the localizer and what ``replay_kidnapped`` measured."""
+    pairs = pair_scans(raw, ref)
+    loc = make_localizer(grid, seed=3, **settings)
+    return loc, replay_kidnapped(loc, raw, pairs, np.array([s.pose for s in ref]), start=start,
+                                 at=int(pairs[start]) + 150, skip=skip, travel=travel, cov=KIDNAP_COV)
+
+
 def test_intel_kidnapped_is_found_again(intel):
     """Intel's raw run tracked from the first corrected pose, the robot carried 12.7 m away unseen
     (scans 319-618 skipped, the odometry continuous): the estimate is lost, the global search
     started beside it converges, replaces the cloud, and the filter is back within 0.2 m after
     about 10 m of travel."""
     grid, ref, raw = intel
-    pairs = pair_scans(raw, ref)
-    loc = make_localizer(grid, seed=3)
-    k = replay_kidnapped(loc, raw, pairs, np.array([s.pose for s in ref]), start=0, at=int(pairs[0]) + 150, skip=300,
-                         travel=20.0, cov=KIDNAP_COV)
+    loc, k = _kidnap(grid, ref, raw, start=0, skip=300, travel=20.0)
     _assert_found_again(k)
     assert loc.stats.relocalized == 1
 
@@ -416,15 +422,10 @@ def test_fr079_kidnapped_is_found_again(fr079):
     skipped): back within 0.2 m after about 8 m of travel. Without the global search
     (``relocalize_after=0``) the same stretch is never found again: the cloud stays lost."""
     grid, ref, raw, offset = fr079
-    pairs = pair_scans(raw, ref)
-    ref_poses = np.array([s.pose for s in ref])
-    args = dict(start=3600, at=int(pairs[3600]) + 150, skip=400, travel=20.0, cov=KIDNAP_COV)
-    loc = make_localizer(grid, seed=3, sensor_offset=offset)
-    k = replay_kidnapped(loc, raw, pairs, ref_poses, **args)
+    loc, k = _kidnap(grid, ref, raw, start=3600, skip=400, travel=20.0, sensor_offset=offset)
     _assert_found_again(k)
     assert loc.stats.relocalized == 1
-    off = replay_kidnapped(make_localizer(grid, seed=3, sensor_offset=offset, relocalize_after=0), raw, pairs,
-                           ref_poses, **args)
+    _, off = _kidnap(grid, ref, raw, start=3600, skip=400, travel=20.0, sensor_offset=offset, relocalize_after=0)
     assert off.first == math.inf and off.result.lost[-50:].mean() > 0.5
 
 
@@ -438,11 +439,6 @@ def test_fr079_search_replaces_a_wrong_track_that_fits_some_scans(fr079, fr079_t
     path while lost), which the table had counted as back. Now a run counts for the search also
     when the scan favours its estimate over the track's by ``coast_evidence``."""
     _, ref, raw, offset = fr079
-    grid = fr079_to_localize_in
-    pairs = pair_scans(raw, ref)
-    ref_poses = np.array([s.pose for s in ref])
-    args = dict(start=2579, at=int(pairs[2579]) + 150, skip=400, travel=25.0, cov=KIDNAP_COV)
-    loc = make_localizer(grid, seed=3, sensor_offset=offset)
-    k = replay_kidnapped(loc, raw, pairs, ref_poses, **args)
+    loc, k = _kidnap(fr079_to_localize_in, ref, raw, start=2579, skip=400, travel=25.0, sensor_offset=offset)
     _assert_found_again(k)
     assert k.recovered <= 15.0 and loc.stats.relocalized == 1
