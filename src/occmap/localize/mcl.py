@@ -505,9 +505,11 @@ class MonteCarloLocalizer(OneCallAtATime):
             return
         runs, travel, misfits = self._search_confirm
         spread = math.sqrt(max(float(np.linalg.eigvalsh(found.covariance[:2, :2])[-1]), 0.0))
-        favoured = lost or self._score(found.pose, bx, by, mr) - self._score(self._estimate.pose, bx, by, mr) \
-            >= prm.coast_evidence
-        if found.lost or found.fit < fit or not favoured or spread > 0.5 * prm.refine_cutoff:
+        rejected = found.lost or found.fit < fit or spread > 0.5 * prm.refine_cutoff
+        if not (rejected or lost):  # a track not lost gives way only where the scan favours the search
+            both = self.field.score(np.stack([found.pose, self._estimate.pose]), bx, by, mr, prm.sigma_hit)
+            rejected = both[0] - both[1] < prm.coast_evidence
+        if rejected:
             self._search_confirm = (0, 0.0, misfits + 1 if found.lost else 0)
             if misfits + 1 >= prm.relocalize_after:
                 self._start_search()
