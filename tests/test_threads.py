@@ -115,6 +115,22 @@ def test_while_other_processes_leave_no_second_core_one_thread_runs_unmeasured(c
     assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=3) == [True] * 3
 
 
+@two_threads
+def test_a_forced_path_runs_whatever_the_load_and_costs_and_teaches_nothing(clock, monkeypatch):
+    choice = ThreadChoice(min_work=1.0)
+    _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=12)  # learnt: several threads
+    costs = choice.costs
+    with occmap._threads.forced_path(False):
+        assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=3) == [False] * 3
+    monkeypatch.setattr(occmap._threads, "free_cores", lambda: 0.0)
+    with occmap._threads.forced_path(True):
+        assert _run(choice, clock, serial_s=0.001, parallel_s=0.004, calls=3) == [True] * 3
+        with choice.choose(work=0.5) as parallel:  # too little work for several threads, forced or not
+            assert not parallel
+    assert choice.costs == costs
+    assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=1) == [False]  # the load again
+
+
 @pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the load is read from Linux's /proc/stat")
 def test_free_cores_sees_a_busy_process_and_not_this_one():
     cpus = len(os.sched_getaffinity(0))

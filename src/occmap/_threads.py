@@ -166,7 +166,8 @@ class ThreadChoice:
 
     Calls with less than ``min_work`` units of work, with Numba limited to one thread, or while
     other processes leave fewer than :data:`_FREE_FOR_PARALLEL` cores free (:func:`free_cores`),
-    take one thread and are not measured. The first call takes several threads unmeasured: it pays for
+    take one thread and are not measured; inside :func:`forced_path` the others take the path it
+    names, unmeasured. The first call takes several threads unmeasured: it pays for
     first-touch page faults and thread start-up (a grid's parallel path looked 3× slower than one
     thread after it, where it is 1.4–1.7× faster). So does a call that is not a fair ``sample``
     (the caller knows it writes memory never touched before: a grid's first call after it grew
@@ -205,7 +206,13 @@ class ThreadChoice:
     def choose(self, work: float, sample: bool = True):
         """Yields whether the block should run on several threads; times the block and learns
         from it (unless ``sample`` is false: the path chosen now, not timed)."""
-        if not work >= self.min_work or thread_count() < 2 or not _free_for_parallel():
+        if not work >= self.min_work or thread_count() < 2:
+            yield False
+            return
+        if _forced is not None:
+            yield _forced
+            return
+        if not _free_for_parallel():
             yield False
             return
         if not (self._warm and sample):  # the first call starts Numba's threads: not a fair sample either
@@ -246,20 +253,24 @@ class ThreadChoice:
             self._interval = _FIRST_INTERVAL if changed else min(2 * self._interval, _MAX_INTERVAL)
 
 
-_as_if_idle = False
+_forced: bool | None = None
 
 
-def choose_as_if_idle() -> None:
-    """From now on this process's :class:`ThreadChoice` blocks ignore the other processes' load
-    (``occmap warmup``: its processes compile the parallel paths too, while they keep the cores
-    busy themselves)."""
-    global _as_if_idle
-    _as_if_idle = True
+@contextmanager
+def forced_path(parallel: bool):
+    """Within the block, this process's :class:`ThreadChoice` blocks with enough work take the
+    given path, whatever the load and the costs, and learn nothing (``occmap warmup`` runs each job
+    once on each path: every kernel of both paths gets compiled, with every argument type, however
+    many calls a job makes and however busy its own processes keep the cores)."""
+    global _forced
+    before, _forced = _forced, bool(parallel)
+    try:
+        yield
+    finally:
+        _forced = before
 
 
 def _free_for_parallel() -> bool:
-    if _as_if_idle:
-        return True
     free = free_cores()
     return free is None or free >= _FREE_FOR_PARALLEL
 

@@ -10,9 +10,9 @@ import sys
 import numpy as np
 
 # Counts Numba's "numba:compile" events (a kernel compiled, not loaded from the cache) while
-# the commands given as JSON run, then compiles one new function to show that the count works.
+# the commands given as JSON run (twice, each time writing into a new folder), then compiles one new function to show that the count works.
 HARNESS = """
-import json, sys
+import json, os, sys
 from numba import njit
 from numba.core.event import Listener, install_listener
 
@@ -24,11 +24,19 @@ class Compiles(Listener):
     def on_end(self, event):
         pass
 
+import occmap._threads
 from occmap.cli import main
 compiles = Compiles()
 with install_listener("numba:compile", compiles):
-    for argv in json.loads(sys.argv[1]):
-        assert main(argv) == 0, argv
+    # as on an idle machine, then as on a busy one (every thread choice on one thread): the kernels
+    # of both paths, whatever the load while the test runs
+    for free, out in ((2.0, "idle"), (0.0, "busy")):
+        occmap._threads.free_cores = lambda free=free: free
+        os.mkdir(out)
+        os.chdir(out)
+        for argv in json.loads(sys.argv[1]):
+            assert main(argv) == 0, argv
+        os.chdir("..")
     njit(lambda x: x + 1)(1)
 print(json.dumps(compiles.names))
 """
@@ -57,24 +65,25 @@ def test_commands_after_warmup_compile_nothing(tmp_path):
     x, y, t = poses[0]
     t_ = str(tmp_path)
     commands = [
-        ["map2d", f"{t_}/office.log", "-o", f"{t_}/office.yaml", "--png", f"{t_}/office.png", "--resolution", "0.1"],
-        ["map2d", f"{t_}/office.log", "--scan-match", "-o", f"{t_}/matched.yaml"],
-        ["local", f"{t_}/office.log", "-o", f"{t_}/local.gif", "--max-frames", "3"],
-        ["localize", f"{t_}/office.yaml", f"{t_}/office.log", "-o", f"{t_}/track.csv", "--init", f"{x},{y},{t}",
-         "--particles", "300", "--png", f"{t_}/track.png"],
-        ["map3d", f"{t_}/scan.pcd", "-o", f"{t_}/scan.bt", "--resolution", "0.2", "--png", f"{t_}/top.png"],
-        ["map3d", f"{t_}/scan.pcd", "-o", f"{t_}/scan.ot", "--discretize", "--max-range", "20"],
-        ["info", f"{t_}/scan.bt"],
-        ["convert", f"{t_}/scan.ot", f"{t_}/scan.ply"],
-        ["render", f"{t_}/scan.bt", "-o", f"{t_}/slice.png", "--slice", "1.0"],
-        ["map3d", f"{t_}/scan.pcd", "--tiles", f"{t_}/store", "--resolution", "0.2", "-o", f"{t_}/store.bt"],
-        ["info", f"{t_}/store"],
-        ["export", f"{t_}/store", "-o", f"{t_}/box.ot", "--box", "-5", "-5", "-1", "5", "5", "3"],
-        ["map2d", f"{t_}/office.log", "--tiles", f"{t_}/grid", "--tile-size", "64", "-o", f"{t_}/tiled.yaml"],
-        ["info", f"{t_}/grid"],
-        ["export", f"{t_}/grid", "-o", f"{t_}/corner.yaml", "--box", "0", "0", "5", "5"],
+        ["map2d", f"{t_}/office.log", "-o", "office.yaml", "--png", "office.png", "--resolution", "0.1"],
+        ["map2d", f"{t_}/office.log", "--scan-match", "-o", "matched.yaml"],
+        ["local", f"{t_}/office.log", "-o", "local.gif", "--max-frames", "3"],
+        ["localize", "office.yaml", f"{t_}/office.log", "-o", "track.csv", "--init", f"{x},{y},{t}",
+         "--particles", "300", "--png", "track.png"],
+        ["map3d", f"{t_}/scan.pcd", "-o", "scan.bt", "--resolution", "0.2", "--png", "top.png"],
+        ["map3d", f"{t_}/scan.pcd", "-o", "scan.ot", "--discretize", "--max-range", "20"],
+        ["info", "scan.bt"],
+        ["convert", "scan.ot", "scan.ply"],
+        ["render", "scan.bt", "-o", "slice.png", "--slice", "1.0"],
+        ["map3d", f"{t_}/scan.pcd", "--tiles", "store", "--resolution", "0.2", "-o", "store.bt"],
+        ["info", "store"],
+        ["export", "store", "-o", "box.ot", "--box", "-5", "-5", "-1", "5", "5", "3"],
+        ["map2d", f"{t_}/office.log", "--tiles", "grid", "--tile-size", "64", "-o", "tiled.yaml"],
+        ["info", "grid"],
+        ["export", "grid", "-o", "corner.yaml", "--box", "0", "0", "5", "5"],
     ]
-    run = subprocess.run([sys.executable, "-c", HARNESS, json.dumps(commands)], capture_output=True, text=True)
+    run = subprocess.run([sys.executable, "-c", HARNESS, json.dumps(commands)], capture_output=True, text=True,
+                         cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     compiled = json.loads(run.stdout.splitlines()[-1])
     assert len(compiled) == 1 and "<lambda>" in compiled[0], compiled  # only the harness's own function

@@ -407,12 +407,12 @@ JOBS = (geometry, octree, local_map, world, grids, localization, scan_matching, 
 
 
 def _job(name: str, folder: str) -> tuple[int, float]:
-    """Runs the job ``name`` in ``folder``: the kernels it compiled and its seconds."""
+    """Runs the job ``name`` in ``folder``, once with every call that has the work for several
+    threads on several and once on one (whichever a command's process will choose for its load):
+    the kernels it compiled and its seconds."""
     from numba.core.event import Listener, install_listener
 
-    from .._threads import choose_as_if_idle
-
-    choose_as_if_idle()  # the other jobs load the cores: take every path, parallel ones too
+    from .._threads import forced_path
 
     class Compiles(Listener):
         count = 0
@@ -423,11 +423,14 @@ def _job(name: str, folder: str) -> tuple[int, float]:
         def on_end(self, event):
             pass
 
-    Path(folder).mkdir()
     t0 = time.perf_counter()
     compiles = Compiles()
     with install_listener("numba:compile", compiles):
-        globals()[name](Path(folder))
+        for parallel in (True, False):
+            scratch = Path(folder) / ("parallel" if parallel else "serial")
+            scratch.mkdir(parents=True)
+            with forced_path(parallel):
+                globals()[name](scratch)
     return compiles.count, time.perf_counter() - t0
 
 
