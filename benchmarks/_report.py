@@ -17,8 +17,8 @@ ROOT = Path(__file__).resolve().parent.parent
 BENCHMARKS_MD = ROOT / "BENCHMARKS.md"
 
 
-def median_times(fns, number: int, repeat: int = 9) -> list[float]:
-    """Median seconds per call of each function in ``fns``, timed in alternating rounds.
+def round_times(fns, number: int, repeat: int = 9) -> list[list[float]]:
+    """Seconds per call of each function in ``fns`` in each of ``repeat`` alternating rounds.
 
     Each round times every function once (``number`` calls each), so a noisy stretch of a shared
     machine hits all of them alike and their ratios stay meaningful.
@@ -32,7 +32,13 @@ def median_times(fns, number: int, repeat: int = 9) -> list[float]:
             for _ in range(number):
                 fn()
             out.append((time.perf_counter() - t0) / number)
-    return [statistics.median(r) for r in runs]
+    return runs
+
+
+def median_times(fns, number: int, repeat: int = 9) -> list[float]:
+    """Median seconds per call of each function in ``fns``, timed in alternating rounds
+    (:func:`round_times`)."""
+    return [statistics.median(r) for r in round_times(fns, number, repeat)]
 
 
 @contextmanager
