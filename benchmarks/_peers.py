@@ -74,9 +74,10 @@ class OccmapProcess:
         self._child = subprocess.Popen([sys.executable, __file__], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                        text=True, env=env, preexec_fn=None if cpu is None else _pin(cpu))
 
-    def seconds(self, scans: Path, resolution: float, max_range: float) -> float:
-        """Seconds to insert the scans of the file ``scans`` into a fresh tree (``max_range`` < 0: none)."""
-        self._child.stdin.write(json.dumps([str(scans), resolution, max_range]) + "\n")
+    def seconds(self, scans: Path, resolution: float, max_range: float, discretize: bool = False) -> float:
+        """Seconds to insert the scans of the file ``scans`` into a fresh tree (``max_range`` < 0: none;
+        ``discretize``: one ray per end voxel, as ``insert_point_clouds`` takes it)."""
+        self._child.stdin.write(json.dumps([str(scans), resolution, max_range, discretize]) + "\n")
         self._child.stdin.flush()
         answer = self._child.stdout.readline()
         if not answer:
@@ -94,16 +95,17 @@ def _serve() -> None:
 
     loaded, warm = {}, set()
     for line in sys.stdin:
-        path, res, max_range = json.loads(line)
+        path, res, max_range, discretize = json.loads(line)
         if path not in loaded:
             loaded = {path: read_scans(path)}
         scans = loaded[path]
-        if (path, res, max_range) not in warm:
-            OcTree(res).insert_point_clouds([scans[0][0]], [scans[0][1]], max_range=max_range)
-            warm.add((path, res, max_range))
+        if (path, res, max_range, discretize) not in warm:
+            OcTree(res).insert_point_clouds([scans[0][0]], [scans[0][1]], max_range=max_range, discretize=discretize)
+            warm.add((path, res, max_range, discretize))
         tree = OcTree(res)
         t0 = time.perf_counter()
-        tree.insert_point_clouds([p for p, _ in scans], [o for _, o in scans], max_range=max_range)
+        tree.insert_point_clouds([p for p, _ in scans], [o for _, o in scans], max_range=max_range,
+                                 discretize=discretize)
         print(time.perf_counter() - t0, flush=True)
 
 
