@@ -10,7 +10,8 @@ import sys
 import numpy as np
 
 # Counts Numba's "numba:compile" events (a kernel compiled, not loaded from the cache) while
-# the commands given as JSON run (twice, each time writing into a new folder), then compiles one new function to show that the count works.
+# the commands given as JSON run (twice, each time writing into a new folder), then compiles one
+# new function to show that the count works.
 HARNESS = """
 import json, os, sys
 from numba import njit
