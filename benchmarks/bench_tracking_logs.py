@@ -15,8 +15,11 @@ lie in its odometry frame: each centre is carried into the corrected log's frame
 The raw run's own map would not do: its drifting odometry smears the walls, and a wall fragment the
 drift moved lies in what the rest of the run saw free. The issue's target is none on structure.
 
-Run: ``.venv/bin/python benchmarks/bench_tracking_logs.py [--logs NAME ...]`` (a replay takes 1–5
-minutes). Writes the ``tracking-logs`` section of BENCHMARKS.md and, for each log with tracks in
+Run: ``.venv/bin/python benchmarks/bench_tracking_logs.py [--logs NAME ...] [--perturb SEED ...]``
+(a replay takes 1–5 minutes). Counts this small are one draw of a chaotic replay: ``--perturb``
+replays each log once more per seed with every pose moved by 10 – 20 µm and 1 – 3 µrad
+(:func:`perturbed`), which changes which of the registration's steps a scan takes, and reports
+those counts too. Writes the ``tracking-logs`` section of BENCHMARKS.md and, for each log with tracks in
 free space, ``docs/images/tracks_<log>.png`` (the map, free-space tracks in green, the others red).
 """
 
@@ -51,18 +54,28 @@ RESOLUTION = 0.05
 NEAR = 0.1  # m: a centre within this of an occupied cell is on it
 
 
-def replay(path: Path) -> tuple[dict, int, int]:
+def perturbed(pose, rng) -> np.ndarray:
+    """``pose`` moved by 10 – 20 µm in a random direction and turned by 1 – 3 µrad either way: far
+    below any sensor's precision, enough to change which of the registration's steps a scan takes."""
+    r, phi = rng.uniform(10e-6, 20e-6), rng.uniform(0.0, 2.0 * math.pi)
+    return np.asarray(pose, dtype=np.float64) + np.array([r * math.cos(phi), r * math.sin(phi),
+                                                          rng.choice([-1, 1]) * rng.uniform(1e-6, 3e-6)])
+
+
+def replay(path: Path, perturb: int | None = None) -> tuple[dict, int, int]:
     """Confirmed tracks' samples ``{id: (K, 5) of (stamp, x, y, speed, scan index)}``, scans, tracks
-    started."""
+    started; with ``perturb`` (a seed) every pose moved by :func:`perturbed`."""
     lm = LocalMap((20.0, 20.0), RESOLUTION, half_life=30.0, tracking=True, register=True)
+    rng = None if perturb is None else np.random.default_rng(perturb)
     samples: dict[int, list] = {}
     last, n = None, 0
     for scan in CarmenScans(path):
         stamp = float(scan.stamp)
         stamp = stamp if last is None or stamp >= last else last
         last = stamp
-        lm.move_to(float(scan.pose[0]), float(scan.pose[1]))
-        lm.insert_scan(scan.pose, scan.ranges, scan.angles, stamp, max_range=scan.max_range)
+        pose = scan.pose if rng is None else perturbed(scan.pose, rng)
+        lm.move_to(float(pose[0]), float(pose[1]))
+        lm.insert_scan(pose, scan.ranges, scan.angles, stamp, max_range=scan.max_range)
         tr = lm.tracks()
         keep = np.flatnonzero(tr.confirmed)
         # the tracks lie in the map's frame: carried back into the log's by the map's correction
@@ -122,20 +135,34 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--logs", nargs="+", choices=sorted(LOGS), default=list(LOGS))
     parser.add_argument("--no-write", action="store_true", help="print the results only")
+    parser.add_argument("--perturb", type=int, nargs="*", default=[], metavar="SEED",
+                        help="also replay each log with every pose moved by 10 - 20 um and 1 - 3 urad (one run per "
+                             "seed): how much of the count is one draw of a chaotic replay")
     args = parser.parse_args()
     data = shared_data()
     if data is None:
         return
-    rows = []
+    rows, shaken = [], []
     for name in args.logs:
         log, twin = LOGS[name]
         path = data / log
-        tracks, scans, started = replay(path)
         reference = read_carmen(data / (twin or log))
-        if twin:
-            tracks = corrected(read_carmen(path).scans, reference.scans, tracks)
         grid = map_scans(reference.stack(), RESOLUTION).grid
-        structure = {tid for tid, s in tracks.items() if on_structure(grid, s[:, 1:3]) >= 0.5}
+
+        def judged(perturb=None):
+            tracks, scans, started = replay(path, perturb)
+            if twin:
+                tracks = corrected(read_carmen(path).scans, reference.scans, tracks)
+            return tracks, scans, started, {tid for tid, s in tracks.items() if on_structure(grid, s[:, 1:3]) >= 0.5}
+
+        counts = []
+        for seed in args.perturb:
+            t, _, _, st = judged(seed)
+            counts.append(f"{len(st)} of {len(t)}")
+            print(f"{name}, poses perturbed (seed {seed}): {len(t)} confirmed, {len(st)} on structure", flush=True)
+        if counts:
+            shaken.append(f"| {name} | {', '.join(counts)} |")
+        tracks, scans, started, structure = judged()
         free = [s for tid, s in tracks.items() if tid not in structure]
         seconds = sum(float(s[-1, 0] - s[0, 0]) for s in free)
         speed = float(np.median(np.concatenate([s[:, 3] for s in free]))) if free else math.nan
@@ -160,6 +187,9 @@ def main() -> None:
         "their median speed |",
         "|---|---:|---:|---:|---:|---:|---:|---:|",
         *rows,
+        *(["", f"With every pose moved by 10 – 20 µm and 1 – 3 µrad (`--perturb {' '.join(map(str, args.perturb))}`, "
+            "one run per seed), on structure of confirmed:", "", "| log | perturbed runs |", "|---|---|", *shaken]
+          if shaken else []),
     ])
     publish("tracking-logs", body, write=not args.no_write)
 
