@@ -637,18 +637,18 @@ def test_nodes_and_from_nodes_round_trip():
     assert nodes.count == tree.num_nodes() and nodes.value.dtype == np.float32 and nodes.child.dtype == np.int32
     with pytest.raises(ValueError):
         nodes.value[0] = 1.0  # read-only
-    copy = OcTree.from_nodes(0.1, nodes.value.copy(), nodes.child.copy(), nodes.count, prob_hit=0.8)
+    copy = OcTree.from_nodes(0.1, nodes.slots.copy(), nodes.count, prob_hit=0.8)
     assert encode_ot(copy) == encode_ot(tree) and copy.num_leaves() == tree.num_leaves()
     pts = _room_cloud(rng, 2000)
     for t in (tree, copy):
         t.insert_point_cloud(pts, np.array([0.3, 0.1, 0.0]))
     assert encode_ot(copy) == encode_ot(tree)
     with pytest.raises(ShapeError):
-        OcTree.from_nodes(0.1, nodes.value.astype(np.float64), nodes.child.copy(), nodes.count)
+        OcTree.from_nodes(0.1, nodes.value.copy(), nodes.count)
     with pytest.raises(InvalidArgumentError):
-        OcTree.from_nodes(0.1, nodes.value[:-1].copy(), nodes.child[:-1].copy(), nodes.count)
+        OcTree.from_nodes(0.1, nodes.slots[:-1].copy(), nodes.count)
     with pytest.raises(InvalidArgumentError):
-        OcTree.from_nodes(0.1, nodes.value, nodes.child, nodes.count)  # read-only views: not taken over
+        OcTree.from_nodes(0.1, nodes.slots, nodes.count)  # a read-only view: not taken over
 
 
 def test_occupancy_and_unknown_readout():

@@ -22,6 +22,7 @@ import numpy as np
 
 from .._jit import inline_kernel, kernel
 from ..octree.keys import DEPTH
+from ..octree.pool import SLOT
 
 # Error codes of the decoders (octomap.py turns them into messages).
 OK = 0
@@ -31,7 +32,7 @@ LEFTOVER = 3  # bytes after the last node
 EMPTY_INNER = 4  # .bt: a node marked inner (11) has no children
 NAN_VALUE = 5  # .ot: a node's log-odds is NaN
 
-_PENDING = -2  # child[] of a node whose record has not been read yet
+_PENDING = -2  # the child of a node whose record has not been read yet
 
 # Bit tables indexed by a child mask (bit i = child i).
 _CTZ = np.array([0] + [(m & -m).bit_length() - 1 for m in range(1, 256)], np.int64)  # lowest child
@@ -62,7 +63,7 @@ def _next_in_preorder(blk, rem, sp):
 
 
 @kernel
-def _block_masks(value, child, top, occ):
+def _block_masks(slots, top, occ):
     """Per block of 8 slots (index ``slot >> 3``): which children exist, which are inner nodes and
     which are leaves with log-odds ≥ ``occ``, as 8-bit masks; one linear pass over the pool."""
     nb = top >> 3
@@ -75,9 +76,9 @@ def _block_masks(value, child, top, occ):
         o = 0
         for i in range(8):
             s = 8 * b + i
-            v = value[s]
+            v = slots[s].value
             e |= np.int64(v == v) << i  # False for NaN: no node
-            n |= np.int64(child[s] >= 0) << i
+            n |= np.int64(slots[s].child >= 0) << i
             o |= np.int64(v >= occ) << i
         ex[b] = e
         inner[b] = n & e  # a freed block's first slot links the free list: not a child
@@ -89,7 +90,7 @@ def _block_masks(value, child, top, occ):
 
 
 @kernel
-def encode_bt(value, child, top, occ, lo, hi):
+def encode_bt(slots, top, occ, lo, hi):
     """The body of OctoMap's ``writeBinary`` for this tree, without changing the tree.
 
     OctoMap first converts every node to maximum likelihood (``hi`` when its log-odds ≥ ``occ``,
@@ -102,15 +103,15 @@ def encode_bt(value, child, top, occ, lo, hi):
     Returns ``(data, nodes)``: the body as uint8 and the node count of the tree as written (−1 if
     the pool holds a node below depth 16).
     """
-    if top <= 0 or np.isnan(value[0]):
+    if top <= 0 or np.isnan(slots[0].value):
         return np.empty(0, np.uint8), 0
-    if child[0] < 0:  # the root alone: no children, two zero bytes
+    if slots[0].child < 0:  # the root alone: no children, two zero bytes
         return np.zeros(2, np.uint8), 1
     # the leaf code OctoMap writes for each class after conversion (it tests the converted value
     # against the threshold again): 1 = free, 2 = occupied
     code_free = 2 if lo >= occ else 1
     code_occ = 2 if hi >= occ else 1
-    ex, inner, occupied = _block_masks(value, child, top, occ)
+    ex, inner, occupied = _block_masks(slots, top, occ)
     nb = top >> 3
     # per block: which children a complete prune collapses, and which of those are occupied
     col = np.zeros(nb, np.int64)
@@ -123,8 +124,8 @@ def encode_bt(value, child, top, occ, lo, hi):
     pos = np.empty(DEPTH + 1, np.int64)
     n_inner = 1
     sp = 0
-    blk[0] = child[0]
-    rem[0] = inner[child[0] >> 3]
+    blk[0] = slots[0].child
+    rem[0] = inner[slots[0].child >> 3]
     acc[0] = 0
     acc_occ[0] = 0
     while sp >= 0:
@@ -132,7 +133,7 @@ def encode_bt(value, child, top, occ, lo, hi):
             i = _take_lowest(rem, sp)
             if sp + 1 >= DEPTH:  # a node with children at depth 16: not a valid pool
                 return np.empty(0, np.uint8), -1
-            c = child[blk[sp] + i]
+            c = slots[blk[sp] + i].child
             sp += 1
             blk[sp] = c
             rem[sp] = inner[c >> 3]
@@ -162,7 +163,7 @@ def encode_bt(value, child, top, occ, lo, hi):
     p = 0
     n_nodes = 1
     sp = 0
-    blk[0] = child[0]
+    blk[0] = slots[0].child
     while True:
         # emit the node whose child block is blk[sp] (its children lie at depth sp + 1)
         b = blk[sp] >> 3
@@ -180,7 +181,7 @@ def encode_bt(value, child, top, occ, lo, hi):
         if sp < 0:
             break
         sp += 1
-        blk[sp] = child[k]
+        blk[sp] = slots[k].child
     return out[:p], n_nodes
 
 
@@ -191,17 +192,16 @@ def decode_bt(data, start, lo, hi):
     root too, where OctoMap leaves it at ``hi``); a root without children gets ``hi``, as in
     OctoMap.
 
-    Returns ``(value, child, top, nodes, error, offset)``; ``error`` is one of the module's codes
+    Returns ``(slots, top, nodes, error, offset)``; ``error`` is one of the module's codes
     and ``offset`` the byte where decoding stopped (the arrays are then meaningless).
     """
     n = data.shape[0]
     cap = 8 + 8 * (max(n - start, 0) // 2)  # one block per two bytes: bounded by the file's size
-    value = np.empty(cap, np.float32)
-    child = np.empty(cap, np.int32)
+    slots = np.empty(cap, SLOT)
     for s in range(8):
-        value[s] = np.nan
-        child[s] = -1
-    value[0] = hi
+        slots[s].value = np.nan
+        slots[s].child = -1
+    slots[0].value = hi
     val = np.empty(4, np.float32)  # value by 2-bit code; inner nodes get theirs when done
     val[0] = np.nan
     val[1] = lo
@@ -219,27 +219,27 @@ def decode_bt(data, start, lo, hi):
     while True:
         # read the two bytes of node slot[sp] (depth sp) and create its children
         if p + 2 > n:
-            return value, child, top, n_nodes, TRUNCATED, p
+            return slots, top, n_nodes, TRUNCATED, p
         bits = np.int64(data[p]) | (np.int64(data[p + 1]) << 8)
         if bits == 0:
             if sp == 0:  # a tree of one node
                 p += 2
                 break
-            return value, child, top, n_nodes, EMPTY_INNER, p
+            return slots, top, n_nodes, EMPTY_INNER, p
         c = top
         top += 8
-        child[slot[sp]] = c
+        slots[slot[sp]].child = c
         inn = 0
         has_hi = False
         for i in range(8):
             code = (bits >> (2 * i)) & 3
-            value[c + i] = val[code]
-            child[c + i] = -1
+            slots[c + i].value = val[code]
+            slots[c + i].child = -1
             n_nodes += code != 0
             inn |= np.int64(code == 3) << i
             has_hi |= code == 2
         if inn != 0 and sp + 1 >= DEPTH:
-            return value, child, top, n_nodes, TOO_DEEP, p
+            return slots, top, n_nodes, TOO_DEEP, p
         p += 2
         blk[sp] = c
         rem[sp] = inn
@@ -247,7 +247,7 @@ def decode_bt(data, start, lo, hi):
         # finish nodes whose inner children are all read; then go to the next unread one
         while sp >= 0 and rem[sp] == 0:
             h = any_hi[sp]
-            value[slot[sp]] = hi if h else lo  # max of the children (each lo or hi)
+            slots[slot[sp]].value = hi if h else lo  # max of the children (each lo or hi)
             sp -= 1
             if sp >= 0:
                 any_hi[sp] |= h
@@ -257,21 +257,22 @@ def decode_bt(data, start, lo, hi):
         sp += 1
         slot[sp] = k
     if p != n:
-        return value, child, top, n_nodes, LEFTOVER, p
-    return value, child, top, n_nodes, OK, p
+        return slots, top, n_nodes, LEFTOVER, p
+    return slots, top, n_nodes, OK, p
 
 
 # ------------------------------------------------------------------------------ .ot
 
 
 @kernel
-def encode_ot(value, bits, child, top):
+def encode_ot(slots, bits, top):
     """The body of OctoMap's ``write`` (``.ot``): per node in pre-order its float32 log-odds
-    (``bits``: the value array viewed as uint32, written little-endian) and its child mask.
+    (``bits``: the slots viewed as uint32, a slot's value at ``2 · slot``, written little-endian)
+    and its child mask.
     Returns ``(data, nodes)``; nodes is −1 if the pool is inconsistent."""
-    if top <= 0 or np.isnan(value[0]):
+    if top <= 0 or np.isnan(slots[0].value):
         return np.empty(0, np.uint8), 0
-    ex, inner, occupied = _block_masks(value, child, top, value[0])  # (occupancy unused here)
+    ex, inner, occupied = _block_masks(slots, top, slots[0].value)  # (occupancy unused here)
     n = 1
     for b in range(1, top >> 3):
         n += _POPCOUNT[ex[b]]
@@ -285,12 +286,12 @@ def encode_ot(value, bits, child, top):
         # write node's record; descend into its children if it has any
         if p + 5 > out.shape[0]:
             return out[:0], -1
-        w = bits[node]
+        w = bits[2 * node]
         out[p] = w & 0xFF
         out[p + 1] = (w >> 8) & 0xFF
         out[p + 2] = (w >> 16) & 0xFF
         out[p + 3] = w >> 24
-        c = child[node]
+        c = slots[node].child
         mask = 0
         if c >= 0:
             mask = ex[c >> 3]
@@ -313,17 +314,16 @@ def decode_ot(values, masks, start, n_bytes):
     """Decode the records of a ``.ot`` body: ``values`` (float32) and ``masks`` (uint8) of the
     ``len(masks)`` complete 5-byte records from byte ``start``; ``n_bytes`` is the whole file's
     length (a partial record at the end is left over). Values are kept as read, as OctoMap's
-    ``readData`` does. Returns ``(value, child, top, nodes, error, offset)``."""
+    ``readData`` does. Returns ``(slots, top, nodes, error, offset)``."""
     n_rec = masks.shape[0]
     n_blocks = 0
     for r in range(n_rec):
         n_blocks += masks[r] != 0
     cap = 8 + 8 * n_blocks  # bounded by the records present
-    value = np.empty(cap, np.float32)
-    child = np.empty(cap, np.int32)
+    slots = np.empty(cap, SLOT)
     for s in range(8):
-        value[s] = np.nan
-        child[s] = -1
+        slots[s].value = np.nan
+        slots[s].child = -1
     top = 8
     r = 0
     blk = np.empty(DEPTH + 1, np.int64)
@@ -333,30 +333,30 @@ def decode_ot(values, masks, start, n_bytes):
     while True:
         # node's record is the next one
         if r >= n_rec:
-            return value, child, top, r, TRUNCATED, start + 5 * r
+            return slots, top, r, TRUNCATED, start + 5 * r
         v = values[r]
         if np.isnan(v):
-            return value, child, top, r, NAN_VALUE, start + 5 * r
-        value[node] = v
+            return slots, top, r, NAN_VALUE, start + 5 * r
+        slots[node].value = v
         mask = np.int64(masks[r])
         if mask != 0:
             if sp + 1 >= DEPTH:
-                return value, child, top, r, TOO_DEEP, start + 5 * r
+                return slots, top, r, TOO_DEEP, start + 5 * r
             c = top
             top += 8
-            child[node] = c
+            slots[node].child = c
             for i in range(8):
-                value[c + i] = np.nan
-                child[c + i] = -1
+                slots[c + i].value = np.nan
+                slots[c + i].child = -1
             sp += 1
             blk[sp] = c
             rem[sp] = mask
         else:
-            child[node] = -1
+            slots[node].child = -1
         r += 1
         sp, node = _next_in_preorder(blk, rem, sp)
         if sp < 0:
             break
     if start + 5 * r != n_bytes:
-        return value, child, top, r, LEFTOVER, start + 5 * r
-    return value, child, top, r, OK, start + 5 * r
+        return slots, top, r, LEFTOVER, start + 5 * r
+    return slots, top, r, OK, start + 5 * r

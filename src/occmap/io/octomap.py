@@ -84,7 +84,7 @@ def encode_bt(tree: OcTree, comment: str | None = None) -> bytes:
     to the header as ``#`` comments (OctoMap's readers skip them)."""
     nodes = tree.nodes()
     lo, hi = (np.float32(v) for v in tree.clamping_log_odds)
-    body, nodes = C.encode_bt(nodes.value, nodes.child, len(nodes.value), np.float32(tree.occupied_log_odds), lo, hi)
+    body, nodes = C.encode_bt(nodes.slots, len(nodes.slots), np.float32(tree.occupied_log_odds), lo, hi)
     if nodes < 0:
         raise RuntimeError("octree node pool is inconsistent: a node lies below depth 16")
     return _header(BINARY_MAGIC, "OcTree", int(nodes), tree.resolution, comment) + body.tobytes()
@@ -94,7 +94,7 @@ def encode_ot(tree: OcTree, comment: str | None = None) -> bytes:
     """The bytes OctoMap's ``write`` (``.ot``, every node's log-odds) writes for ``tree``
     (``comment`` as for :func:`encode_bt`)."""
     nodes = tree.nodes()
-    body, nodes = C.encode_ot(nodes.value, nodes.value.view(np.uint32), nodes.child, len(nodes.value))
+    body, nodes = C.encode_ot(nodes.slots, nodes.slots.view(np.uint32), len(nodes.slots))
     if nodes < 0:
         raise RuntimeError("octree node pool is inconsistent: a node below depth 16 or more reachable "
                            "nodes than stored values")
@@ -235,9 +235,9 @@ def decode_bt(buf: bytes, path="<bytes>", **tree_kwargs) -> OcTree:
         return tree
     data = np.frombuffer(buf, np.uint8)
     lo, hi = (np.float32(v) for v in tree.clamping_log_odds)
-    value, child, top, nodes, err, offset = C.decode_bt(data, h.data_at, lo, hi)
+    slots, top, nodes, err, offset = C.decode_bt(data, h.data_at, lo, hi)
     _check(path, h, err, offset, nodes)
-    return OcTree.from_nodes(h.res, value[:top], child[:top], int(nodes), **tree_kwargs)
+    return OcTree.from_nodes(h.res, slots[:top], int(nodes), **tree_kwargs)
 
 
 def decode_ot(buf: bytes, path="<bytes>", **tree_kwargs) -> OcTree:
@@ -252,9 +252,9 @@ def decode_ot(buf: bytes, path="<bytes>", **tree_kwargs) -> OcTree:
     rec = np.frombuffer(buf, np.dtype([("v", "<f4"), ("m", "u1")]), count=n_rec, offset=h.data_at)
     values = rec["v"].astype(np.float32)
     masks = np.ascontiguousarray(rec["m"])
-    value, child, top, nodes, err, offset = C.decode_ot(values, masks, h.data_at, len(buf))
+    slots, top, nodes, err, offset = C.decode_ot(values, masks, h.data_at, len(buf))
     _check(path, h, err, offset, nodes)
-    return OcTree.from_nodes(h.res, value[:top], child[:top], int(nodes), **tree_kwargs)
+    return OcTree.from_nodes(h.res, slots[:top], int(nodes), **tree_kwargs)
 
 
 def read_bt(path, **tree_kwargs) -> OcTree:

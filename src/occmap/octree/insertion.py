@@ -208,8 +208,8 @@ def _apply_range(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool, start: in
     top = int(pool.meta[P.TOP])
     changed = False
     while True:
-        start, ch = apply_voxels(pool.value, pool.child, pool.meta, keys, depths, is_hit, start, *rule, not lazy,
-                                 pool.value.shape[0], 0)
+        start, ch = apply_voxels(pool.slots, pool.meta, keys, depths, is_hit, start, *rule, not lazy,
+                                 pool.slots.shape[0], 0)
         changed |= ch
         if start == len(keys):
             return changed
@@ -225,11 +225,11 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     its own range, and the shared path is settled afterwards. False (nothing done) where the
     path does not exist yet even after the first voxel (a pruned leaf on it absorbs it)."""
     shared = shared_depth(keys[0], keys[-1])  # depth of that node
-    path = P.path_to(pool.value, pool.child, keys[0], shared)
+    path = P.path_to(pool.slots, keys[0], shared)
     first = 0
     if not len(path):  # make it: the first voxel's update creates (or expands) the nodes on its way
         _apply_range(pool, keys, depths, is_hit, rule, lazy, 0, 1)
-        path, first = P.path_to(pool.value, pool.child, keys[0], shared), 1
+        path, first = P.path_to(pool.slots, keys[0], shared), 1
         if not len(path):
             return False
     split = subtree_split(keys, shared, first)
@@ -240,24 +240,24 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     # grow the pool scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
     need_a = _ROOM_PER_VOXEL * (split - first)
-    need_a -= P.free_slots(pool.child, pool.meta[P.FREE], need_a)
+    need_a -= P.free_slots(pool.slots, pool.meta[P.FREE], need_a)
     room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else 0
     room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
-    if pool.value.shape[0] < top + room_a + room_b:
+    if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
     meta_a = np.array([top, pool.meta[P.FREE], 0], np.int64)
     meta_b = np.array([top + room_a, -1, 0], np.int64)
     (end_a, changed_a), (end_b, changed_b) = run_jobs([
-        lambda: apply_voxels(pool.value, pool.child, meta_a, keys[:split], depths[:split], is_hit[:split], first,
+        lambda: apply_voxels(pool.slots, meta_a, keys[:split], depths[:split], is_hit[:split], first,
                              *rule, not lazy, top + room_a, shared + 1),
-        lambda: apply_voxels(pool.value, pool.child, meta_b, keys, depths, is_hit, split, *rule, not lazy,
-                             pool.value.shape[0], shared + 1)], threads=2)
-    P.join_pools(pool.value, pool.child, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
+        lambda: apply_voxels(pool.slots, meta_b, keys, depths, is_hit, split, *rule, not lazy,
+                             pool.slots.shape[0], shared + 1)], threads=2)
+    P.join_pools(pool.slots, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
     changed = changed_a or changed_b
     if end_a < split:  # a range ran out of slots: the rest here
         changed |= _apply_range(pool, keys, depths, is_hit, rule, lazy, end_a, split)
     if end_b < len(keys):
         changed |= _apply_range(pool, keys, depths, is_hit, rule, lazy, end_b, len(keys))
     if changed and not lazy:
-        P.settle_path(pool.value, pool.child, pool.meta, path)
+        P.settle_path(pool.slots, pool.meta, path)
     return True

@@ -12,20 +12,20 @@ from . import raywalk
 from .keys import DEPTH, MAX_KEY, child_index, coord_to_key, key_in_range, key_to_coord
 
 @kernel
-def search_keys(value, child, keys, depth):
+def search_keys(slots, keys, depth):
     """Slot of the node holding each key at ``depth`` (a pruned ancestor if the tree stops
     above it), −1 where the space is unknown. ``keys`` (N, 3) int64."""
     n = keys.shape[0]
     out = np.full(n, -1, np.int64)
-    if np.isnan(value[0]):
+    if np.isnan(slots[0].value):
         return out
     for j in range(n):
         kx, ky, kz = keys[j, 0], keys[j, 1], keys[j, 2]
         node = 0
         d = 0
-        while d < depth and child[node] >= 0:
-            nxt = child[node] + child_index(kx, ky, kz, d)
-            if np.isnan(value[nxt]):
+        while d < depth and slots[node].child >= 0:
+            nxt = slots[node].child + child_index(kx, ky, kz, d)
+            if np.isnan(slots[nxt].value):
                 node = -1
                 break
             node = nxt
@@ -35,20 +35,20 @@ def search_keys(value, child, keys, depth):
 
 
 @kernel
-def count_leaves(value, child, top):
+def count_leaves(slots, top):
     n = 0
     for i in range(top):
-        if child[i] < 0 and not np.isnan(value[i]):
+        if slots[i].child < 0 and not np.isnan(slots[i].value):
             n += 1
     return n
 
 
 @kernel
-def collect_nodes(value, child, max_depth, kmin, kmax, leaves_only, count_only, out_key, out_depth, out_value):
+def collect_nodes(slots, max_depth, kmin, kmax, leaves_only, count_only, out_key, out_depth, out_value):
     """Pre-order walk of the nodes down to ``max_depth`` that overlap the key box [kmin, kmax];
     a node at ``max_depth`` counts as a leaf. Fills the out arrays (min-corner key, depth, value)
     unless ``count_only``; returns the number of nodes reported."""
-    if np.isnan(value[0]):
+    if np.isnan(slots[0].value):
         return 0
     nodes = np.empty(DEPTH + 1, np.int64)
     corner = np.zeros((DEPTH + 1, 3), np.int64)
@@ -56,17 +56,17 @@ def collect_nodes(value, child, max_depth, kmin, kmax, leaves_only, count_only, 
     nodes[0] = 0
     sp = 0
     m = 0
-    if not leaves_only or child[0] < 0 or max_depth == 0:
+    if not leaves_only or slots[0].child < 0 or max_depth == 0:
         if not count_only:
             out_key[0, :] = 0
             out_depth[0] = 0
-            out_value[0] = value[0]
+            out_value[0] = slots[0].value
         m = 1
-        if child[0] < 0 or max_depth == 0:
+        if slots[0].child < 0 or max_depth == 0:
             return m
     while sp >= 0:
         node = nodes[sp]
-        c = child[node]
+        c = slots[node].child
         i = next_child[sp]
         half = 1 << (DEPTH - 1 - sp)
         pushed = False
@@ -74,7 +74,7 @@ def collect_nodes(value, child, max_depth, kmin, kmax, leaves_only, count_only, 
             k = c + i
             pos = i
             i += 1
-            if np.isnan(value[k]):
+            if np.isnan(slots[k].value):
                 continue
             x0 = corner[sp, 0] + (pos & 1) * half
             y0 = corner[sp, 1] + ((pos >> 1) & 1) * half
@@ -83,14 +83,14 @@ def collect_nodes(value, child, max_depth, kmin, kmax, leaves_only, count_only, 
                     or z0 > kmax[2] or z0 + half - 1 < kmin[2]):
                 continue
             d = sp + 1
-            is_leaf = child[k] < 0 or d == max_depth
+            is_leaf = slots[k].child < 0 or d == max_depth
             if is_leaf or not leaves_only:
                 if not count_only:
                     out_key[m, 0] = x0
                     out_key[m, 1] = y0
                     out_key[m, 2] = z0
                     out_depth[m] = d
-                    out_value[m] = value[k]
+                    out_value[m] = slots[k].value
                 m += 1
             if not is_leaf:
                 next_child[sp] = i
@@ -108,7 +108,7 @@ def collect_nodes(value, child, max_depth, kmin, kmax, leaves_only, count_only, 
 
 
 @kernel_parallel
-def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown, occ):
+def cast_rays(slots, origins, directions, res, max_range, ignore_unknown, occ):
     """OctoMap's ``castRay`` for each ray (float32 origins and directions as its ``point3d``):
     walk the voxels from the origin's until an occupied one (hit), an unknown one (a miss unless
     ``ignore_unknown``), ``max_range`` (> 0) or the tree's border. Returns hit flags and the centre
@@ -119,13 +119,13 @@ def cast_rays(value, child, origins, directions, res, max_range, ignore_unknown,
     ends = np.full((n, 3), np.nan, np.float32)
     span = 256
     for k in prange((n + span - 1) // span):
-        _cast_span(value, child, origins, directions, res, max_range, ignore_unknown, occ,
+        _cast_span(slots, origins, directions, res, max_range, ignore_unknown, occ,
                    k * span, min(n, (k + 1) * span), hit, ends)
     return hit, ends
 
 
 @kernel
-def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown, occ, start, stop, hit, ends):
+def _cast_span(slots, origins, directions, res, max_range, ignore_unknown, occ, start, stop, hit, ends):
     """:func:`cast_rays` for rays ``start..stop-1``, into ``hit`` and ``ends``."""
     inv_res = 1.0 / res
     n = hit.shape[0]
@@ -162,11 +162,11 @@ def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown
                     d = min(DEPTH - bit_length(diff), known)
                 px, py, pz = kx, ky, kz
                 node = path[d]
-                if d == 0 and np.isnan(value[0]):
+                if d == 0 and np.isnan(slots[0].value):
                     node = -1
-                while node >= 0 and d < DEPTH and child[node] >= 0:
-                    nxt = child[node] + child_index(kx, ky, kz, d)
-                    if np.isnan(value[nxt]):
+                while node >= 0 and d < DEPTH and slots[node].child >= 0:
+                    nxt = slots[node].child + child_index(kx, ky, kz, d)
+                    if np.isnan(slots[nxt].value):
                         node = -1
                     else:
                         node = nxt
@@ -175,7 +175,7 @@ def _cast_span(value, child, origins, directions, res, max_range, ignore_unknown
                 known = d  # path[0..d] holds existing nodes whether or not the search found one
                 # a leaf at depth d covers its whole cube; an unknown child of path[d] the cube one level down
                 span = DEPTH - d if node >= 0 else DEPTH - 1 - d
-                stop_here = value[node] >= occ if node >= 0 else not ignore_unknown
+                stop_here = slots[node].value >= occ if node >= 0 else not ignore_unknown
             if stop_here:
                 hit[r] = node >= 0
                 break

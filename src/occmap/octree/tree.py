@@ -69,18 +69,26 @@ class Nodes(NamedTuple):
     *slots*; the eight children of an inner node occupy one *block* of 8 consecutive slots, child
     ``i`` (= x-bit + 2·y-bit + 4·z-bit) at ``block + i``; slot 0 is the root, alone in block 0.
 
-    value : float32 (slots,)
-        Log-odds of the node in each slot; NaN where the slot holds no node.
-    child : int32 (slots,)
-        First slot of the node's block of children; −1 for a leaf. (In a slot holding no node it
-        may link unused blocks together: read it only where ``value`` is not NaN.)
+    slots : (slots,) records of ``value`` float32 and ``child`` int32 (:data:`.pool.SLOT`)
+        ``value``: log-odds of the node in each slot; NaN where the slot holds no node.
+        ``child``: first slot of the node's block of children; −1 for a leaf. (In a slot holding
+        no node it may link unused blocks together: read it only where ``value`` is not NaN.)
     count : int
         The number of nodes (OctoMap's ``size()``).
     """
 
-    value: np.ndarray
-    child: np.ndarray
+    slots: np.ndarray
     count: int
+
+    @property
+    def value(self) -> np.ndarray:
+        """The slots' log-odds (a view)."""
+        return self.slots["value"]
+
+    @property
+    def child(self) -> np.ndarray:
+        """The slots' first child slots (a view)."""
+        return self.slots["child"]
 
 
 class OcTree(OneCallAtATime):
@@ -316,14 +324,14 @@ class OcTree(OneCallAtATime):
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
-        pool.settle_tree(self._pool.value, self._pool.child, self._pool.meta, -1, True, False)
+        pool.settle_tree(self._pool.slots, self._pool.meta, -1, True, False)
 
     def prune(self) -> None:
         """Collapse nodes whose eight children are leaves with equal values, as OctoMap's ``prune``:
         level by level from depth 15 up to depth 1 (never the root), stopping after the first
         level where nothing collapsed."""
         for depth in range(15, 0, -1):
-            if pool.settle_tree(self._pool.value, self._pool.child, self._pool.meta, depth, False, True) == 0:
+            if pool.settle_tree(self._pool.slots, self._pool.meta, depth, False, True) == 0:
                 break
 
     def expand(self) -> None:
@@ -332,13 +340,13 @@ class OcTree(OneCallAtATime):
         depths = self.leaves().depths
         new_nodes = int(sum(((8 ** (17 - depths) - 8) // 7).tolist()))
         top = int(self._pool.meta[pool.TOP])
-        if self._pool.value.shape[0] < top + new_nodes:
+        if self._pool.slots.shape[0] < top + new_nodes:
             self._pool.grow(top + new_nodes)
-        pool.expand_all(self._pool.value, self._pool.child, self._pool.meta)
+        pool.expand_all(self._pool.slots, self._pool.meta)
 
     def to_max_likelihood(self) -> None:
         """Set every node to the clamping bound of its class (occupied: upper, free: lower)."""
-        pool.to_max_likelihood(self._pool.value, self._pool.child, self._l_occ, self._l_min, self._l_max)
+        pool.to_max_likelihood(self._pool.slots, self._l_occ, self._l_min, self._l_max)
 
     # ------------------------------------------------------------------ queries
 
@@ -348,7 +356,7 @@ class OcTree(OneCallAtATime):
         keys = coord_to_keys(P, self.resolution)
         inside = keys_in_range(keys) & np.all(np.isfinite(P), axis=1)
         keys[~inside] = 0
-        nodes = query.search_keys(self._pool.value, self._pool.child, keys, depth)
+        nodes = query.search_keys(self._pool.slots, keys, depth)
         nodes[~inside] = -1
         return nodes
 
@@ -358,7 +366,7 @@ class OcTree(OneCallAtATime):
         nodes = self._search(points, depth)
         out = np.full(nodes.shape, np.nan)
         known = nodes >= 0
-        out[known] = self._pool.value[nodes[known]]
+        out[known] = self._pool.slots["value"][nodes[known]]
         return out
 
     def occupancy_at(self, points, depth: int = 16) -> np.ndarray:
@@ -376,7 +384,7 @@ class OcTree(OneCallAtATime):
         n = max(len(O), len(D))
         if len(O) not in (1, n) or len(D) not in (1, n):
             raise ShapeError(f"origins {O.shape} and directions {D.shape} do not match")
-        hit, ends = query.cast_rays(self._pool.value, self._pool.child, O.astype(np.float32), D.astype(np.float32),
+        hit, ends = query.cast_rays(self._pool.slots, O.astype(np.float32), D.astype(np.float32),
                                 self.resolution, float(max_range), bool(ignore_unknown), self._l_occ)
         return hit, ends.astype(np.float64)
 
@@ -389,7 +397,7 @@ class OcTree(OneCallAtATime):
         depth = _depth(depth)
         kmin = np.zeros(3, np.int64) if bbx_min is None else np.clip(self._bbx_key(bbx_min), 0, MAX_KEY)
         kmax = np.full(3, MAX_KEY, np.int64) if bbx_max is None else np.clip(self._bbx_key(bbx_max), 0, MAX_KEY)
-        args = (self._pool.value, self._pool.child, depth, kmin, kmax, leaves_only)
+        args = (self._pool.slots, depth, kmin, kmax, leaves_only)
         n = query.collect_nodes(*args, True, np.empty((0, 3), np.int64), np.empty(0, np.int64), np.empty(0, np.float32))
         keys = np.empty((n, 3), np.int64)
         depths = np.empty(n, np.int64)
@@ -417,7 +425,7 @@ class OcTree(OneCallAtATime):
 
     def num_leaves(self) -> int:
         """Number of leaf nodes (OctoMap's ``getNumLeafNodes()``)."""
-        return int(query.count_leaves(self._pool.value, self._pool.child, int(self._pool.meta[pool.TOP])))
+        return int(query.count_leaves(self._pool.slots, int(self._pool.meta[pool.TOP])))
 
     def memory_usage(self) -> int:
         """Bytes the nodes occupy: every inner node's block of eight slots at 8 bytes a slot (float32
@@ -427,7 +435,7 @@ class OcTree(OneCallAtATime):
 
     def memory_allocated(self) -> int:
         """Bytes the node pool holds in memory (its slot arrays, free room included)."""
-        return self._pool.value.nbytes + self._pool.child.nbytes + self._pool.meta.nbytes
+        return self._pool.slots.nbytes + self._pool.meta.nbytes
 
     def metric_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min, max) corners in metres of the box around every known leaf."""
@@ -445,37 +453,33 @@ class OcTree(OneCallAtATime):
     # ------------------------------------------------------------------ nodes as arrays
 
     def nodes(self) -> Nodes:
-        """The node pool as read-only arrays (views, no copy; valid until the tree next changes):
-        see :class:`Nodes` for the layout. File writers (:mod:`occmap.io.octomap`) read the tree
+        """The node pool's slots in use, read-only (a view, no copy; valid until the tree next
+        changes): see :class:`Nodes` for the layout. File writers (:mod:`occmap.io.octomap`) read the tree
         through this."""
         p = self._pool
-        top = int(p.meta[pool.TOP])
-        value, child = p.value[:top], p.child[:top]
-        value.flags.writeable = False
-        child.flags.writeable = False
-        return Nodes(value, child, int(p.meta[pool.SIZE]))
+        slots = p.slots[:int(p.meta[pool.TOP])]
+        slots.flags.writeable = False
+        return Nodes(slots, int(p.meta[pool.SIZE]))
 
     @classmethod
-    def from_nodes(cls, resolution: float, value, child, count: int, **params) -> OcTree:
-        """A tree of ``resolution`` whose node pool is ``value`` and ``child`` (laid out as
-        :class:`Nodes` describes, with no free blocks: the slots in use are ``0 .. len(value)``)
-        holding ``count`` nodes; ``params`` (``prob_hit``, ``clamp``, ...) as for the constructor.
-        The tree takes the arrays over (float32 and int32, writeable, contiguous: they are not
-        copied). Checked: lengths and types, not the structure (file readers check that as they
-        build it)."""
+    def from_nodes(cls, resolution: float, slots, count: int, **params) -> OcTree:
+        """A tree of ``resolution`` whose node pool is ``slots`` (laid out as :class:`Nodes`
+        describes, with no free blocks: the slots in use are ``0 .. len(slots)``) holding ``count``
+        nodes; ``params`` (``prob_hit``, ``clamp``, ...) as for the constructor. The tree takes the
+        array over (records of :data:`.pool.SLOT`, writeable, contiguous: it is not copied).
+        Checked: length and type, not the structure (file readers check that as they build it)."""
         tree = cls(resolution, **params)
-        value, child = np.asarray(value), np.asarray(child)
-        if value.dtype != np.float32 or child.dtype != np.int32 or value.ndim != 1 or child.shape != value.shape:
-            raise ShapeError(f"value and child must be float32 and int32 arrays of one length, got {value.dtype} "
-                             f"{value.shape} and {child.dtype} {child.shape}")
-        if len(value) < 8 or len(value) % 8 or not value.flags.writeable or not child.flags.writeable:
-            raise InvalidArgumentError("value and child must be writeable and hold whole blocks of 8 slots (root "
-                                       f"block included), got {len(value)} slots")
-        if not 0 <= count <= len(value):
-            raise InvalidArgumentError(f"count must be 0 .. {len(value)} nodes, got {count}")
+        slots = np.asarray(slots)
+        if slots.dtype != pool.SLOT or slots.ndim != 1:
+            raise ShapeError(f"slots must be a 1-D array of {pool.SLOT}, got {slots.dtype} {slots.shape}")
+        if len(slots) < 8 or len(slots) % 8 or not slots.flags.writeable or not slots.flags.c_contiguous:
+            raise InvalidArgumentError("slots must be writeable, contiguous and hold whole blocks of 8 slots (root "
+                                       f"block included), got {len(slots)} slots")
+        if not 0 <= count <= len(slots):
+            raise InvalidArgumentError(f"count must be 0 .. {len(slots)} nodes, got {count}")
         p = tree._pool
-        p.value, p.child = np.ascontiguousarray(value), np.ascontiguousarray(child)
-        p.meta = np.array([len(value), -1, count], np.int64)
+        p.slots = slots
+        p.meta = np.array([len(slots), -1, count], np.int64)
         return tree
 
     # ------------------------------------------------------------------ pictures and exports

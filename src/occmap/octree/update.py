@@ -47,7 +47,7 @@ def subtree_split(keys, depth, first):
 
 
 @kernel
-def update_subtree(value, child, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
+def update_subtree(slots, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
     """Every voxel below inner ``node`` takes one hit (``hit``) or miss, leaving what OctoMap's
     ``updateNode`` on each of them, in any order, leaves: a leaf below it (a pruned one too:
     expanded, updated and pruned again it is itself updated) takes the update unless saturated
@@ -60,26 +60,26 @@ def update_subtree(value, child, meta, node, hit, l_hit, l_miss, lo, hi, settle_
     stack[0] = node
     sp = 0
     while True:
-        c = child[stack[sp]]
+        c = slots[stack[sp]].child
         i = next_child[sp]
         if i < 8:
             next_child[sp] = i + 1
             j = c + i
-            if child[j] >= 0:
+            if slots[j].child >= 0:
                 sp += 1
                 stack[sp] = j
                 next_child[sp] = 0
                 below[sp] = False
                 continue
-            if np.isnan(value[j]):  # (a slot of a child block with no node in it)
-                value[j] = 0.0
+            if np.isnan(slots[j].value):  # (a slot of a child block with no node in it)
+                slots[j].value = 0.0
                 meta[SIZE] += 1
-            if not saturated(value[j], hit, lo, hi):
-                value[j] = updated(value[j], hit, l_hit, l_miss, lo, hi)
+            if not saturated(slots[j].value, hit, lo, hi):
+                slots[j].value = updated(slots[j].value, hit, l_hit, l_miss, lo, hi)
                 below[sp] = True
             continue
         if below[sp] and settle_nodes:
-            settle(value, child, meta, stack[sp], True, True)
+            settle(slots, meta, stack[sp], True, True)
         if sp == 0:
             return below[0]
         below[sp - 1] |= below[sp]
@@ -87,7 +87,7 @@ def update_subtree(value, child, meta, node, hit, l_hit, l_miss, lo, hi, settle_
 
 
 @kernel
-def apply_voxels(value, child, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, top):
+def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, top):
     """Apply updates ``start..`` in order, each as OctoMap's ``updateNode`` with a hit or a miss on
     every voxel of the node at ``depths[i]`` (int8; (0,): all 16, voxels) whose first voxel has
     packed key ``keys[i]``. Returns (the number of updates, or the one at which the slots below
@@ -121,7 +121,7 @@ def apply_voxels(value, child, meta, keys, depths, is_hit, start, l_hit, l_miss,
         if meta[FREE] < 0 and meta[TOP] + _ROOM > cap:
             if settle_nodes:
                 for d in range(min(dirty, known - 1), top - 1, -1):
-                    settle(value, child, meta, path[d], True, True)
+                    settle(slots, meta, path[d], True, True)
             return i, changed
         key = keys[i]
         kx, ky, kz = unpack(key)
@@ -133,66 +133,66 @@ def apply_voxels(value, child, meta, keys, depths, is_hit, start, l_hit, l_miss,
             shared = shared_depth(key, previous)
             if settle_nodes:
                 for s in range(min(dirty, known - 1), max(shared, top - 1), -1):
-                    settle(value, child, meta, path[s], True, True)
+                    settle(slots, meta, path[s], True, True)
                 dirty = min(dirty, shared)
             d = min(shared, known)
         previous = key
         # ---- walk down, creating or expanding nodes, unless the update cannot change anything
         node = path[d]
         created = False
-        if d == 0 and np.isnan(value[0]):
-            value[0] = 0.0
-            child[0] = -1
+        if d == 0 and np.isnan(slots[0].value):
+            slots[0].value = 0.0
+            slots[0].child = -1
             meta[SIZE] += 1
             created = True
         absorbed = False
         while d < target:
-            c = child[node]
+            c = slots[node].child
             if c < 0:
                 if not created:
-                    v = value[node]
+                    v = slots[node].value
                     absorbed = saturated(v, hit, lo, hi)  # OctoMap's early abort
                     if absorbed:
                         break
                 # a new node gets an empty block; a pruned leaf is expanded into eight copies
-                c = alloc_block(value, child, meta, np.float32(np.nan) if created else value[node])
+                c = alloc_block(slots, meta, np.float32(np.nan) if created else slots[node].value)
                 if not created:
                     meta[SIZE] += 8
-                child[node] = c
+                slots[node].child = c
             node = c + child_index(kx, ky, kz, d)
-            created = np.isnan(value[node])
+            created = np.isnan(slots[node].value)
             if created:
-                value[node] = 0.0
+                slots[node].value = 0.0
                 meta[SIZE] += 1
             d += 1
             path[d] = node
         known = d
         if absorbed:
             continue
-        if child[node] >= 0:
-            if update_subtree(value, child, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
+        if slots[node].child >= 0:
+            if update_subtree(slots, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
                 dirty = DEPTH
                 changed = True
             continue
-        if not saturated(value[node], hit, lo, hi):
-            value[node] = updated(value[node], hit, l_hit, l_miss, lo, hi)
+        if not saturated(slots[node].value, hit, lo, hi):
+            slots[node].value = updated(slots[node].value, hit, l_hit, l_miss, lo, hi)
             dirty = DEPTH
             changed = True
         if d < DEPTH:
             continue
         # ---- the voxel's siblings that follow (Morton order: next to it), from its parent's block
         # of children, with no walk: they exist or are empty slots there (the parent has children)
-        c = child[path[DEPTH - 1]]
+        c = slots[path[DEPTH - 1]].child
         j = i + 1
         while j < n and (keys[j] ^ key) & _SIBLINGS == 0 and (depths.shape[0] == 0 or depths[j] == DEPTH):
             previous = keys[j]
             node = c + child_index(*unpack(previous), DEPTH - 1)
             hit = is_hit[j]
-            if np.isnan(value[node]):
-                value[node] = 0.0
+            if np.isnan(slots[node].value):
+                slots[node].value = 0.0
                 meta[SIZE] += 1
-            if not saturated(value[node], hit, lo, hi):
-                value[node] = updated(value[node], hit, l_hit, l_miss, lo, hi)
+            if not saturated(slots[node].value, hit, lo, hi):
+                slots[node].value = updated(slots[node].value, hit, l_hit, l_miss, lo, hi)
                 dirty = DEPTH
                 changed = True
             j += 1
@@ -200,5 +200,5 @@ def apply_voxels(value, child, meta, keys, depths, is_hit, start, l_hit, l_miss,
         done = j
     if settle_nodes and known >= 0:
         for d in range(min(dirty, known - 1), top - 1, -1):
-            settle(value, child, meta, path[d], True, True)
+            settle(slots, meta, path[d], True, True)
     return n, changed

@@ -42,25 +42,25 @@ def start_rays(origins, directions, res):
 
 
 @kernel
-def _voxel(value, child, kx, ky, kz):
+def _voxel(slots, kx, ky, kz):
     """Slot of the leaf holding tile keys (kx, ky, kz), −1 where unknown."""
-    if value.shape[0] == 0 or np.isnan(value[0]):
+    if slots.shape[0] == 0 or np.isnan(slots[0].value):
         return -1
     node = 0
     d = 0
-    while d < DEPTH and child[node] >= 0:
-        node = child[node] + child_index(kx, ky, kz, d)
-        if np.isnan(value[node]):
+    while d < DEPTH and slots[node].child >= 0:
+        node = slots[node].child + child_index(kx, ky, kz, d)
+        if np.isnan(slots[node].value):
             return -1
         d += 1
     return node
 
 
 @kernel
-def walk_tile(value, child, base, tile_size, rays, origins, keys, steps, t, g, first, res, max_range,
+def walk_tile(slots, base, tile_size, rays, origins, keys, steps, t, g, first, res, max_range,
               ignore_unknown, occ, lo, hi, status):
     """Walk the ``rays`` (indices) through the tile whose first voxel has global key ``base``
-    (3,) and whose nodes are ``value``/``child`` (empty: unknown space), as ``castRay`` does: stop
+    (3,) and whose nodes are ``slots`` (:mod:`occmap.octree.pool`; empty: unknown space), as ``castRay`` does: stop
     at an occupied voxel (HIT), at an unknown one unless ``ignore_unknown``, past ``max_range``
     (> 0) or on leaving the map's key box [``lo``, ``hi``] (STOPPED); a ray that steps out of the
     tile is left MOVED with its state updated for the next."""
@@ -75,8 +75,8 @@ def walk_tile(value, child, base, tile_size, rays, origins, keys, steps, t, g, f
         sx, sy, sz = steps[r, 0], steps[r, 1], steps[r, 2]
         status[r] = MOVED
         while True:
-            node = _voxel(value, child, kx - base[0] + CENTER, ky - base[1] + CENTER, kz - base[2] + CENTER)
-            if node >= 0 and value[node] >= occ:
+            node = _voxel(slots, kx - base[0] + CENTER, ky - base[1] + CENTER, kz - base[2] + CENTER)
+            if node >= 0 and slots[node].value >= occ:
                 status[r] = HIT
                 break
             if node < 0 and not ignore_unknown:

@@ -36,7 +36,7 @@ from ..logodds import logit32, occupancy_classes
 from ..octree import OcTree, insertion, query
 from ..octree.keys import CENTER, DEPTH, MAX_KEY, coord_to_keys, node_cells, node_centers
 from ..octree.tree import Leaves, points_array
-from ..octree.pool import TOP, settle_tree
+from ..octree.pool import TOP, new_slots, settle_tree
 from . import cast, graft
 from .split import split_by_tile
 from .store import TileStore
@@ -256,9 +256,9 @@ class TiledOcTree(StoredMap):
             if tree is None:
                 continue
             nodes = tree.nodes()
-            slots = query.search_keys(nodes.value, nodes.child, local[sel], DEPTH)
-            known = slots >= 0
-            out[sel[known]] = nodes.value[slots[known]]
+            found = query.search_keys(nodes.slots, local[sel], DEPTH)
+            known = found >= 0
+            out[sel[known]] = nodes.value[found[known]]
         return out
 
     def occupancy_at(self, points) -> np.ndarray:
@@ -291,7 +291,7 @@ class TiledOcTree(StoredMap):
             status[np.any((keys < lo) | (keys > hi), axis=1) | (not tiles)] = cast.STOPPED  # origins outside the map
         else:  # unknown space or max_range stops every ray
             lo, hi = np.full(3, -(1 << 62), np.int64), np.full(3, 1 << 62, np.int64)
-        empty_v, empty_c = np.empty(0, np.float32), np.empty(0, np.int32)
+        unknown = new_slots(0)
         while True:
             active = np.flatnonzero(status == cast.MOVED)
             if not len(active):
@@ -303,9 +303,9 @@ class TiledOcTree(StoredMap):
             for group in np.split(np.arange(len(active)), cuts):
                 index = tuple(int(v) for v in where[group[0]])
                 tree = self._tile(index, create=False)
-                value, child = (empty_v, empty_c) if tree is None else tree.nodes()[:2]
+                slots = unknown if tree is None else tree.nodes().slots
                 base = np.array(index, np.int64) * T + CENTER
-                cast.walk_tile(value, child, base, T, active[group], O, keys, steps, t, g, first, self.resolution,
+                cast.walk_tile(slots, base, T, active[group], O, keys, steps, t, g, first, self.resolution,
                                float(max_range), bool(ignore_unknown), self._l_occ, lo, hi, status)
         ends = (keys - CENTER + 0.5) * self.resolution
         ends = ends.astype(np.float32).astype(np.float64)
@@ -329,7 +329,7 @@ class TiledOcTree(StoredMap):
                 k = coord_to_keys(np.clip(np.stack(box), -1e15, 1e15), self.resolution) - CENTER - base + CENTER
                 kmin, kmax = np.clip(k[0], 0, MAX_KEY), np.clip(k[1], 0, MAX_KEY)
             nodes = self._tile(index, create=False).nodes()
-            args = (nodes.value, nodes.child, DEPTH, kmin, kmax, True)
+            args = (nodes.slots, DEPTH, kmin, kmax, True)
             n = query.collect_nodes(*args, True, np.empty((0, 3), np.int64), np.empty(0, np.int64),
                                     np.empty(0, np.float32))
             keys, depths, values = np.empty((n, 3), np.int64), np.empty(n, np.int64), np.empty(n, np.float32)
@@ -359,17 +359,17 @@ class TiledOcTree(StoredMap):
                                            f"{self.resolution:g} m{' from the offset' if offset.any() else ''}): "
                                            "export a smaller box")
             nodes = self._tile(index, create=False).nodes()
-            sizes.append(graft.subtree_slots(nodes.value, nodes.child, _tile_node(nodes, dt)))
-        value, child, meta = graft.new_pool(sum(sizes) + 8 * dt * (len(chosen) + 1))
+            sizes.append(graft.subtree_slots(nodes.slots, _tile_node(nodes, dt)))
+        slots, meta = graft.new_pool(sum(sizes) + 8 * dt * (len(chosen) + 1))
         for index in chosen:
             nodes = self._tile(index, create=False).nodes()
             k = (np.array(index, np.int64) - offset) * self.tile_size + CENTER
-            graft.graft(value, child, meta, nodes.value, nodes.child, _tile_node(nodes, dt), k[0], k[1], k[2], dt)
+            graft.graft(slots, meta, nodes.slots, _tile_node(nodes, dt), k[0], k[1], k[2], dt)
         for d in range(dt - 1, -1, -1):  # the nodes above the tiles, deepest first, as updates leave them
-            settle_tree(value, child, meta, d, True, True)
+            settle_tree(slots, meta, d, True, True)
         top = int(meta[TOP])
         t = self._template
-        return OcTree.from_nodes(self.resolution, value[:top].copy(), child[:top].copy(), int(meta[2]),
+        return OcTree.from_nodes(self.resolution, slots[:top].copy(), int(meta[2]),
                                  prob_hit=t.prob_hit, prob_miss=t.prob_miss, clamp=t.clamp,
                                  occupied_threshold=t.occupied_threshold)
 
