@@ -193,7 +193,7 @@ def decode_bt(data, start, lo, hi):
     OctoMap.
 
     Returns ``(slots, top, nodes, error, offset)``; ``error`` is one of the module's codes
-    and ``offset`` the byte where decoding stopped (the arrays are then meaningless).
+    and ``offset`` the byte where decoding stopped (the slots are then meaningless).
     """
     n = data.shape[0]
     cap = 8 + 8 * (max(n - start, 0) // 2)  # one block per two bytes: bounded by the file's size

@@ -167,7 +167,7 @@ def alloc_block(slots, meta, fill):
 
 @kernel
 def expand_all(slots, meta):
-    """Expand every pruned leaf down to depth 16 (OctoMap's ``expand``); the arrays must have room
+    """Expand every pruned leaf down to depth 16 (OctoMap's ``expand``); the slots must have room
     for the new blocks (see ``OcTree.expand``)."""
     if np.isnan(slots[0].value):
         return

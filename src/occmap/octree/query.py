@@ -1,5 +1,5 @@
 """Queries of the node pool (OctoMap's ``search``, leaf iterators, ``castRay``): Numba kernels on
-the slot arrays of :mod:`.pool`, keys as in :mod:`.keys`."""
+the slots of :mod:`.pool`, keys as in :mod:`.keys`."""
 
 from __future__ import annotations
 

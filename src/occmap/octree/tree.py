@@ -434,7 +434,7 @@ class OcTree(OneCallAtATime):
         return (8 * inner + 1) * 8 if self.num_nodes() else 0
 
     def memory_allocated(self) -> int:
-        """Bytes the node pool holds in memory (its slot arrays, free room included)."""
+        """Bytes the node pool holds in memory (its slots, free room included)."""
         return self._pool.slots.nbytes + self._pool.meta.nbytes
 
     def metric_bounds(self) -> tuple[np.ndarray, np.ndarray]:

@@ -1,7 +1,7 @@
 """OctoMap's ``castRay`` across tiles: each ray walks with global keys (the walk of
 :mod:`occmap.octree.raywalk`, so its voxels are those one tree's cast visits) through one tile at a
 time; a ray that leaves its tile is handed back and goes on in the next one. Numba kernels on a
-tile's slot arrays (:mod:`occmap.octree.pool`)."""
+tile's slots (:mod:`occmap.octree.pool`)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Joining tiles into one octree: each tile's subtree grafted into a node pool at its place, the
 nodes above the tiles settled as OctoMap keeps them (maximum of the children, eight equal leaves
-pruned), so the result is the tree one process would have built. Numba kernels on the slot
-arrays of :mod:`occmap.octree.pool`."""
+pruned), so the result is the tree one process would have built. Numba kernels on the slots of
+:mod:`occmap.octree.pool`."""
 
 from __future__ import annotations
 
