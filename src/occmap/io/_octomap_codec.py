@@ -65,11 +65,17 @@ def _next_in_preorder(blk, rem, sp):
 @kernel
 def _block_masks(slots, top, occ):
     """Per block of 8 slots (index ``slot >> 3``): which children exist, which are inner nodes and
-    which are leaves with log-odds ≥ ``occ``, as 8-bit masks; one linear pass over the pool."""
+    which are leaves with log-odds ≥ ``occ``, as 8-bit masks; and every slot's ``child`` in an
+    array of its own; one linear pass over the pool. (The walks that follow read only the
+    children: from the slots, whose blocks are a cache line each, a walk over fr_079.bt's took
+    three times as long as from this array, half the bytes.)"""
     nb = top >> 3
     ex = np.zeros(nb, np.int64)
     inner = np.zeros(nb, np.int64)
     occupied = np.zeros(nb, np.int64)
+    child = np.empty(top, np.int32)
+    child[:8] = -1  # block 0 holds only the root
+    child[0] = slots[0].child
     for b in range(1, nb):
         e = 0
         n = 0
@@ -77,13 +83,15 @@ def _block_masks(slots, top, occ):
         for i in range(8):
             s = 8 * b + i
             v = slots[s].value
+            c = slots[s].child
+            child[s] = c
             e |= np.int64(v == v) << i  # False for NaN: no node
-            n |= np.int64(slots[s].child >= 0) << i
+            n |= np.int64(c >= 0) << i
             o |= np.int64(v >= occ) << i
         ex[b] = e
         inner[b] = n & e  # a freed block's first slot links the free list: not a child
         occupied[b] = o & ~n
-    return ex, inner, occupied
+    return ex, inner, occupied, child
 
 
 # ------------------------------------------------------------------------------ .bt
@@ -111,7 +119,7 @@ def encode_bt(slots, top, occ, lo, hi):
     # against the threshold again): 1 = free, 2 = occupied
     code_free = 2 if lo >= occ else 1
     code_occ = 2 if hi >= occ else 1
-    ex, inner, occupied = _block_masks(slots, top, occ)
+    ex, inner, occupied, child = _block_masks(slots, top, occ)
     nb = top >> 3
     # per block: which children a complete prune collapses, and which of those are occupied
     col = np.zeros(nb, np.int64)
@@ -124,8 +132,8 @@ def encode_bt(slots, top, occ, lo, hi):
     pos = np.empty(DEPTH + 1, np.int64)
     n_inner = 1
     sp = 0
-    blk[0] = slots[0].child
-    rem[0] = inner[slots[0].child >> 3]
+    blk[0] = child[0]
+    rem[0] = inner[child[0] >> 3]
     acc[0] = 0
     acc_occ[0] = 0
     while sp >= 0:
@@ -133,7 +141,7 @@ def encode_bt(slots, top, occ, lo, hi):
             i = _take_lowest(rem, sp)
             if sp + 1 >= DEPTH:  # a node with children at depth 16: not a valid pool
                 return np.empty(0, np.uint8), -1
-            c = slots[blk[sp] + i].child
+            c = child[blk[sp] + i]
             sp += 1
             blk[sp] = c
             rem[sp] = inner[c >> 3]
@@ -163,7 +171,7 @@ def encode_bt(slots, top, occ, lo, hi):
     p = 0
     n_nodes = 1
     sp = 0
-    blk[0] = slots[0].child
+    blk[0] = child[0]
     while True:
         # emit the node whose child block is blk[sp] (its children lie at depth sp + 1)
         b = blk[sp] >> 3
@@ -181,7 +189,7 @@ def encode_bt(slots, top, occ, lo, hi):
         if sp < 0:
             break
         sp += 1
-        blk[sp] = slots[k].child
+        blk[sp] = child[k]
     return out[:p], n_nodes
 
 
@@ -272,7 +280,7 @@ def encode_ot(slots, bits, top):
     Returns ``(data, nodes)``; nodes is −1 if the pool is inconsistent."""
     if top <= 0 or np.isnan(slots[0].value):
         return np.empty(0, np.uint8), 0
-    ex, inner, occupied = _block_masks(slots, top, slots[0].value)  # (occupancy unused here)
+    ex, inner, occupied, child = _block_masks(slots, top, slots[0].value)  # (occupancy unused here)
     n = 1
     for b in range(1, top >> 3):
         n += _POPCOUNT[ex[b]]
@@ -291,7 +299,7 @@ def encode_ot(slots, bits, top):
         out[p + 1] = (w >> 8) & 0xFF
         out[p + 2] = (w >> 16) & 0xFF
         out[p + 3] = w >> 24
-        c = slots[node].child
+        c = child[node]
         mask = 0
         if c >= 0:
             mask = ex[c >> 3]

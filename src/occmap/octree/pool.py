@@ -27,7 +27,7 @@ from .keys import DEPTH, child_index, unpack
 
 TOP, FREE, SIZE = 0, 1, 2
 #: A slot: a node's log-odds and the first slot of its children's block.
-SLOT = np.dtype([("value", np.float32), ("child", np.int32)])
+SLOT = np.dtype([("value", np.float32), ("child", np.int32)], align=True)
 
 
 @inline_kernel
