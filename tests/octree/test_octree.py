@@ -792,3 +792,58 @@ def test_iterators_on_geb079(data_dir):
     last = tree.coord_to_key(lv.centers + half - tree.resolution / 2)
     overlap = np.all((first <= kmax) & (last >= kmin), axis=1)
     assert len(box.sizes) == overlap.sum() > 0
+
+
+def test_a_growing_pool_keeps_its_slots_whether_or_not_an_array_of_them_is_held(monkeypatch):
+    """A large pool grows in place (its memory map remapped) or, while an array of its slots
+    handed out by ``nodes()`` is alive, by a copy into a new map (the old one stays readable for
+    that array); either way the tree comes out as it would have."""
+    from occmap.octree import pool
+
+    monkeypatch.setattr(pool.Pool, "MAPPED_BYTES", 1 << 12)  # (every pool beyond its first slots mapped)
+    rng = np.random.default_rng(21)
+    clouds = [_room_cloud(rng, 4000, half=6.0) for _ in range(4)]
+    origin = np.array([0.1, 0.2, 0.3])
+
+    def built(hold: bool):
+        tree, held = OcTree(0.05), []
+        for pts in clouds:
+            tree.insert_point_cloud(pts, origin)
+            if hold:
+                held.append(tree.nodes())
+        return tree, held
+
+    plain, _ = built(False)
+    holding, held = built(True)
+    assert encode_ot(holding) == encode_ot(plain)
+    assert all(np.isfinite(np.nansum(n.value)) for n in held)  # (still mapped: reading them does not crash)
+    grown = pool.Pool()
+    grown.slots["value"][:8] = np.arange(8)
+    grown.grow(1 << 16)
+    assert isinstance(grown.slots.base, memoryview)  # in a map of its own, which then grows in place
+    grown.slots["value"][-1] = 7.0
+    grown.grow(1 << 20)
+    np.testing.assert_array_equal(grown.slots["value"][:8], np.arange(8))
+    assert grown.slots["value"][(1 << 16) - 1] == 7.0
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_a_forked_child_changes_its_own_copy_of_a_mapped_pool():
+    """A pool in a memory map is the process's own (a private map): a child made by ``fork``
+    (Dask's and multiprocessing's workers) that inserts into the tree leaves its parent's as it
+    was."""
+    import os
+
+    rng = np.random.default_rng(22)
+    tree = OcTree(0.05)
+    tree.insert_point_cloud(_room_cloud(rng, 20000, half=6.0), np.zeros(3))
+    assert isinstance(tree._pool.slots.base, memoryview)
+    before = encode_ot(tree)
+    more = _room_cloud(rng, 20000, half=6.0)
+    pid = os.fork()
+    if pid == 0:  # the child: change the tree, then leave at once
+        tree.insert_point_cloud(more, np.array([0.5, 0.5, 0.5]))
+        os._exit(0 if encode_ot(tree) != before else 1)
+    _, status = os.waitpid(pid, 0)
+    assert os.WEXITSTATUS(status) == 0
+    assert encode_ot(tree) == before
