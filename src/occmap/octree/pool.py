@@ -20,8 +20,6 @@ allocator and counters: ``meta[TOP]`` the next never-used slot, ``meta[FREE]`` t
 
 from __future__ import annotations
 
-import mmap
-
 import numpy as np
 
 from .._jit import inline_kernel, kernel
@@ -216,9 +214,6 @@ class Pool:
     arrays), and their growth. A new pool is empty: no root."""
 
     INITIAL_SLOTS = 1 << 12
-    #: Pools of at least this many bytes live in an anonymous memory map of their own (see
-    #: :meth:`grow`); smaller ones in an array as NumPy allocates it.
-    MAPPED_BYTES = 1 << 20
 
     def __init__(self):
         self.slots = new_slots(self.INITIAL_SLOTS)
@@ -228,43 +223,8 @@ class Pool:
         """Room for at least ``capacity`` slots (at least twice the present room), contents kept.
         The new slots are left as they come (:func:`alloc_block` sets a block when it hands it
         out, and nothing reads past ``meta[TOP]``), so the memory they take is only reserved: the
-        process's resident memory follows the slots in use, not the room.
-
-        A large pool lives in an anonymous memory map, which grows where it lies or moves without
-        a copy (``mremap``): a copy writes every slot to memory never touched before, and on a
-        virtual machine that is slow (a 32 MiB pool: 61 ms to copy, 0.1 ms to remap); the pool
-        is never held twice. Where the map cannot be resized (an array of the slots handed out,
-        :meth:`OcTree.nodes`, is still alive; or the system has no ``mremap``) the slots are
-        copied into a new map."""
-        n = self.slots.shape[0]
-        m = max(2 * n, int(capacity))
-        if m * SLOT.itemsize < self.MAPPED_BYTES:
-            slots = np.empty(m, SLOT)
-            slots[:n] = self.slots
-            self.slots = slots
-            return
-        view = self.slots.base  # (a memoryview of the map, for slots that live in one)
-        old = view.obj if isinstance(view, memoryview) and isinstance(view.obj, mmap.mmap) else None
-        del view
-        if old is not None:
-            self.slots = None  # (the map's only export, unless an array of it is held elsewhere)
-            try:
-                old.resize(m * SLOT.itemsize)
-            except (BufferError, OSError, SystemError, ValueError):
-                pass
-            else:
-                self.slots = _mapped_slots(old)
-                return
-            self.slots = np.frombuffer(old, SLOT, count=n)
-        grown = mmap.mmap(-1, m * SLOT.itemsize, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)  # (a shared one would not grow)
-        slots = _mapped_slots(grown)
-        slots[:n] = self.slots
+        process's resident memory follows the slots in use, not the room."""
+        m = max(2 * self.slots.shape[0], int(capacity))
+        slots = np.empty(m, SLOT)
+        slots[:self.slots.shape[0]] = self.slots
         self.slots = slots
-
-
-def _mapped_slots(memory: mmap.mmap) -> np.ndarray:
-    """The slots in ``memory`` (a writeable array over the whole map), the map asked to be backed by
-    huge pages where the system has them (as NumPy asks for its large arrays)."""
-    if hasattr(mmap, "MADV_HUGEPAGE"):
-        memory.madvise(mmap.MADV_HUGEPAGE)
-    return np.frombuffer(memory, SLOT)
