@@ -77,8 +77,9 @@ REGISTER_MIN_SHARE = 0.3
 REGISTER_MAX_CORRECTION = (0.6, 0.35)
 #: A registering map (``register=True``) takes a fit that moves this share of the returns (a
 #: percentile: the far ones, which a heading error moves most) by this many cells or more; a map
-#: that only judges what moves takes one that moves half its returns (the median) a cell or more.
+#: that only judges what moves takes one by JUDGE_TAKE: half its returns (the median) a cell or more.
 REGISTER_TAKE = (90.0, 0.5)
+JUDGE_TAKE = (50.0, 1.0)
 
 
 class PathCheck(NamedTuple):
@@ -539,10 +540,8 @@ class LocalMap(OneCallAtATime):
         # returns (the 90th percentile) by half a cell or more (REGISTER_TAKE)
         c, s = math.cos(x[2]) - math.cos(P[2]), math.sin(x[2]) - math.sin(P[2])
         moved = np.hypot(x[0] - P[0] + c * bx - s * by, x[1] - P[1] + s * bx + c * by)
-        if self.register:
-            share, cells = REGISTER_TAKE
-            return x if np.percentile(moved, share) >= cells * self.resolution else P
-        return x if np.median(moved) >= self.resolution else P
+        share, cells = REGISTER_TAKE if self.register else JUDGE_TAKE
+        return x if np.percentile(moved, share) >= cells * self.resolution else P
 
     def insert_point_cloud(self, points, origin, stamp, z_min: float, z_max: float) -> dict:
         """Insert a 3D cloud: ``points`` (N, 3) in the world frame, seen from the sensor at
