@@ -185,37 +185,39 @@ def _extents(points, a, b, c, s):
 
 
 @kernel
-def fit_boxes(points, starts, steps, min_distance, out):
+def fit_boxes(points, starts, sample, sample_starts, weights, steps, min_distance, out):
     """Oriented boxes around point clusters by L-shape fitting with the closeness criterion (Zhang
     et al., "Efficient L-shape fitting for vehicle detection using laser scanners", IV 2017).
 
-    Cluster ``k`` is ``points[starts[k]:starts[k + 1]]``. For each of ``steps`` directions θ in
-    [0, π/2) the points are projected on ``e1 = (cos θ, sin θ)`` and ``e2 = (−sin θ, cos θ)``; the
-    score sums, over points, ``1 / max(d, min_distance)`` with ``d`` the distance to the nearer of
-    the box's two nearest edges; the best θ gives the box. ``out[k]`` = (centre x, centre y,
-    heading of the longer side in [−π/2, π/2), length, width)."""
+    Cluster ``k`` is ``points[starts[k]:starts[k + 1]]``; its direction is searched over
+    ``sample[sample_starts[k]:sample_starts[k + 1]]``, points standing for ``weights`` of its
+    points each. For each of ``steps`` directions θ in [0, π/2) the sample is projected on
+    ``e1 = (cos θ, sin θ)`` and ``e2 = (−sin θ, cos θ)``; the score sums, over the sample,
+    ``weight / max(d, min_distance)`` with ``d`` the distance to the nearer of the box's two
+    nearest edges; the best θ gives the box, around all the cluster's points. ``out[k]`` =
+    (centre x, centre y, heading of the longer side in [−π/2, π/2), length, width)."""
     for k in range(starts.shape[0] - 1):
-        a = starts[k]
-        b = starts[k + 1]
+        a = sample_starts[k]
+        b = sample_starts[k + 1]
         best = -1.0
         best_t = 0.0
         for s in range(steps):
             t = 0.5 * np.pi * s / steps
             c = np.cos(t)
             sn = np.sin(t)
-            lo1, hi1, lo2, hi2 = _extents(points, a, b, c, sn)
+            lo1, hi1, lo2, hi2 = _extents(sample, a, b, c, sn)
             score = 0.0
             for i in range(a, b):
-                p1 = c * points[i, 0] + sn * points[i, 1]
-                p2 = -sn * points[i, 0] + c * points[i, 1]
+                p1 = c * sample[i, 0] + sn * sample[i, 1]
+                p2 = -sn * sample[i, 0] + c * sample[i, 1]
                 d = min(min(hi1 - p1, p1 - lo1), min(hi2 - p2, p2 - lo2))
-                score += 1.0 / max(d, min_distance)
+                score += weights[i] / max(d, min_distance)
             if score > best:
                 best = score
                 best_t = t
         c = np.cos(best_t)
         sn = np.sin(best_t)
-        lo1, hi1, lo2, hi2 = _extents(points, a, b, c, sn)
+        lo1, hi1, lo2, hi2 = _extents(points, starts[k], starts[k + 1], c, sn)
         m1 = 0.5 * (lo1 + hi1)
         m2 = 0.5 * (lo2 + hi2)
         out[k, 0] = c * m1 - sn * m2
@@ -364,14 +366,29 @@ def _spread(c, s, ha, hb, cov):
     return np.sqrt(max(va, 0.0)), np.sqrt(max(vb, 0.0))
 
 
+#: Standard deviations beyond a box's grown edges at which its probability counts as 0 (below
+#: 0.0014: under the costs' 0.05 floor).
+TAIL = 3.0
+
+
+@kernel
+def _box_probability(da, db, ha, hb, sa, sb):
+    """P(a point at ``da``, ``db`` along and across a box of half sizes ``ha``, ``hb`` lies under
+    it) with the box's edges smeared by ``sa``, ``sb``; 0 farther than :data:`TAIL` of them
+    beyond an edge."""
+    if abs(da) > ha + TAIL * sa or abs(db) > hb + TAIL * sb:
+        return 0.0
+    return _interval_probability(da, ha, sa) * _interval_probability(db, hb, sb)
+
+
 @kernel
 def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
     """Adds, into ``out`` (H, W, window order, cell (0, 0) with its outer corner at ``(ox, oy)``,
     side ``res``), the probability that each cell centre lies under one of the boxes ``sizes``
     (T, 2) grown by ``grow`` on every side, centred at ``states[:, :2]`` with heading
     ``states[:, 2]``, their centres Gaussian with covariance ``covs[:, :2, :2]`` and heading spread
-    ``covs[:, 2, 2]`` (its effect at the box's ends taken as extra spread across each axis).
-    Objects are taken as independent: ``out ← 1 − (1 − out)(1 − p)``."""
+    ``covs[:, 2, 2]`` (its effect at the box's ends taken as extra spread across each axis; see
+    :func:`_box_probability`). Objects are taken as independent: ``out ← 1 − (1 − out)(1 − p)``."""
     H, W = out.shape
     for t in range(states.shape[0]):
         x = states[t, 0]
@@ -381,7 +398,7 @@ def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
         ha = 0.5 * sizes[t, 0] + grow
         hb = 0.5 * sizes[t, 1] + grow
         sa, sb = _spread(c, s, ha, hb, covs[t])
-        reach = np.sqrt(ha * ha + hb * hb) + 3.0 * max(sa, sb)
+        reach = np.hypot(ha + TAIL * sa, hb + TAIL * sb)
         i0 = max(int(np.floor((y - reach - oy) / res)), 0)
         i1 = min(int(np.floor((y + reach - oy) / res)), H - 1)
         j0 = max(int(np.floor((x - reach - ox) / res)), 0)
@@ -392,8 +409,9 @@ def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
                 px = ox + (j + 0.5) * res - x
                 da = c * px + s * py
                 db = -s * px + c * py
-                p = _interval_probability(da, ha, sa) * _interval_probability(db, hb, sb)
-                out[i, j] = 1.0 - (1.0 - out[i, j]) * (1.0 - p)
+                p = _box_probability(da, db, ha, hb, sa, sb)
+                if p > 0.0:
+                    out[i, j] = 1.0 - (1.0 - out[i, j]) * (1.0 - p)
     return out
 
 
@@ -412,23 +430,32 @@ def occupancy_costs(p, threshold, lethal, cost):
 
 
 @kernel
-def point_probability(points, states, covs, sizes, grow, out):
+def point_probability(points, at, states, covs, sizes, grow, out):
     """``out[i]`` = probability that point ``i`` (N, 2) lies under at least one box ``j`` of
-    ``states[i, j]`` (N, T, 5), ``covs[i, j]`` (N, T, 5, 5), ``sizes[j]`` (T, 2) grown by
-    ``grow`` — the objects predicted to point ``i``'s time (the model of
-    :func:`footprint_probability`)."""
-    for i in range(points.shape[0]):
-        free = 1.0
-        for t in range(states.shape[1]):
-            c = np.cos(states[i, t, 2])
-            s = np.sin(states[i, t, 2])
+    ``states[at[i], j]`` (K, T, 5), ``covs[at[i], j]`` (K, T, 5, 5), ``sizes[j]`` (T, 2) grown by
+    ``grow`` — the objects predicted to point ``i``'s time, one of ``K`` (the model of
+    :func:`footprint_probability`: a cell's value there is this at its centre)."""
+    K, T = states.shape[0], states.shape[1]
+    box = np.empty((K, T, 7))  # per box: cos, sin, half sizes, spreads, reach
+    for k in range(K):
+        for t in range(T):
+            c = np.cos(states[k, t, 2])
+            s = np.sin(states[k, t, 2])
             ha = 0.5 * sizes[t, 0] + grow
             hb = 0.5 * sizes[t, 1] + grow
-            sa, sb = _spread(c, s, ha, hb, covs[i, t])
-            px = points[i, 0] - states[i, t, 0]
-            py = points[i, 1] - states[i, t, 1]
-            p = _interval_probability(c * px + s * py, ha, sa) * _interval_probability(-s * px + c * py, hb, sb)
-            free *= 1.0 - p
+            sa, sb = _spread(c, s, ha, hb, covs[k, t])
+            box[k, t, 0], box[k, t, 1], box[k, t, 2], box[k, t, 3] = c, s, ha, hb
+            box[k, t, 4], box[k, t, 5], box[k, t, 6] = sa, sb, np.hypot(ha + TAIL * sa, hb + TAIL * sb)
+    for i in range(points.shape[0]):
+        k = at[i]
+        free = 1.0
+        for t in range(T):
+            px = points[i, 0] - states[k, t, 0]
+            py = points[i, 1] - states[k, t, 1]
+            b = box[k, t]
+            if abs(px) > b[6] or abs(py) > b[6]:  # footprint_probability's window
+                continue
+            free *= 1.0 - _box_probability(b[0] * px + b[1] * py, -b[1] * px + b[0] * py, b[2], b[3], b[4], b[5])
         out[i] = 1.0 - free
     return out
 

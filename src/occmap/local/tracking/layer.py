@@ -185,9 +185,8 @@ class ObjectLayer:
             ids, states, covs, sizes = self.tracker.predicted(self.tracker.time)
             if len(ids):
                 inside = np.zeros(len(pts))
-                K.point_probability(pts, np.broadcast_to(states, (len(pts),) + states.shape),
-                                    np.broadcast_to(covs, (len(pts),) + covs.shape), sizes, self.cover_margin,
-                                    inside)
+                K.point_probability(pts, np.zeros(len(pts), np.int64), states[None], covs[None], sizes,
+                                    self.cover_margin, inside)
                 pts = pts[inside < 0.5]
             cells = np.floor((pts - np.asarray(origin)) / resolution).astype(np.int64)
             H, W = shape
@@ -205,6 +204,6 @@ class ObjectLayer:
         _, states, covs, sizes = self.tracker.predicted(t)
         out = np.zeros(len(p))
         if sizes.shape[0]:
-            K.point_probability(p, np.ascontiguousarray(states), np.ascontiguousarray(covs), sizes,
+            K.point_probability(p, np.arange(len(p)), np.ascontiguousarray(states), np.ascontiguousarray(covs), sizes,
                                 checks.non_negative("radius", radius, "metres"), out)
         return out
