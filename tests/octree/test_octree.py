@@ -792,3 +792,64 @@ def test_iterators_on_geb079(data_dir):
     last = tree.coord_to_key(lv.centers + half - tree.resolution / 2)
     overlap = np.all((first <= kmax) & (last >= kmin), axis=1)
     assert len(box.sizes) == overlap.sum() > 0
+
+
+@pytest.mark.parametrize("room", [True, False])
+def test_a_growing_pool_keeps_its_slots_in_its_own_room_or_by_copies(monkeypatch, room):
+    """A large pool grows within the address room it reserved (its slots never move: an array of
+    them handed out by ``nodes()`` stays a view of the tree's first slots) or, where no room can
+    be had, by copies; either way the tree comes out as it would have."""
+    from occmap.octree import pool
+
+    monkeypatch.setattr(pool.Pool, "ROOM_FROM_BYTES", 1 << 15)  # (every pool beyond its first slots)
+    if not room:
+        monkeypatch.setattr(pool, "_reserve", lambda size: None)  # (a system that refuses)
+    rng = np.random.default_rng(21)
+    clouds = [_room_cloud(rng, 4000, half=6.0) for _ in range(4)]
+    origin = np.array([0.1, 0.2, 0.3])
+    tree, held = OcTree(0.05), []
+    for pts in clouds:
+        tree.insert_point_cloud(pts, origin)
+        held.append(tree.nodes())
+    monkeypatch.setattr(pool.Pool, "ROOM_FROM_BYTES", 1 << 62)
+    plain = OcTree(0.05)
+    for pts in clouds:
+        plain.insert_point_cloud(pts, origin)
+    assert encode_ot(tree) == encode_ot(plain)
+    assert (tree._pool._room is not None) == room and plain._pool._room is None
+    first = held[0].slots
+    if room:  # the first array handed out still shows the tree's slots
+        assert np.shares_memory(first, tree._pool.slots)
+        np.testing.assert_array_equal(first[8:16]["child"], tree._pool.slots[8:16]["child"])
+    assert all(np.isfinite(np.nansum(n.value)) for n in held)
+
+
+def test_a_pool_holds_at_most_what_a_child_index_can_name():
+    from occmap.errors import OccmapError
+    from occmap.octree import pool
+
+    p = pool.Pool()
+    with pytest.raises(OccmapError, match="at most 2,147,483,648 slots"):
+        p.grow(pool.Pool.MAX_SLOTS + 8)
+    assert p.slots.shape[0] == pool.Pool.INITIAL_SLOTS
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_a_forked_child_changes_its_own_copy_of_a_pool_in_its_room():
+    """A pool's room is the process's own (a private map): a child made by ``fork`` (Dask's and
+    multiprocessing's workers) that inserts into the tree leaves its parent's as it was."""
+    import os
+
+    rng = np.random.default_rng(22)
+    tree = OcTree(0.05)
+    tree.insert_point_cloud(_room_cloud(rng, 20000, half=6.0), np.zeros(3))
+    assert tree._pool._room is not None
+    before = encode_ot(tree)
+    more = _room_cloud(rng, 20000, half=6.0)
+    pid = os.fork()
+    if pid == 0:  # the child: change the tree, then leave at once
+        tree.insert_point_cloud(more, np.array([0.5, 0.5, 0.5]))
+        os._exit(0 if encode_ot(tree) != before else 1)
+    _, status = os.waitpid(pid, 0)
+    assert os.WEXITSTATUS(status) == 0
+    assert encode_ot(tree) == before
