@@ -256,15 +256,19 @@ def bt_rows(path: Path):
     return (t_read, t_read_ref), (t_write, t_write_ref), tree.num_nodes()
 
 
-#: A long drive streamed scan by scan in a fresh process: the scans are simulated one at a time
-#: (not held), so resident memory is the interpreter, the kernels, one scan and the tree.
+#: A long drive streamed scan by scan in a fresh process. ``memory``: the scans are simulated one
+#: at a time (not held), so resident memory is the interpreter, the kernels, one scan and the
+#: tree. ``rates``: each stretch of scans (simulated, then held) goes into the drive's tree and
+#: into a tree of its own, in turn (which first alternates), so that the two rates of a stretch
+#: are measured side by side on this shared machine, not minutes apart.
 DRIVE = """
 import json, sys, time
 import numpy as np
 from occmap.geometry import SE3
 from occmap.octree import OcTree
 from occmap.sim.world3d import VELODYNE_HDL32, World3D, simulate_lidar
-n, res, chunk = (float(a) for a in sys.argv[1:4])
+mode = sys.argv[1]
+n, res, chunk = (float(a) for a in sys.argv[2:5])
 n, chunk = int(n), int(chunk)
 model = VELODYNE_HDL32.with_azimuth_step(np.radians(1.28))
 world = World3D.default()
@@ -277,43 +281,40 @@ OcTree(res).insert_point_cloud(warm.world_points(), warm.origin)  # kernels load
 def rss():
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * 4096
-base = rss()
-tree = OcTree(res)
-chunks, seconds, points = [], 0.0, 0
-for i in range(n):
-    p, o = scan(i)
-    t0 = time.perf_counter()
-    points += tree.insert_point_cloud(p, o)["points"]
-    seconds += time.perf_counter() - t0
-    if (i + 1) % chunk == 0:
-        chunks.append(points / seconds)
-        seconds = points = 0
 def peak():  # (VmHWM: this process's own peak; getrusage's maxrss keeps the parent's size from before exec)
     with open("/proc/self/status") as f:
         return next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmHWM:"))
-out = {"base": base, "peak": peak(), "end": rss(), "usage": tree.memory_usage(),
-       "allocated": tree.memory_allocated(), "rates": chunks, "nodes": tree.num_nodes()}
-del tree
-# each stretch's scans again, into a tree of their own: the rates above against these tell the
-# tree's size apart from what the scans themselves cost (a stretch of open road, a dense block)
-alone = []
-for first in range(0, chunk * len(chunks), chunk):
-    clouds = [scan(i) for i in range(first, first + chunk)]
-    fresh = OcTree(res)
+def rate(tree, clouds):
     t0 = time.perf_counter()
-    points = sum(fresh.insert_point_cloud(p, o)["points"] for p, o in clouds)
-    alone.append(points / (time.perf_counter() - t0))
-out["alone"] = alone
+    points = sum(tree.insert_point_cloud(p, o)["points"] for p, o in clouds)
+    return points / (time.perf_counter() - t0)
+base = rss()
+tree = OcTree(res)
+if mode == "memory":
+    for i in range(n):
+        tree.insert_point_cloud(*scan(i))
+    out = {"base": base, "peak": peak(), "end": rss(), "usage": tree.memory_usage(),
+           "allocated": tree.memory_allocated(), "nodes": tree.num_nodes()}
+else:
+    out = {"rates": [], "alone": []}
+    for k, first in enumerate(range(0, n - chunk + 1, chunk)):
+        clouds = [scan(i) for i in range(first, first + chunk)]
+        for which in (("rates", "alone") if k % 2 == 0 else ("alone", "rates")):
+            out[which].append(rate(tree if which == "rates" else OcTree(res), clouds))
 print(json.dumps(out))
 """
 
 
 def drive_memory(n_scans: int, res: float, chunk: int) -> dict:
-    """Peak resident memory and throughput of a drive of ``n_scans`` streamed into one tree
-    (:data:`DRIVE`, in a fresh process)."""
-    out = subprocess.run([sys.executable, "-c", DRIVE, str(n_scans), str(res), str(chunk)], check=True,
-                         stdout=subprocess.PIPE, text=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    """Peak resident memory of a drive of ``n_scans`` streamed into one tree, and the rate of each
+    stretch of ``chunk`` scans into it and into a tree of its own (:data:`DRIVE`, a fresh process
+    each)."""
+    out = {}
+    for mode in ("memory", "rates"):
+        run = subprocess.run([sys.executable, "-c", DRIVE, mode, str(n_scans), str(res), str(chunk)], check=True,
+                             stdout=subprocess.PIPE, text=True)
+        out.update(json.loads(run.stdout.strip().splitlines()[-1]))
+    return out
 
 
 def drive_lines(n_scans: int, res: float) -> list[str]:
@@ -328,7 +329,8 @@ def drive_lines(n_scans: int, res: float) -> list[str]:
             f"resident {d['peak'] / mib:,.0f} MiB: growth **{growth / mib:,.1f} MiB** for a tree of "
             f"{d['nodes']:,} nodes whose memory figure (`memory_usage()`, OctoMap's count) is "
             f"{d['usage'] / mib:,.1f} MiB (**{growth / d['usage']:.1f}×**; target ≤ 3×) and whose pool reserves "
-            f"{d['allocated'] / mib:,.1f} MiB. Points/s per {chunk} scans: "
+            f"{d['allocated'] / mib:,.1f} MiB. Points/s per {chunk} scans (in another fresh process, each "
+            f"stretch's scans held and inserted into the drive's tree and into a tree of their own in turn): "
             + ", ".join(f"{r / 1e6:.2f} M" for r in rates)
             + f"; the same stretches each into a tree of their own: "
             + ", ".join(f"{r / 1e6:.2f} M" for r in d["alone"])
