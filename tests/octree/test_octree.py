@@ -853,3 +853,23 @@ def test_a_forked_child_changes_its_own_copy_of_a_pool_in_its_room():
     _, status = os.waitpid(pid, 0)
     assert os.WEXITSTATUS(status) == 0
     assert encode_ot(tree) == before
+
+
+def test_an_update_never_allocates_past_its_limit_when_the_free_list_runs_short():
+    """A leaf root and one free block, room at the top for one more: a voxel at depth 16 needs 16
+    new blocks. The update must stop for room (returning where it stopped, nothing applied) rather
+    than take the free block and then write past the slots it was given."""
+    from occmap.octree import pool, update
+
+    slots = pool.new_slots(4096)[:24]  # (a write past the slots given lands in memory it owns)
+    slots["value"][:] = np.nan
+    slots["child"][:] = -1
+    slots[0]["value"] = 0.0  # the root, a leaf
+    meta = np.array([16, 8, 1], np.int64)  # top at 16, the free list: block 8
+    args = (np.array([12345], np.int64), np.zeros(0, np.int8), np.array([True]), 0, 0.85, -0.4, -2.0, 3.5, True)
+    assert update.apply_voxels(slots, meta, *args, len(slots), 0) == (0, False)
+    np.testing.assert_array_equal(meta, [16, 8, 1])
+    grown = pool.new_slots(24 + update.ROOM)  # room for it: applied, within the slots given
+    grown[:24] = slots
+    assert update.apply_voxels(grown, meta, *args, len(grown), 0) == (1, True)
+    assert meta[pool.TOP] <= len(grown)

@@ -26,7 +26,7 @@ from . import blocks as B
 from . import marking as M
 from . import pool as P
 from .keys import coord_to_keys, shared_depth
-from .update import apply_voxels, subtree_split
+from .update import ROOM, apply_voxels, subtree_split
 
 #: Scans with at least this many rays are marked by several threads, in this many runs of rays.
 _PARALLEL_RAYS = 20_000
@@ -241,7 +241,8 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     top = int(pool.meta[P.TOP])
     need_a = _ROOM_PER_VOXEL * (split - first)
     need_a -= P.free_slots(pool.slots, pool.meta[P.FREE], need_a)
-    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else 0
+    # (at least one update's room at the top: apply_voxels counts free blocks only when it is short)
+    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else ROOM
     room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
     if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)

@@ -12,10 +12,10 @@ import numpy as np
 
 from .._jit import kernel
 from .keys import DEPTH, child_index, pack, shared_depth, unpack
-from .pool import FREE, SIZE, TOP, alloc_block, settle
+from .pool import FREE, SIZE, TOP, alloc_block, free_slots, settle
 
 #: Slots one voxel update may allocate at most: a new block at every level.
-_ROOM = 8 * DEPTH
+ROOM = 8 * DEPTH
 #: Bits of a packed key that siblings (voxels of one parent) share: all but each axis's lowest.
 _SIBLINGS = ~pack.py_func(1, 1, 1)
 
@@ -118,7 +118,10 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
     for i in range(start, n):
         if i < done:
             continue
-        if meta[FREE] < 0 and meta[TOP] + _ROOM > cap:
+        # room for one update (ROOM slots at most): the top's, or free blocks (counted only
+        # when the top's is short: a free list may be shorter than an update needs)
+        short = meta[TOP] + ROOM > cap
+        if short and (meta[FREE] < 0 or free_slots(slots, meta[FREE], ROOM) < ROOM - (cap - meta[TOP])):
             if settle_nodes:
                 for d in range(min(dirty, known - 1), top - 1, -1):
                     settle(slots, meta, path[d], True, True)
