@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import bz2
 import math
+import sys
 
 import numba
 import numpy as np
@@ -832,6 +833,26 @@ def test_a_pool_holds_at_most_what_a_child_index_can_name():
     with pytest.raises(OccmapError, match="at most 2,147,483,648 slots"):
         p.grow(pool.Pool.MAX_SLOTS + 8)
     assert p.slots.shape[0] == pool.Pool.INITIAL_SLOTS
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_a_process_holding_many_rooms_can_still_fork():
+    """Rooms reserve addresses, not memory: forty large pools (640 GiB of addresses, far past
+    this machine's memory) alive, and ``fork`` (multiprocessing's workers) still works."""
+    import os
+
+    from occmap.octree import pool
+
+    pools = []
+    for _ in range(40):
+        pools.append(pool.Pool())
+        pools[-1].grow(1 << 18)
+    assert all(p._room is not None for p in pools) or sys.platform != "linux"
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0)
+    _, status = os.waitpid(pid, 0)
+    assert os.WEXITSTATUS(status) == 0
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")

@@ -21,6 +21,7 @@ allocator and counters: ``meta[TOP]`` the next never-used slot, ``meta[FREE]`` t
 from __future__ import annotations
 
 import mmap
+import sys
 
 import numpy as np
 
@@ -259,13 +260,21 @@ class Pool:
         self.slots = slots
 
 
+#: Linux's flag for a map whose pages are not counted against the memory the system promises
+#: (Python's mmap module names it from 3.13 on). Without it each room would count in full: a fork
+#: of a process holding a dozen rooms fails (ENOMEM). None elsewhere: no room, copies.
+_MAP_NORESERVE = getattr(mmap, "MAP_NORESERVE", 0x4000 if sys.platform.startswith("linux") else None)
+
+
 def _reserve(size: int) -> mmap.mmap | None:
     """``size`` bytes of private, anonymous addresses with no memory behind them until written
     (``MAP_NORESERVE``; huge pages asked for, as NumPy asks for its large arrays), or None where
     the system refuses. Private: a process made by ``fork`` writes to its own copy (a shared map
     would be the parent's too)."""
+    if _MAP_NORESERVE is None:
+        return None
     try:
-        room = mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(mmap, "MAP_NORESERVE", 0))
+        room = mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | _MAP_NORESERVE)
     except (OSError, OverflowError, ValueError):
         return None
     if hasattr(mmap, "MADV_HUGEPAGE"):
