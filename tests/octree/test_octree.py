@@ -397,34 +397,6 @@ def test_scans_inserted_again_on_two_threads_leave_the_pool_as_it_is(monkeypatch
     assert tops[-1] - tops[1] < insertion._ROOM_MARGIN, tops
 
 
-def test_scans_seen_in_turn_on_two_threads_stop_growing_the_pool(monkeypatch):
-    """Three scans inserted in turn (a robot standing: each prunes what the others expand): once
-    the tree holds them all, both threads take the blocks they allocate from the free list, so
-    the slots in use stay as they are (the second thread allocating only at the top grew them by
-    200 - 300 slots a scan here, 400 - 500 at 0.1 m on a simulated HDL-32E, the free list as large
-    as the tree), and the tree is the one a single thread builds."""
-    from occmap import _threads
-    from occmap.octree import insertion, pool
-
-    rng = np.random.default_rng(6)
-    clouds = [_room_cloud(rng, 5000, half=6.0) for _ in range(3)]
-    origins = [np.array([0.1, 0.2, 0.3]), np.array([1.5, -0.4, 0.2]), np.array([-1.0, 1.0, 0.0])]
-
-    def built(threads):
-        monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000 if threads == 2 else 1 << 60)
-        monkeypatch.setattr(_threads, "thread_count", lambda: threads)
-        tree, tops = OcTree(0.1), []
-        for k in range(12):
-            tree.insert_point_cloud(clouds[k % 3], origins[k % 3])
-            tops.append(int(tree._pool.meta[pool.TOP]))
-        return tree, tops
-
-    two, tops = built(2)
-    assert tops[5:] == [tops[5]] * 7, tops
-    one, _ = built(1)
-    assert encode_ot(two) == encode_ot(one)
-
-
 def test_a_scan_like_the_last_one_fits_its_block_storage_from_the_start(monkeypatch):
     """The block storage of a scan starts with room for the blocks per ray of the thread's last
     scan: a second scan like the first is marked without growing (rehashing) it, and the tree

@@ -233,32 +233,27 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
         if not len(path):
             return False
     split = subtree_split(keys, shared, first)
-    # slot ranges: each thread takes a part of the free list (the blocks it may need, the first
-    # thread's part first), then slots from the top of the pool, the second above the first's
-    # range; a thread that runs out leaves its rest to this one. Both take from the free list:
-    # the second allocating only at the top grew the pool call after call where scans re-seen
-    # (a robot standing) free and allocate blocks alike, the free list as large as the tree. (The
-    # first's range is what its part lacks, and one update's room where its part holds what it may
-    # need: the range's unused slots join the free list, so a margin given every scan would grow
-    # the pool scan after scan with slots never used.)
+    # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
+    # second above the first's range; a thread that runs out leaves its rest to this one. (The
+    # first's range is what the free list may lack, and none where the free list holds what it
+    # may need: the range's unused slots join the free list, so a margin given every scan would
+    # grow the pool scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
     need_a = _ROOM_PER_VOXEL * (split - first)
-    need_b = _ROOM_PER_VOXEL * (len(keys) - split)
-    head_a = int(pool.meta[P.FREE])
-    got_a, head_b = P.cut_free(pool.slots, head_a, need_a)
-    got_b, rest = P.cut_free(pool.slots, head_b, need_b)
-    room_a = 8 * ((need_a - got_a + _ROOM_MARGIN) // 8 + 1) if need_a > got_a else ROOM
-    room_b = 8 * ((max(need_b - got_b, 0) + _ROOM_MARGIN) // 8 + 1)
+    need_a -= P.free_slots(pool.slots, pool.meta[P.FREE], need_a)
+    # (at least one update's room at the top: apply_voxels counts free blocks only when it is short)
+    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else ROOM
+    room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
     if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
-    meta_a = np.array([top, head_a if got_a else -1, 0], np.int64)
-    meta_b = np.array([top + room_a, head_b if got_b else -1, 0], np.int64)
+    meta_a = np.array([top, pool.meta[P.FREE], 0], np.int64)
+    meta_b = np.array([top + room_a, -1, 0], np.int64)
     (end_a, changed_a), (end_b, changed_b) = run_jobs([
         lambda: apply_voxels(pool.slots, meta_a, keys[:split], depths[:split], is_hit[:split], first,
                              *rule, not lazy, top + room_a, shared + 1),
         lambda: apply_voxels(pool.slots, meta_b, keys, depths, is_hit, split, *rule, not lazy,
                              pool.slots.shape[0], shared + 1)], threads=2)
-    P.join_pools(pool.slots, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a, rest)
+    P.join_pools(pool.slots, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
     changed = changed_a or changed_b
     if end_a < split:  # a range ran out of slots: the rest here
         changed |= _apply_range(pool, keys, depths, is_hit, rule, lazy, end_a, split)

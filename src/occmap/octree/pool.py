@@ -91,49 +91,25 @@ def free_slots(slots, head, limit):
 
 
 @kernel
-def cut_free(slots, head, want):
-    """Take blocks from the front of the free list that starts at block ``head`` until they hold
-    ``want`` slots or the list ends, and cut the list after them. Returns ``(taken, rest)``: the
-    slots taken (a list of their own, from ``head``; none: 0) and the first block of the rest
-    (−1: none)."""
-    taken = 0
-    c = head
-    last = -1
-    while c >= 0 and taken < want:
-        taken += 8
-        last = c
-        c = slots[c].child
-    if last >= 0:
-        slots[last].child = -1
-    return taken, c
-
-
-@kernel
-def join_pools(slots, meta, meta_a, meta_b, gap_lo, gap_hi, rest):
-    """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``) and [gap_hi, ·)
-    (``meta_b``), each with a part of the pool's free list (:func:`cut_free`; ``rest``: the
-    part neither took): one pool again, the first range's unused blocks [gap_lo, gap_hi) (made
-    empty slots, as freed blocks are; where the second took nothing at the top, the top of the
-    pool instead) and both threads' free lists (the blocks they did not use and those they freed)
-    on the free list with the rest, node counts added."""
-    free = rest
-    top = meta_b[TOP]
-    if top == gap_hi:  # the second took nothing at the top: the pool ends where the first's range did
-        top = gap_hi = gap_lo
+def join_pools(slots, meta, meta_a, meta_b, gap_lo, gap_hi):
+    """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``, with the pool's free
+    list) and [gap_hi, ·) (``meta_b``): one pool again, the first range's unused blocks
+    [gap_lo, gap_hi) (made empty slots, as freed blocks are) and the blocks the second freed on
+    the free list, node counts added."""
+    free = meta_a[FREE]
     for c in range(gap_lo, gap_hi, 8):
         for j in range(c, c + 8):
             slots[j].value = np.nan
             slots[j].child = -1
         slots[c].child = free
         free = c
-    for head in (meta_b[FREE], meta_a[FREE]):
-        c = head
-        while c >= 0:
-            nxt = slots[c].child
-            slots[c].child = free
-            free = c
-            c = nxt
-    meta[TOP] = top
+    c = meta_b[FREE]
+    while c >= 0:
+        nxt = slots[c].child
+        slots[c].child = free
+        free = c
+        c = nxt
+    meta[TOP] = meta_b[TOP]
     meta[FREE] = free
     meta[SIZE] += meta_a[SIZE] + meta_b[SIZE]
 
