@@ -436,7 +436,7 @@ def point_probability(points, at, states, covs, sizes, grow, out):
     ``grow`` — the objects predicted to point ``i``'s time, one of ``K`` (the model of
     :func:`footprint_probability`: a cell's value there is this at its centre)."""
     K, T = states.shape[0], states.shape[1]
-    box = np.empty((K, T, 7))  # per box: cos, sin, half sizes, spreads, reach
+    box = np.empty((K, T, 6))  # per box: cos, sin, half sizes, spreads
     for k in range(K):
         for t in range(T):
             c = np.cos(states[k, t, 2])
@@ -444,8 +444,7 @@ def point_probability(points, at, states, covs, sizes, grow, out):
             ha = 0.5 * sizes[t, 0] + grow
             hb = 0.5 * sizes[t, 1] + grow
             sa, sb = _spread(c, s, ha, hb, covs[k, t])
-            box[k, t, 0], box[k, t, 1], box[k, t, 2], box[k, t, 3] = c, s, ha, hb
-            box[k, t, 4], box[k, t, 5], box[k, t, 6] = sa, sb, np.hypot(ha + TAIL * sa, hb + TAIL * sb)
+            box[k, t, 0], box[k, t, 1], box[k, t, 2], box[k, t, 3], box[k, t, 4], box[k, t, 5] = c, s, ha, hb, sa, sb
     for i in range(points.shape[0]):
         k = at[i]
         free = 1.0
@@ -453,8 +452,6 @@ def point_probability(points, at, states, covs, sizes, grow, out):
             px = points[i, 0] - states[k, t, 0]
             py = points[i, 1] - states[k, t, 1]
             b = box[k, t]
-            if abs(px) > b[6] or abs(py) > b[6]:  # footprint_probability's window
-                continue
             free *= 1.0 - _box_probability(b[0] * px + b[1] * py, -b[1] * px + b[0] * py, b[2], b[3], b[4], b[5])
         out[i] = 1.0 - free
     return out
