@@ -261,6 +261,29 @@ def test_predicted_occupancy_matches_sampled_objects_and_points_read_the_same_mo
     np.testing.assert_array_equal(each, at)
 
 
+@pytest.mark.parametrize("heading", [0.0, math.pi / 2, -math.pi, 0.3, -2.0])
+@pytest.mark.parametrize("spread", [0.0, 0.05])
+def test_predicted_occupancy_visits_every_cell_a_box_may_cover(heading, spread):
+    # the grid walks only the cells of each row within a box's tails: the cells agree with
+    # point_probability's test of every cell centre, boxes along the axes (a slab parallel to a
+    # row: all or none of it) and certain ones (no tail) included
+    res, origin = 0.1, np.array([-4.0, -3.5])
+    states = np.array([[0.05, 0.0, heading, 0.0, 0.0], [-2.0, 1.5, heading + 0.7, 0.0, 0.0]])
+    covs = np.zeros((2, 5, 5))
+    covs[:, 0, 0] = covs[:, 1, 1] = spread ** 2
+    covs[:, 2, 2] = (spread / 2) ** 2
+    sizes = np.array([[4.4, 1.8], [0.6, 0.6]])
+    grid = np.zeros((70, 80))
+    K.footprint_probability(states, covs, sizes, 0.1, origin[0], origin[1], res, grid)
+    centres = origin + res * (np.stack(np.meshgrid(np.arange(80), np.arange(70)), -1) + 0.5)
+    at = np.zeros(70 * 80)
+    K.point_probability(np.ascontiguousarray(centres.reshape(-1, 2)), np.zeros(len(at), np.int64), states[None],
+                        covs[None], sizes, 0.1, at)
+    np.testing.assert_allclose(grid.reshape(-1), at, rtol=1e-12, atol=1e-15)
+    # the car covers its area (4.6 m × 2.0 m grown, in cells) and not much more
+    assert 0.9 * 920 <= (grid > 0.5).sum() <= 1.1 * (920 + 64)
+
+
 def test_cluster_ends_are_cut_by_nearer_returns_and_not_bare_where_the_surface_goes_on():
     line = np.c_[np.arange(0.0, 2.01, 0.1), np.zeros(21)]  # seen from (1, −10): x = 2 is the clockwise end
     sensor = (1.0, -10.0)

@@ -372,12 +372,14 @@ def lethal(cells, stamps, sr, sc, g, l_prior, l_occupied, out):
 
 @kernel
 def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ, reach, pts, kinds, open_, occupied,
-                     unseen, walled):
+                     unseen, walled, memo):
     """For each return (``kinds[i] == 1``) at world point ``pts[i]``: ``occupied[i]``, its cell is
     observed and occupied (``u ≥ thr_occ``); ``unseen[i]``, its cell is inside the window and
     never observed; ``walled[i]``, a cell within ``reach`` cells (a square, inside the window) is
     observed and occupied; ``open_[i]``, its cell and its eight neighbours are observed and free
-    (``u < thr_free``) and it is not walled. All false for the other points."""
+    (``u < thr_free``) and it is not walled. All false for the other points. Each cell is looked at
+    once however many returns fall in it (a 3D cloud puts dozens in one): ``memo`` (uint8 (H, W),
+    window order) holds the answers meanwhile, all zero on entry and left so."""
     H, W = cells.shape[0], cells.shape[1]
     for i in range(pts.shape[0]):
         open_[i] = False
@@ -391,26 +393,37 @@ def classify_returns(cells, stamps, sr, sc, gx0, gy0, inv_res, thr_free, thr_occ
         wy = gy - gy0
         if not (0 <= wx < W and 0 <= wy < H):
             continue
-        r = slot(wy, sr, H)
-        c = slot(wx, sc, W)
-        unseen[i] = stamps[r, c, 1] == UNSEEN
-        occupied[i] = not unseen[i] and cells[r, c, 0] >= thr_occ
-        free = 1 <= wx < W - 1 and 1 <= wy < H - 1
-        wall = occupied[i]
-        for yy in range(max(wy - reach, 0), min(wy + reach + 1, H)):
-            if wall:
-                break
-            r = slot(yy, sr, H)
-            for xx in range(max(wx - reach, 0), min(wx + reach + 1, W)):
-                c = slot(xx, sc, W)
-                seen = stamps[r, c, 1] != UNSEEN
-                if seen and cells[r, c, 0] >= thr_occ:
-                    wall = True
+        known = memo[wy, wx]
+        if known == 0:
+            r = slot(wy, sr, H)
+            c = slot(wx, sc, W)
+            never = stamps[r, c, 1] == UNSEEN
+            wall = not never and cells[r, c, 0] >= thr_occ
+            known = 1 | (2 if wall else 0) | (4 if never else 0)
+            free = 1 <= wx < W - 1 and 1 <= wy < H - 1
+            for yy in range(max(wy - reach, 0), min(wy + reach + 1, H)):
+                if wall:
                     break
-                if abs(xx - wx) <= 1 and abs(yy - wy) <= 1 and not (seen and cells[r, c, 0] < thr_free):
-                    free = False
-        walled[i] = wall
-        open_[i] = free and not wall
+                r = slot(yy, sr, H)
+                for xx in range(max(wx - reach, 0), min(wx + reach + 1, W)):
+                    c = slot(xx, sc, W)
+                    seen = stamps[r, c, 1] != UNSEEN
+                    if seen and cells[r, c, 0] >= thr_occ:
+                        wall = True
+                        break
+                    if abs(xx - wx) <= 1 and abs(yy - wy) <= 1 and not (seen and cells[r, c, 0] < thr_free):
+                        free = False
+            known |= (8 if wall else 0) | (16 if free and not wall else 0)
+            memo[wy, wx] = known
+        occupied[i] = known & 2 != 0
+        unseen[i] = known & 4 != 0
+        walled[i] = known & 8 != 0
+        open_[i] = known & 16 != 0
+    for i in range(pts.shape[0]):
+        if kinds[i] == 1:
+            gx, gy = cell_of(pts[i, 0], pts[i, 1], 0.0, 0.0, inv_res)
+            if 0 <= gx - gx0 < W and 0 <= gy - gy0 < H:
+                memo[gy - gy0, gx - gx0] = 0
     return open_
 
 

@@ -187,6 +187,7 @@ class LocalMap(OneCallAtATime):
         self._cells = np.zeros((H, W, 2), dtype=np.float32)
         self._stamps = self._cells.view(np.int32)
         self._rmark = np.zeros((H, W), dtype=np.int32)
+        self._memo = np.zeros((H, W) if tracking else (0, 0), dtype=np.uint8)  # classify_returns' scratch
         # column distances of the inflation pass, capped at R + 1: one byte each when that fits
         self._g_scratch = np.empty((H, W), dtype=np.uint8 if self.inflation.radius_cells < 254 else np.int32)
         #: Two threads for big scans (None: decided per scan, see ``occmap.local._kernels.integrate``);
@@ -406,7 +407,7 @@ class LocalMap(OneCallAtATime):
         free = 0.0 if vacated else (self.l_free - self.l_prior) / g
         K.classify_returns(self._cells, self._stamps, self._sr, self._sc, self._gx0, self._gy0, 1.0 / self.resolution,
                            free, (self.l_occupied - self.l_prior) / g, reach, np.ascontiguousarray(ends), kinds,
-                           open_, occupied, unseen, walled)
+                           open_, occupied, unseen, walled, self._memo)
         return open_, occupied, unseen, walled
 
     def _dropped_pose(self, n: int) -> dict:

@@ -234,6 +234,49 @@ def fit_boxes(points, starts, sample, sample_starts, weights, steps, min_distanc
 
 
 @kernel
+def elevation_steps(points, ox, oy, oz, step, out):
+    """``out[i]`` = ⌊elevation / ``step``⌋ of 3D point ``i`` (N, 3) seen from ``(ox, oy, oz)``:
+    its angle above the horizontal plane (rad, in [−π/2, π/2]) in steps of ``step``; 0 for
+    non-finite points and the origin itself. Compared with the tangents of the steps' bounds
+    (the angle's tangent is the point's rise over its distance), with no arctangent a point:
+    a rational guess within 0.005 rad picks the step, one comparison a side settles it."""
+    n_half = int(np.ceil(0.5 * np.pi / step))
+    bound = np.empty(2 * n_half + 1)  # bound[k] = tan((k − n_half) · step), ±inf past ±π/2
+    for k in range(2 * n_half + 1):
+        a = (k - n_half) * step
+        bound[k] = np.tan(a) if abs(a) < 0.5 * np.pi else (np.inf if a > 0.0 else -np.inf)
+    inv_step = 1.0 / step
+    top = 2 * n_half - 1
+    wide = step > 0.005
+    for i in range(points.shape[0]):
+        dx = points[i, 0] - ox
+        dy = points[i, 1] - oy
+        dz = points[i, 2] - oz
+        u = dz / np.sqrt(dx * dx + dy * dy)
+        if u != u:  # non-finite, or the origin itself
+            out[i] = 0
+            continue
+        if np.isinf(u):  # straight above or below
+            out[i] = int(np.floor(np.copysign(0.5 * np.pi, u) / step))
+            continue
+        if abs(u) <= 1.0:
+            guess = u / (1.0 + 0.28 * u * u)
+        else:
+            guess = np.copysign(0.5 * np.pi, u) - u / (u * u + 0.28)
+        k = min(max(int(guess * inv_step + n_half), 0), top)
+        if wide:  # the guess is off by less than a step: one comparison a side
+            k += u >= bound[k + 1]
+            k -= u < bound[k]
+        else:
+            while k > 0 and u < bound[k]:
+                k -= 1
+            while k < top and u >= bound[k + 1]:
+                k += 1
+        out[i] = k - n_half
+    return out
+
+
+@kernel
 def _pseudo_bearing(dx, dy):
     """A cheap stand-in for the bearing of ``(dx, dy)``: in [0, 4], rising with the angle from 0
     (the +x axis) to 2π (4 ≡ 0); NaN at the origin."""
@@ -382,6 +425,16 @@ def _box_probability(da, db, ha, hb, sa, sb):
 
 
 @kernel
+def _slab(a, b, half):
+    """The interval of ``t`` where ``|a · t + b| ≤ half`` (empty: lo > hi; all: ±inf)."""
+    if a == 0.0:
+        return (-np.inf, np.inf) if abs(b) <= half else (np.inf, -np.inf)
+    lo = (-half - b) / a
+    hi = (half - b) / a
+    return (lo, hi) if a > 0.0 else (hi, lo)
+
+
+@kernel
 def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
     """Adds, into ``out`` (H, W, window order, cell (0, 0) with its outer corner at ``(ox, oy)``,
     side ``res``), the probability that each cell centre lies under one of the boxes ``sizes``
@@ -405,7 +458,15 @@ def footprint_probability(states, covs, sizes, grow, ox, oy, res, out):
         j1 = min(int(np.floor((x + reach - ox) / res)), W - 1)
         for i in range(i0, i1 + 1):
             py = oy + (i + 0.5) * res - y
-            for j in range(j0, j1 + 1):
+            # the cells of this row within the box's tails: where both of its slabs hold px (one
+            # cell more each side for rounding; beyond the tails _box_probability gives 0 anyway)
+            a0, a1 = _slab(c, s * py, ha + TAIL * sa)
+            b0, b1 = _slab(-s, c * py, hb + TAIL * sb)
+            lo = max((max(a0, b0) + x - ox) / res - 1.5, j0 - 1.0)
+            hi = min((min(a1, b1) + x - ox) / res + 0.5, j1 + 1.0)
+            if not lo <= hi:  # none (both finite once this holds)
+                continue
+            for j in range(max(j0, int(np.floor(lo))), min(j1, int(np.ceil(hi))) + 1):
                 px = ox + (j + 0.5) * res - x
                 da = c * px + s * py
                 db = -s * px + c * py

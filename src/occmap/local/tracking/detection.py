@@ -38,12 +38,10 @@ ELEVATION_LAYER = math.radians(0.5)
 def elevation_layers(points, origin) -> np.ndarray:
     """Elevation layer (int64 (N,), from 0) of 3D ``points`` (N, 3) seen from ``origin`` (3,):
     their elevation angle above the sensor's horizontal plane in steps of :data:`ELEVATION_LAYER`,
-    counted from the lowest (non-finite points: layer 0)."""
-    p = np.asarray(points, dtype=np.float64)
+    counted from the lowest (non-finite points: the step of elevation 0)."""
+    p = np.ascontiguousarray(points, dtype=np.float64)
     o = np.asarray(origin, dtype=np.float64)
-    up = np.arctan2(p[:, 2] - o[2], np.hypot(p[:, 0] - o[0], p[:, 1] - o[1]))
-    up = np.where(np.isfinite(up), up, 0.0)
-    layer = np.floor(up / ELEVATION_LAYER).astype(np.int64)
+    layer = K.elevation_steps(p, o[0], o[1], o[2], ELEVATION_LAYER, np.empty(len(p), np.int64))
     return layer - layer.min() if len(layer) else layer
 
 
