@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..._jit import kernel
+from ...geometry._kernels import wrap_angle_one
 from ...geometry.so2 import wrap_angle
 
 __all__ = ["STATE", "pose_innovation", "predict", "radial_velocity_innovation", "update"]
@@ -38,14 +40,74 @@ STATE = ("x", "y", "heading", "speed", "yaw_rate")
 _SERIES_BELOW = 1e-2
 
 
-def _sinc_and_derivative(h: np.ndarray):
+@kernel
+def _sinc_and_derivative(h):
     """``sin(h)/h`` and its derivative, by their Taylor series near zero."""
-    small = np.abs(h) < _SERIES_BELOW
-    hs = np.where(small, 1.0, h)
     h2 = h * h
-    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(hs) / hs)
-    d = np.where(small, -h / 3.0 + h * h2 / 30.0, (hs * np.cos(hs) - np.sin(hs)) / (hs * hs))
-    return sinc, d
+    if abs(h) < _SERIES_BELOW:
+        return 1.0 - h2 / 6.0 + h2 * h2 / 120.0, -h / 3.0 + h * h2 / 30.0
+    return np.sin(h) / h, (h * np.cos(h) - np.sin(h)) / h2
+
+
+@kernel
+def _predict(states, covs, dt, accel, yaw_accel, yaw_rate_time, out, out_covs):
+    """:func:`predict` per track into ``out`` (N, 5) and, when ``covs`` has rows, ``out_covs``
+    (N, 5, 5): ``P ← F P Fᵀ + G q Gᵀ`` with the motion's Jacobian ``F`` and the noise's ``G``,
+    symmetrised."""
+    F = np.empty((5, 5))
+    FP = np.empty((5, 5))
+    G = np.empty((5, 2))
+    for n in range(states.shape[0]):
+        x, y, th, v, w = states[n, 0], states[n, 1], states[n, 2], states[n, 3], states[n, 4]
+        t = dt[n]
+        h = 0.5 * w * t
+        sinc, dsinc = _sinc_and_derivative(h)
+        ca, sa = np.cos(th + h), np.sin(th + h)
+        chord = v * t * sinc
+        decay = np.exp(-t / yaw_rate_time)
+        out[n, 0] = x + chord * ca
+        out[n, 1] = y + chord * sa
+        out[n, 2] = wrap_angle_one(th + 2.0 * h)
+        out[n, 3] = v
+        out[n, 4] = w * decay
+        if covs.shape[0] == 0:
+            continue
+        half = 0.5 * t
+        F[:, :] = 0.0
+        for i in range(5):
+            F[i, i] = 1.0
+        F[0, 2] = -chord * sa
+        F[1, 2] = chord * ca
+        F[0, 3] = t * sinc * ca
+        F[1, 3] = t * sinc * sa
+        F[0, 4] = v * t * (dsinc * half * ca - sinc * sa * half)
+        F[1, 4] = v * t * (dsinc * half * sa + sinc * ca * half)
+        F[2, 4] = t
+        F[4, 4] = decay
+        G[:, :] = 0.0
+        G[0, 0] = half * t * np.cos(th)
+        G[1, 0] = half * t * np.sin(th)
+        G[3, 0] = t
+        G[2, 1] = half * t
+        G[4, 1] = t
+        qa = accel[n] * accel[n]
+        qw = yaw_accel[n] * yaw_accel[n]
+        for i in range(5):
+            for j in range(5):
+                acc = 0.0
+                for k in range(5):
+                    acc += F[i, k] * covs[n, k, j]
+                FP[i, j] = acc
+        for i in range(5):
+            for j in range(i, 5):
+                acc = G[i, 0] * qa * G[j, 0] + G[i, 1] * qw * G[j, 1]
+                for k in range(5):
+                    acc += FP[i, k] * F[j, k]
+                out_covs[n, i, j] = acc
+        for i in range(5):
+            for j in range(i):
+                out_covs[n, i, j] = out_covs[n, j, i]
+    return out
 
 
 def predict(states: np.ndarray, covs: np.ndarray | None, dt, accel: float, yaw_accel: float,
@@ -53,44 +115,16 @@ def predict(states: np.ndarray, covs: np.ndarray | None, dt, accel: float, yaw_a
     """States and covariances ``dt`` seconds later (``dt``, ``accel`` and ``yaw_accel`` scalars or
     ``(N,)``; ``dt ≥ 0``; the yaw rate's time constant ``yaw_rate_time`` in seconds, inf: constant
     turn rate); returns new arrays. ``covs`` None: the states only (the same), ``(states, None)``."""
-    x, y, th, v, w = states.T
-    dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), x.shape)
-    h = 0.5 * w * dt
-    sinc, dsinc = _sinc_and_derivative(h)
-    a = th + h
-    ca, sa = np.cos(a), np.sin(a)
-    chord = v * dt * sinc
-    out = states.copy()
-    out[:, 0] = x + chord * ca
-    out[:, 1] = y + chord * sa
-    out[:, 2] = wrap_angle(th + 2.0 * h)
-    decay = np.exp(-dt / yaw_rate_time)
-    out[:, 4] = w * decay
+    s = np.ascontiguousarray(states, dtype=np.float64)
+    n = s.shape[0]
+    each = [np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), (n,))) for a in (dt, accel, yaw_accel)]
+    out = np.empty((n, 5))
     if covs is None:
+        _predict(s, np.empty((0, 5, 5)), *each, float(yaw_rate_time), out, np.empty((0, 5, 5)))
         return out, None
-    n = states.shape[0]
-    F = np.broadcast_to(np.eye(5), (n, 5, 5)).copy()
-    F[:, 0, 2] = -chord * sa
-    F[:, 1, 2] = chord * ca
-    F[:, 0, 3] = dt * sinc * ca
-    F[:, 1, 3] = dt * sinc * sa
-    half = 0.5 * dt
-    F[:, 0, 4] = v * dt * (dsinc * half * ca - sinc * sa * half)
-    F[:, 1, 4] = v * dt * (dsinc * half * sa + sinc * ca * half)
-    F[:, 2, 4] = dt
-    F[:, 4, 4] = decay
-    G = np.zeros((n, 5, 2))
-    G[:, 0, 0] = half * dt * np.cos(th)
-    G[:, 1, 0] = half * dt * np.sin(th)
-    G[:, 3, 0] = dt
-    G[:, 2, 1] = half * dt
-    G[:, 4, 1] = dt
-    q = np.zeros((n, 2, 2))
-    q[:, 0, 0] = np.square(accel)
-    q[:, 1, 1] = np.square(yaw_accel)
-    Q = G @ q @ G.transpose(0, 2, 1)
-    P = F @ covs @ F.transpose(0, 2, 1) + Q
-    return out, 0.5 * (P + P.transpose(0, 2, 1))
+    out_covs = np.empty((n, 5, 5))
+    _predict(s, np.ascontiguousarray(covs, dtype=np.float64), *each, float(yaw_rate_time), out, out_covs)
+    return out, out_covs
 
 
 def pose_innovation(states: np.ndarray, z: np.ndarray, with_heading: bool, offset=None):
