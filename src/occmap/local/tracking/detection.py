@@ -139,8 +139,8 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
     lay = np.zeros(len(p), np.int64) if layers is None else np.asarray(layers, dtype=np.int64)
     if lay.shape != (len(p),):
         raise ShapeError(f"layers must have shape ({len(p)},), got {lay.shape}")
-    finite = np.isfinite(p).all(axis=1)
-    p, lay = p[finite], lay[finite]
+    finite = np.isfinite(p[:, 0]) & np.isfinite(p[:, 1])
+    p, lay = p.compress(finite, axis=0), lay.compress(finite)
     gap = checks.positive("gap", gap, "metres")
     min_points = checks.count("min_points", min_points)
     if not len(p):
@@ -153,12 +153,12 @@ def detect_objects(points, gap: float = DETECTION_GAP, min_points: int = 3, min_
     chosen = keep[labels]
     lab = remap[labels[chosen]]
     order = np.argsort(lab, kind="stable")
-    pts = np.ascontiguousarray(p[chosen][order])
-    pts_layers = np.ascontiguousarray(lay[chosen][order])
+    pts = p.compress(chosen, axis=0).take(order, axis=0)
+    pts_layers = lay.compress(chosen).take(order)
     counts = sizes[keep]
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     index, sample_starts, weights = _fit_sample(starts)
-    box = K.fit_boxes(pts, starts, pts[index], sample_starts, weights, FIT_STEPS, FIT_MIN_DISTANCE,
+    box = K.fit_boxes(pts, starts, pts.take(index, axis=0), sample_starts, weights, FIT_STEPS, FIT_MIN_DISTANCE,
                       np.empty((len(counts), 5)))
     oriented = box[:, 4] >= checks.non_negative("min_width", min_width, "metres")
     cut = np.zeros((len(counts), 2), bool)
