@@ -261,6 +261,16 @@ def test_predicted_occupancy_matches_sampled_objects_and_points_read_the_same_mo
     np.testing.assert_array_equal(each, at)
 
 
+def test_the_occupancy_models_error_function_is_within_its_stated_bound():
+    # Abramowitz and Stegun 7.1.26: |error| <= 1.5e-7 everywhere, odd, ±1 far out
+    x = np.linspace(-7.0, 7.0, 20_001)
+    ours = np.array([K._erf(v) for v in x])
+    exact = np.array([math.erf(v) for v in x])
+    assert np.abs(ours - exact).max() <= 1.5e-7
+    np.testing.assert_array_equal([K._erf(-v) for v in x[x > 0]], -ours[x > 0])
+    assert K._erf(6.5) == pytest.approx(1.0, abs=1e-15)
+
+
 @pytest.mark.parametrize("heading", [0.0, math.pi / 2, -math.pi, 0.3, -2.0])
 @pytest.mark.parametrize("spread", [0.0, 0.05])
 def test_predicted_occupancy_visits_every_cell_a_box_may_cover(heading, spread):
