@@ -397,6 +397,38 @@ def test_scans_inserted_again_on_two_threads_leave_the_pool_as_it_is(monkeypatch
     assert tops[-1] - tops[1] < insertion._ROOM_MARGIN, tops
 
 
+def test_scans_seen_again_in_turn_on_two_threads_stop_growing_the_pool(monkeypatch):
+    """Three scans in turn, again and again (a robot standing, its scans re-seen): the second
+    thread takes its slots from the blocks it freed before (its spare list), so after a first
+    round the slots in use (``meta[TOP]``) stop growing. (It took them from the top, freeing
+    its own onto the other thread's list: 400 – 500 slots a call at 0.1 m, the free list
+    growing as large as the tree.) The tree is the one thread's, byte for byte."""
+    from occmap import _threads
+    from occmap.io.octomap import encode_ot
+    from occmap.octree import insertion, pool
+
+    monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
+    rng = np.random.default_rng(21)
+    clouds = [_room_cloud(rng, 5000, half=6.0) for _ in range(3)]
+    origin = np.array([0.1, 0.2, 0.3])
+    trees = {}
+    for count in (2, 1):
+        monkeypatch.setattr(_threads, "thread_count", lambda count=count: count)
+        tree = OcTree(0.1)
+        tops = []
+        for k in range(12):
+            tree.insert_point_cloud(clouds[k % 3], origin)
+            tops.append(int(tree._pool.meta[pool.TOP]))
+        trees[count] = (tree, tops)
+    tree, tops = trees[2]
+    assert tops[-1] == tops[5], tops
+    assert encode_ot(tree) == encode_ot(trees[1][0])
+    # a one-thread update after them takes the spare blocks too
+    monkeypatch.setattr(_threads, "thread_count", lambda: 1)
+    tree.insert_point_cloud(clouds[0], origin)
+    assert tree._pool.meta[pool.SPARE] == -1 and int(tree._pool.meta[pool.TOP]) == tops[-1]
+
+
 def test_a_scan_like_the_last_one_fits_its_block_storage_from_the_start(monkeypatch):
     """The block storage of a scan starts with room for the blocks per ray of the thread's last
     scan: a second scan like the first is marked without growing (rehashing) it, and the tree

@@ -205,6 +205,7 @@ def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray
 def _apply_range(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool, start: int, stop: int) -> bool:
     """Updates ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
     keys, depths, is_hit = keys[:stop], depths[:stop], is_hit[:stop]
+    P.merge_spare(pool.slots, pool.meta)
     top = int(pool.meta[P.TOP])
     changed = False
     while True:
@@ -234,10 +235,11 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
             return False
     split = subtree_split(keys, shared, first)
     # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
-    # second above the first's range; a thread that runs out leaves its rest to this one. (The
-    # first's range is what the free list may lack, and none where the free list holds what it
-    # may need: the range's unused slots join the free list, so a margin given every scan would
-    # grow the pool scan after scan with slots never used.)
+    # second its spare list (the blocks it freed before: P.join_pools), then slots above the
+    # first's range; a thread that runs out leaves its rest to this one. (The first's range is
+    # what the free list may lack, and none where the free list holds what it may need: the
+    # range's unused slots join the free list, so a margin given every scan would grow the pool
+    # scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
     need_a = _ROOM_PER_VOXEL * (split - first)
     need_a -= P.free_slots(pool.slots, pool.meta[P.FREE], need_a)
@@ -247,7 +249,8 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
     meta_a = np.array([top, pool.meta[P.FREE], 0], np.int64)
-    meta_b = np.array([top + room_a, -1, 0], np.int64)
+    meta_b = P.new_meta(top + room_a)
+    meta_b[P.FREE] = pool.meta[P.SPARE]
     (end_a, changed_a), (end_b, changed_b) = run_jobs([
         lambda: apply_voxels(pool.slots, meta_a, keys[:split], depths[:split], is_hit[:split], first,
                              *rule, not lazy, top + room_a, shared + 1),

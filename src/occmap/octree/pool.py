@@ -15,7 +15,9 @@ drive's updates, 1.2 – 1.3× faster than two arrays).
 
 Slot 0 is the root; block 0 holds only it, real blocks start at slot 8. ``meta`` (int64) holds the
 allocator and counters: ``meta[TOP]`` the next never-used slot, ``meta[FREE]`` the free-list head
-(−1: empty), ``meta[SIZE]`` the number of nodes (OctoMap's ``size()``).
+(−1: empty), ``meta[SIZE]`` the number of nodes (OctoMap's ``size()``), ``meta[SPARE]`` the head of
+a second free list: the blocks the second thread of a two-thread update freed, which it takes
+first the next time (:func:`join_pools`; a one-thread update joins it to the first, :func:`merge_spare`).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from .._jit import inline_kernel, kernel
 from ..errors import OccmapError
 from .keys import DEPTH, child_index, unpack
 
-TOP, FREE, SIZE = 0, 1, 2
+TOP, FREE, SIZE, SPARE = 0, 1, 2, 3
 #: A slot: a node's log-odds and the first slot of its children's block.
 SLOT = np.dtype([("value", np.float32), ("child", np.int32)], align=True)
 
@@ -93,25 +95,46 @@ def free_slots(slots, head, limit):
 @kernel
 def join_pools(slots, meta, meta_a, meta_b, gap_lo, gap_hi):
     """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``, with the pool's free
-    list) and [gap_hi, ·) (``meta_b``): one pool again, the first range's unused blocks
-    [gap_lo, gap_hi) (made empty slots, as freed blocks are) and the blocks the second freed on
-    the free list, node counts added."""
+    list) and [gap_hi, ·) (``meta_b``, with its spare list): one pool again, node counts added.
+    The blocks the second thread freed, and the spare blocks it did not take, stay its spare list
+    for the next time (no walk here; and so that it takes its slots from its own frees, not from
+    the top: a robot standing still, its scans re-seen, leaves the pool as it was). Where the
+    second took slots from the top, the first range's unused blocks [gap_lo, gap_hi) join the
+    free list (made empty slots, as freed blocks are); where it took none, the pool ends where the
+    first range's use did."""
     free = meta_a[FREE]
-    for c in range(gap_lo, gap_hi, 8):
-        for j in range(c, c + 8):
-            slots[j].value = np.nan
-            slots[j].child = -1
-        slots[c].child = free
-        free = c
-    c = meta_b[FREE]
-    while c >= 0:
-        nxt = slots[c].child
-        slots[c].child = free
-        free = c
-        c = nxt
-    meta[TOP] = meta_b[TOP]
+    if meta_b[TOP] > gap_hi:
+        for c in range(gap_lo, gap_hi, 8):
+            for j in range(c, c + 8):
+                slots[j].value = np.nan
+                slots[j].child = -1
+            slots[c].child = free
+            free = c
+        meta[TOP] = meta_b[TOP]
+    else:
+        meta[TOP] = gap_lo
     meta[FREE] = free
+    meta[SPARE] = meta_b[FREE]
     meta[SIZE] += meta_a[SIZE] + meta_b[SIZE]
+
+
+@kernel
+def merge_spare(slots, meta):
+    """The spare list (see :func:`join_pools`) joined to the free list, for a one-thread update:
+    walks the spare list once, to its end."""
+    c = meta[SPARE]
+    if c < 0:
+        return
+    while slots[c].child >= 0:
+        c = slots[c].child
+    slots[c].child = meta[FREE]
+    meta[FREE] = meta[SPARE]
+    meta[SPARE] = -1
+
+
+def new_meta(top: int = 8, size: int = 0) -> np.ndarray:
+    """A pool's ``meta`` (see the module's description) with both free lists empty."""
+    return np.array([top, -1, size, -1], dtype=np.int64)
 
 
 @kernel
@@ -226,7 +249,7 @@ class Pool:
 
     def __init__(self):
         self.slots = new_slots(self.INITIAL_SLOTS)
-        self.meta = np.array([8, -1, 0], dtype=np.int64)
+        self.meta = new_meta()
         self._room = None  # the reserved address range a large pool lives at the start of
 
     def grow(self, capacity: int) -> None:

@@ -479,7 +479,7 @@ class OcTree(OneCallAtATime):
             raise InvalidArgumentError(f"count must be 0 .. {len(slots)} nodes, got {count}")
         p = tree._pool
         p.slots = slots
-        p.meta = np.array([len(slots), -1, count], np.int64)
+        p.meta = pool.new_meta(len(slots), count)
         return tree
 
     # ------------------------------------------------------------------ pictures and exports

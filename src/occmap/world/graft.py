@@ -9,7 +9,7 @@ import numpy as np
 
 from .._jit import kernel
 from ..octree.keys import DEPTH, child_index
-from ..octree.pool import SIZE, alloc_block, new_slots
+from ..octree.pool import SIZE, alloc_block, new_meta, new_slots
 
 
 @kernel
@@ -81,5 +81,5 @@ def graft(slots, meta, src, src_node, kx, ky, kz, depth):
 
 def new_pool(n: int):
     """Empty slots with room for ``n`` (whole blocks) and their ``meta``."""
-    return new_slots(8 * (n // 8 + 2)), np.array([8, -1, 0], np.int64)
+    return new_slots(8 * (n // 8 + 2)), new_meta()
 
