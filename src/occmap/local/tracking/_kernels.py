@@ -524,9 +524,8 @@ def point_probability(points, at, states, covs, sizes, grow, out):
         for t in range(T):
             px = points[i, 0] - states[k, t, 0]
             py = points[i, 1] - states[k, t, 1]
-            c, s = box[k, t, 0], box[k, t, 1]  # (no view of the row: one costs more than the test)
-            free *= 1.0 - _box_probability(c * px + s * py, -s * px + c * py, box[k, t, 2], box[k, t, 3], box[k, t, 4],
-                                           box[k, t, 5])
+            b = box[k, t]
+            free *= 1.0 - _box_probability(b[0] * px + b[1] * py, -b[1] * px + b[0] * py, b[2], b[3], b[4], b[5])
         out[i] = 1.0 - free
     return out
 
