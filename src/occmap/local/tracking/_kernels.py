@@ -390,6 +390,86 @@ def beyond_ends(points, point_layers, starts, scene, scene_layers, n_layers, sx,
     return out
 
 
+@kernel
+def measure_boxes(corners, axes, size, sx, sy, occluded, track, bare_end, position_var, centre, covariance, seen,
+                  side, lever):
+    """:meth:`~.tracker.Tracker._measure` for ``P`` pairs of a detected box and a track, flat:
+    ``corners`` (P, 4, 2), ``axes`` (P, 2, 2) (rows), ``size`` (P, 2), the sensor at ``(sx, sy)``,
+    ``occluded`` (P,), the track's centre ``track`` (P, 2) or (0, 2) (none: the interval's middle),
+    ``bare_end`` (P, 2) or (0, 2) (none); into ``centre`` (P, 2), ``covariance`` (P, 2, 2),
+    ``seen`` (P, 2), ``side`` (P, 2) and ``lever`` (P, 2)."""
+    lo = np.empty(2)
+    hi = np.empty(2)
+    across = np.empty(2)
+    for p in range(corners.shape[0]):
+        for a in range(2):
+            lo[a] = np.inf
+            hi[a] = -np.inf
+            for c in range(4):
+                v = corners[p, c, 0] * axes[p, a, 0] + corners[p, c, 1] * axes[p, a, 1]
+                lo[a] = min(lo[a], v)
+                hi[a] = max(hi[a], v)
+        # the point midway in the measuring axes, from the sensor: the axis more across the line
+        # of sight is the one an occluder cuts
+        mx = 0.5 * (lo[0] + hi[0]) * axes[p, 0, 0] + 0.5 * (lo[1] + hi[1]) * axes[p, 1, 0] - sx
+        my = 0.5 * (lo[0] + hi[0]) * axes[p, 0, 1] + 0.5 * (lo[1] + hi[1]) * axes[p, 1, 1] - sy
+        for a in range(2):
+            across[a] = abs(axes[p, a, 0] * mx + axes[p, a, 1] * my)
+        least = min(across[0], across[1])
+        cx = 0.0
+        cy = 0.0
+        lx = 0.0
+        ly = 0.0
+        for i in range(2):
+            for j in range(2):
+                covariance[p, i, j] = 0.0
+        for a in range(2):
+            ex, ey = axes[p, a, 0], axes[p, a, 1]
+            w = hi[a] - lo[a]
+            full = max(size[p, a], w)
+            s_proj = ex * sx + ey * sy
+            sd = 1.0 if s_proj < lo[a] else (-1.0 if s_proj > hi[a] else 0.0)
+            cut = across[a] == least
+            unsure = sd == 0.0 or (occluded[p] and cut)
+            first = hi[a] - 0.5 * full
+            last = lo[a] + 0.5 * full
+            if track.shape[0] == 0:
+                bound = 0.5 * (first + last)
+                var = position_var + ((full - w) ** 2 / 12.0 if unsure else 0.0)
+            else:
+                bound = min(max(ex * track[p, 0] + ey * track[p, 1], first), last)
+                var = position_var
+            if unsure:
+                at = bound
+                offset = 0.0
+            else:
+                at = lo[a] + 0.5 * full if sd > 0.0 else hi[a] - 0.5 * full
+                offset = -sd * 0.5 * full
+            if bare_end.shape[0]:
+                edge = ex * bare_end[p, 0] + ey * bare_end[p, 1]
+                d = 0.5 * (lo[a] + hi[a]) - edge
+                if occluded[p] and cut and d != 0.0 and np.isfinite(d):
+                    toward = 1.0 if d > 0.0 else -1.0
+                    at = edge + toward * 0.5 * full
+                    offset = -toward * 0.5 * full
+                    var = position_var
+            seen[p, a] = w
+            side[p, a] = sd
+            cx += at * ex
+            cy += at * ey
+            lx += offset * ex
+            ly += offset * ey
+            covariance[p, 0, 0] += ex * var * ex
+            covariance[p, 0, 1] += ex * var * ey
+            covariance[p, 1, 0] += ey * var * ex
+            covariance[p, 1, 1] += ey * var * ey
+        centre[p, 0] = cx
+        centre[p, 1] = cy
+        lever[p, 0] = lx
+        lever[p, 1] = ly
+    return centre
+
+
 @inline_kernel
 def _erf(x):
     """The error function to within 1.5e-7 (Abramowitz and Stegun 7.1.26: one exponential, where

@@ -364,37 +364,23 @@ class Tracker:
         shift: on the raw Intel run they confirmed more tracks). On the simulated street a car
         driving away 25 – 30 m off, the northern part of its rear seen past a nearer object, drifted
         1.2 m sideways in 1.5 s while only bounded there."""
-        p = self.params
-        proj = np.einsum("...cj,...aj->...ac", corners, axes)
-        lo, hi = proj.min(-1), proj.max(-1)
-        seen = hi - lo
-        s_proj = np.einsum("...aj,j->...a", axes, sensor)
-        full = np.maximum(size, seen)
-        side = np.where(s_proj < lo, 1.0, np.where(s_proj > hi, -1.0, 0.0))
-        # an occluder cuts a box's angular extent: the axis across the line of sight
-        mid = np.einsum("...a,...aj->...j", 0.5 * (lo + hi), axes) - sensor
-        across = np.abs(np.einsum("...aj,...j->...a", axes, mid))
-        cut = across == across.min(axis=-1, keepdims=True)
-        unsure = (side == 0) | (np.asarray(occluded)[..., None] & cut)
-        first, last = hi - 0.5 * full, lo + 0.5 * full  # centres that cover what is seen
-        if track is None:
-            bound = 0.5 * (first + last)
-            var = p.position_sigma ** 2 + np.where(unsure, (full - seen) ** 2 / 12.0, 0.0)
-        else:
-            bound = np.clip(np.einsum("...aj,...j->...a", axes, track), first, last)
-            var = np.full(bound.shape, p.position_sigma ** 2)
-        centre = np.where(unsure, bound, np.where(side > 0, lo + 0.5 * full, hi - 0.5 * full))
-        offset = np.where(unsure, 0.0, -side * 0.5 * full)  # from the centre to the edge seen
-        if bare_end is not None:
-            edge = np.einsum("...aj,...j->...a", axes, bare_end)
-            toward = np.sign(0.5 * (lo + hi) - edge)  # 0 (or NaN): no extent along the axis to tell
-            anchored = np.asarray(occluded)[..., None] & cut & (toward != 0.0) & np.isfinite(toward)
-            centre = np.where(anchored, edge + toward * 0.5 * full, centre)
-            offset = np.where(anchored, -toward * 0.5 * full, offset)
-            var = np.where(anchored, p.position_sigma ** 2, var)
-        return _Measured(np.einsum("...a,...aj->...j", centre, axes),
-                         np.einsum("...ai,...a,...aj->...ij", axes, var, axes), seen, side,
-                         np.einsum("...a,...aj->...j", offset, axes))
+        shape = np.broadcast_shapes(corners.shape[:-2], axes.shape[:-2], size.shape[:-1], np.shape(occluded),
+                                    () if track is None else track.shape[:-1],
+                                    () if bare_end is None else bare_end.shape[:-1])
+        n = math.prod(shape)
+
+        def flat(a, tail):
+            return np.ascontiguousarray(np.broadcast_to(a, shape + tail).reshape((n,) + tail), dtype=np.float64)
+
+        none = np.empty((0, 2))
+        centre, seen, side, lever = (np.empty((n, 2)) for _ in range(4))
+        covariance = np.empty((n, 2, 2))
+        K.measure_boxes(flat(corners, (4, 2)), flat(axes, (2, 2)), flat(size, (2,)), float(sensor[0]), float(sensor[1]),
+                        np.ascontiguousarray(np.broadcast_to(occluded, shape).reshape(n), dtype=np.bool_),
+                        none if track is None else flat(track, (2,)), none if bare_end is None else flat(bare_end, (2,)),
+                        self.params.position_sigma ** 2, centre, covariance, seen, side, lever)
+        return _Measured(centre.reshape(shape + (2,)), covariance.reshape(shape + (2, 2)), seen.reshape(shape + (2,)),
+                         side.reshape(shape + (2,)), lever.reshape(shape + (2,)))
 
     def update(self, stamp: float, detections: Detections, sensor) -> None:
         """Bring the tracks to ``stamp`` (s, not before the last) with one scan's detections seen
