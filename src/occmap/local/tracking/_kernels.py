@@ -470,6 +470,27 @@ def measure_boxes(corners, axes, size, sx, sy, occluded, track, bare_end, positi
     return centre
 
 
+@kernel
+def gate_costs(tracks, covs, spread, z, R, gate, cost):
+    """The assignment's costs ``cost`` (n, m): for track ``i`` (centre ``tracks[i]``, covariance
+    ``covs[i]``, spread by ``spread[i]`` m² more each way) and the centre ``z[i, j]`` (noise
+    ``R[i, j]``, 2 × 2) that detection ``j`` says it has, the squared Mahalanobis distance ``d²``
+    with ``S = P + R + spread · I``, plus ``log det S`` (the Gaussian's normalisation: a wider
+    track costs more); inf where ``d²`` exceeds ``gate``."""
+    for i in range(cost.shape[0]):
+        for j in range(cost.shape[1]):
+            a = covs[i, 0, 0] + R[i, j, 0, 0] + spread[i]
+            b = covs[i, 0, 1] + R[i, j, 0, 1]
+            c = covs[i, 1, 0] + R[i, j, 1, 0]
+            d = covs[i, 1, 1] + R[i, j, 1, 1] + spread[i]
+            det = a * d - b * c
+            rx = z[i, j, 0] - tracks[i, 0]
+            ry = z[i, j, 1] - tracks[i, 1]
+            d2 = (rx * (d * rx - b * ry) + ry * (a * ry - c * rx)) / det
+            cost[i, j] = d2 + np.log(det) if d2 <= gate else np.inf
+    return cost
+
+
 @inline_kernel
 def _erf(x):
     """The error function to within 1.5e-7 (Abramowitz and Stegun 7.1.26: one exponential, where

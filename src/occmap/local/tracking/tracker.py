@@ -405,14 +405,9 @@ class Tracker:
             measured = self._measure(_corners(detections)[None], axes, size, sensor, detections.occluded[None],
                                      self.state[:, None, :2], bare)
             z, R = measured.centre, measured.covariance
-            r = z - self.state[:, None, :2]
-            S = self.cov[:, None, :2, :2] + R
             # a track seen once has no velocity yet: it may have gone anywhere within max_speed
-            young = self.updates == 0
-            reach = (p.max_speed * (self.time - self.last_hit[young]) / 3.0) ** 2
-            S[young] += reach[:, None, None, None] * np.eye(2)
-            d2 = np.einsum("nmi,nmi->nm", r, np.linalg.solve(S, r[..., None])[..., 0])
-            cost = np.where(d2 <= p.gate, d2 + np.log(np.linalg.det(S)), np.inf)
+            reach = np.where(self.updates == 0, (p.max_speed * (self.time - self.last_hit) / 3.0) ** 2, 0.0)
+            cost = K.gate_costs(np.ascontiguousarray(self.state[:, :2]), self.cov, reach, z, R, p.gate, np.empty((n, m)))
             rows, cols = self._assign(cost)
             if len(rows):
                 self._resize(*self._correct(rows, cols, z[rows, cols], R[rows, cols], measured.lever[rows, cols],
