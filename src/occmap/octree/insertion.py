@@ -248,9 +248,8 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
     if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
-    meta_a = np.array([top, pool.meta[P.FREE], 0], np.int64)
-    meta_b = P.new_meta(top + room_a)
-    meta_b[P.FREE] = pool.meta[P.SPARE]
+    meta_a, meta_b = P.new_meta(top), P.new_meta(top + room_a)
+    meta_a[P.FREE], meta_b[P.FREE] = pool.meta[P.FREE], pool.meta[P.SPARE]
     (end_a, changed_a), (end_b, changed_b) = run_jobs([
         lambda: apply_voxels(pool.slots, meta_a, keys[:split], depths[:split], is_hit[:split], first,
                              *rule, not lazy, top + room_a, shared + 1),

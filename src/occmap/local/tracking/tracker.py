@@ -369,14 +369,14 @@ class Tracker:
                                     () if bare_end is None else bare_end.shape[:-1])
         n = math.prod(shape)
 
-        def flat(a, tail):
-            return np.ascontiguousarray(np.broadcast_to(a, shape + tail).reshape((n,) + tail), dtype=np.float64)
+        def flat(a, tail=(), dtype=np.float64):
+            return np.ascontiguousarray(np.broadcast_to(a, shape + tail).reshape((n,) + tail), dtype=dtype)
 
         none = np.empty((0, 2))
         centre, seen, side, lever = (np.empty((n, 2)) for _ in range(4))
         covariance = np.empty((n, 2, 2))
         K.measure_boxes(flat(corners, (4, 2)), flat(axes, (2, 2)), flat(size, (2,)), float(sensor[0]), float(sensor[1]),
-                        np.ascontiguousarray(np.broadcast_to(occluded, shape).reshape(n), dtype=np.bool_),
+                        flat(occluded, dtype=np.bool_),
                         none if track is None else flat(track, (2,)), none if bare_end is None else flat(bare_end, (2,)),
                         self.params.position_sigma ** 2, centre, covariance, seen, side, lever)
         return _Measured(centre.reshape(shape + (2,)), covariance.reshape(shape + (2, 2)), seen.reshape(shape + (2,)),
