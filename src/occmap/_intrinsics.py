@@ -82,3 +82,25 @@ def load_at(typingctx, buf, at, kind, swap):
         return builder.bitcast(value, context.get_value_type(dtype))
 
     return dtype(buf, types.intp, kind, types.boolean), codegen
+
+
+@intrinsic
+def prefetch(typingctx, arr, i):
+    """Ask the CPU to bring element ``i`` of the C-contiguous array ``arr`` into its caches
+    (LLVM's ``llvm.prefetch``, a read with temporal locality): a hint, which neither faults nor
+    changes anything, so that a load a few steps later need not wait for memory."""
+    if not (isinstance(arr, types.Array) and arr.layout == "C" and isinstance(i, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        size = context.get_abi_sizeof(context.get_data_type(signature.args[0].dtype))
+        byte = ir.IntType(8).as_pointer()
+        offset = builder.mul(args[1], ir.Constant(args[1].type, size))
+        at = builder.gep(builder.bitcast(data, byte), [offset])
+        i32 = ir.IntType(32)
+        fn = builder.module.declare_intrinsic("llvm.prefetch", (byte,), ir.FunctionType(ir.VoidType(), [byte] + [i32] * 3))
+        builder.call(fn, [at, i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return types.none(arr, i), codegen

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._intrinsics import prefetch
 from .._jit import kernel
 from .keys import DEPTH, child_index, pack, shared_depth, unpack
 from .pool import FREE, SIZE, TOP, alloc_block, free_slots, settle
@@ -162,6 +163,11 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
                 if not created:
                     meta[SIZE] += 8
                 slots[node].child = c
+            elif d == DEPTH - 2:
+                # the voxels that follow in Morton order go down through this block's other
+                # nodes: their blocks of children are fetched from memory side by side
+                for j in range(c, c + 8):
+                    prefetch(slots, max(slots[j].child, 0))  # (a leaf's -1: the root, cached)
             node = c + child_index(kx, ky, kz, d)
             created = np.isnan(slots[node].value)
             if created:
