@@ -326,10 +326,50 @@ def test_dense_cube_walks_give_the_plain_walks_voxels(res, one_sided, monkeypatc
         np.testing.assert_array_equal(cube_box, [[128] * 3, [-1] * 3])
 
 
+@pytest.mark.parametrize("lazy", [False, True])
+def test_blocks_applied_leave_the_tree_their_listed_voxels_leave(lazy, monkeypatch):
+    """The updates of a scan's marked blocks applied straight from their masks (the insertion's
+    path) leave node for node the tree the same blocks listed as voxels and applied in that order
+    leave: on scans seen again and again (clamped values, pruned nodes expanded and pruned again,
+    the early abort at pruned leaves at every depth), with and without a key box cutting blocks,
+    eager and lazy; and a pool that must grow on the way (an update resumed where it stopped)."""
+    from occmap.octree import insertion
+
+    starts = []
+    apply_blocks = insertion.apply_blocks
+
+    def counted(slots, meta, codes, hits, frees, kbox, start, *args):
+        starts.append(start)
+        return apply_blocks(slots, meta, codes, hits, frees, kbox, start, *args)
+
+    monkeypatch.setattr(insertion, "apply_blocks", counted)
+
+    rng = np.random.default_rng(5)
+    origins = rng.uniform(-0.3, 0.3, (3, 3))
+    scans = [(_room_cloud(rng, 4000, half=3.0), origins[k % 3]) for k in range(14)]
+    scans.append((rng.uniform(-3, 3, (300, 3)), origins[0]))  # sparse: blocks of single voxels
+    for box in (None, ((-1.93, -2.71, -0.64), (2.37, 1.18, 2.5))):
+        a, b = OcTree(0.1), OcTree(0.1)
+        if box is not None:
+            a.bbx = b.bbx = box
+        for k, (pts, origin) in enumerate(scans):
+            blocks, _ = a._scan_blocks(pts, origin, -1.0, False, False)
+            kbox = a._bbx_keys()
+            insertion.apply_marked(a._pool, blocks, kbox, a._rule, lazy)
+            keys, depths, is_hit = insertion.voxels(blocks, kbox, not lazy, False)
+            insertion.apply(b._pool, keys, depths, is_hit, b._rule, lazy)
+            assert a.num_nodes() == b.num_nodes()
+        if lazy:
+            a.update_inner_occupancy()
+            b.update_inner_occupancy()
+        assert encode_ot(a) == encode_ot(b)
+    assert any(start > 0 for start in starts)  # (the pool grew within a scan's blocks)
+
+
 def test_one_numba_thread_means_no_worker_thread(monkeypatch):
-    """With ``numba.set_num_threads(1)`` a large scan is marked, listed and applied on the calling
-    thread alone (no pool of workers is asked for), its voxels listed in one call (not in runs
-    copied together), and the tree is the one two threads build."""
+    """With ``numba.set_num_threads(1)`` a large scan is marked and applied on the calling thread
+    alone (no pool of workers is asked for), its blocks applied in one range (not two: a call
+    resumed where the pool grows), and the tree is the one two threads build."""
     from occmap import _threads
     from occmap.octree import insertion
 
@@ -341,15 +381,15 @@ def test_one_numba_thread_means_no_worker_thread(monkeypatch):
     def no_pool(*args):
         raise AssertionError("a worker thread was asked for")
 
-    listed = []
-    block_voxels = insertion.B.block_voxels
+    applied = []
+    apply_blocks = insertion.apply_blocks
 
-    def counted(codes, *args):
-        listed.append(len(codes))
-        return block_voxels(codes, *args)
+    def counted(slots, meta, codes, hits, frees, kbox, start, *args):
+        applied.append((start, len(codes)))
+        return apply_blocks(slots, meta, codes, hits, frees, kbox, start, *args)
 
     monkeypatch.setattr(_threads, "pool", no_pool)
-    monkeypatch.setattr(insertion.B, "block_voxels", counted)
+    monkeypatch.setattr(insertion, "apply_blocks", counted)
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
@@ -358,7 +398,10 @@ def test_one_numba_thread_means_no_worker_thread(monkeypatch):
         one.insert_point_clouds([c for c, _ in clouds[1:]], [o for _, o in clouds[1:]])
     finally:
         numba.set_num_threads(before)
-    assert len(listed) == 3 and min(listed) >= insertion._PARALLEL_BLOCKS
+    # a scan's calls: the first from block 0, then any resumed where the pool had to grow; each given all blocks
+    scans = [n for start, n in applied if start == 0]
+    assert len(scans) == 3 and min(scans) >= insertion._PARALLEL_BLOCKS
+    assert all(n == applied[i - 1][1] for i, (start, n) in enumerate(applied) if start > 0)
     assert encode_ot(one) == encode_ot(two)
 
 

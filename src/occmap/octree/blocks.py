@@ -159,6 +159,49 @@ def _uniform(marked, hit, size):
 
 
 @kernel
+def marked_before(hits, frees):
+    """Voxels marked in the blocks before each block, and in all of them (int64 (n + 1,))."""
+    n = hits.shape[0]
+    counts = np.zeros(n + 1, np.int64)
+    for b in range(n):
+        c = 0
+        for w in range(8):
+            c += popcount(hits[b, w] | frees[b, w])
+        counts[b + 1] = counts[b] + c
+    return counts
+
+
+@kernel
+def block_marks(hits, frees, base, kbox, marked, hit):
+    """One block's masks (``hits``, ``frees``: its 8 words each) as the updates of its voxels:
+    into ``marked`` and ``hit`` (8 words each) the voxels marked and those hit (a voxel both hit
+    and crossed is a hit), in Morton order (:func:`morton_words`: word ``w`` holds the 64 voxels
+    of the block's child ``w``, byte ``k`` of it the 8 of that child's child ``k``, bit ``j`` of
+    the byte that node's child ``j``, as :func:`.keys.child_index` numbers children), only those
+    within the key box ``kbox`` ((0, 3): everywhere) of the block whose first voxel has packed
+    key ``base``. Returns whether any voxel is marked."""
+    either = np.empty(8, np.int64)
+    any_hit = np.int64(0)
+    for w in range(8):
+        either[w] = hits[w] | frees[w]
+        any_hit |= hits[w]
+    morton_words(either, marked)
+    if any_hit != 0:  # (most blocks hold free voxels only)
+        morton_words(hits, hit)
+    else:
+        hit[:] = 0
+    if not _inside(kbox, base, 8):  # a block across the box's edge: its voxels one by one
+        for m in range(512):
+            if (marked[m >> 6] >> (m & 63)) & 1 and not _inside(kbox, base + _MORTON_OFFSET[m], 1):
+                marked[m >> 6] &= ~(np.int64(1) << (m & 63))
+                hit[m >> 6] &= ~(np.int64(1) << (m & 63))
+    any_marked = np.int64(0)
+    for w in range(8):
+        any_marked |= marked[w]
+    return any_marked != 0
+
+
+@kernel
 def block_voxels(codes, hits, frees, kbox, merge):
     """The marked voxels of Morton-sorted blocks as updates in Morton order: packed keys
     (:func:`.keys.pack`) of their first voxels, depths, and a flag for the hits (a voxel both hit
@@ -173,22 +216,14 @@ def block_voxels(codes, hits, frees, kbox, merge):
     keys = np.empty(n, np.int64)
     depths = np.empty(n, np.int8)
     is_hit = np.empty(n, np.bool_)
-    either = np.empty(8, np.int64)
-    marked = np.empty(8, np.int64)  # the block's marked and hit bits re-laid in Morton order
+    marked = np.empty(8, np.int64)
     hit = np.empty(8, np.int64)
     n = 0
     for b in range(codes.shape[0]):
-        any_hit = np.int64(0)
-        for w in range(8):
-            either[w] = hits[b, w] | frees[b, w]
-            any_hit |= hits[b, w]
-        morton_words(either, marked)
-        if any_hit != 0:  # (most blocks hold free voxels only)
-            morton_words(hits[b], hit)
-        else:
-            hit[:] = 0
         base = block_key(codes[b])
-        if merge and _inside(kbox, base, 8):
+        if not block_marks(hits[b], frees[b], base, kbox, marked, hit):
+            continue
+        if merge:
             whole = True
             for w in range(8):
                 whole = whole and _uniform(marked[w], hit[w], 64) and hit[w] == hit[0]
@@ -198,7 +233,7 @@ def block_voxels(codes, hits, frees, kbox, merge):
                 continue
         for w in range(8):
             first = base + _MORTON_OFFSET[w << 6]
-            if merge and _uniform(marked[w], hit[w], 64) and _inside(kbox, first, 4):
+            if merge and _uniform(marked[w], hit[w], 64):
                 keys[n], depths[n], is_hit[n] = first, 14, hit[w] != 0
                 n += 1
                 continue
@@ -206,7 +241,7 @@ def block_voxels(codes, hits, frees, kbox, merge):
                 shift = 8 * byte
                 m, hm = marked[w] >> shift, hit[w] >> shift
                 node = base + _MORTON_OFFSET[(w << 6) | shift]
-                if merge and _uniform(m, hm, 8) and _inside(kbox, node, 2):
+                if merge and _uniform(m, hm, 8):
                     keys[n], depths[n], is_hit[n] = node, 15, hm & 1 != 0
                     n += 1
                     continue
@@ -214,8 +249,6 @@ def block_voxels(codes, hits, frees, kbox, merge):
                 while word != 0:
                     bit = trailing_zeros(word)
                     word &= word - 1
-                    key = base + _MORTON_OFFSET[(w << 6) | (shift + bit)]
-                    if _inside(kbox, key, 1):
-                        keys[n], depths[n], is_hit[n] = key, 16, (hm >> bit) & 1 != 0
-                        n += 1
+                    keys[n], depths[n], is_hit[n] = base + _MORTON_OFFSET[(w << 6) | (shift + bit)], 16, (hm >> bit) & 1 != 0
+                    n += 1
     return keys[:n], depths[:n], is_hit[:n]

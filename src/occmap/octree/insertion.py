@@ -26,7 +26,7 @@ from . import blocks as B
 from . import marking as M
 from . import pool as P
 from .keys import coord_to_keys, shared_depth
-from .update import ROOM, apply_voxels, subtree_split
+from .update import BLOCK_ROOM, apply_blocks, apply_voxels, subtree_split
 
 #: Scans with at least this many rays are marked by several threads, in this many runs of rays.
 _PARALLEL_RAYS = 20_000
@@ -157,20 +157,18 @@ def voxels(blocks, kbox, merge: bool, threads: bool):
     return tuple(np.concatenate(arrays) for arrays in zip(*parts))
 
 
-def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: float, box, kbox, shift,
-                 threads: bool, keep=None, merge: bool = True):
-    """A scan's voxels as OctoMap's ``insertPointCloud`` finds them, the tree left alone (so the
-    next scan can be traced while a tree takes this one).
+def cloud_blocks(points, origin32, max_range: float, discretize: bool, res: float, box, kbox, shift, threads: bool):
+    """A scan's voxels as OctoMap's ``insertPointCloud`` finds them, as marked blocks, the tree
+    left alone (so the next scan can be traced while a tree takes this one).
 
     ``points`` float64 (N, 3) and ``origin32`` float32 (3,) in metres; ``max_range`` (< 0: none);
     ``discretize``: one ray per voxel holding points, to its centre (:func:`.marking.voxel_centres`);
     ``box`` float32 (2, 3), points outside it are no hits ((0, 3): none); ``kbox`` (2, 3) the
     bounding box in local keys ((0, 3): none; rays from outside it free nothing); keys local to
-    ``shift`` (:mod:`.marking`); ``keep`` (2, 3) the local keys to list (default ``kbox``);
-    ``merge``: nodes whose voxels are all marked alike as one update (not for lazy updates).
-    Returns ``(keys, depths, is_hit, summary)``: the updates (:func:`.blocks.block_voxels`) in
-    Morton order, each voxel in one, and the counts ``points`` (rays cast), ``dropped`` (points with NaN/inf, and those whose ray
-    ends outside the key range: OctoMap skips those rays), ``outside_key_range`` (the latter) and
+    ``shift`` (:mod:`.marking`). Returns ``(blocks, summary)``: the blocks (:func:`mark`; voxels
+    outside ``kbox`` are left to the reader: :func:`apply_marked`, :func:`voxels`) and the counts
+    ``points`` (rays cast), ``dropped`` (points with NaN/inf, and those whose ray ends outside the
+    key range: OctoMap skips those rays), ``outside_key_range`` (the latter) and
     ``beyond_max_range``."""
     non_finite = outside = 0
     if discretize:
@@ -183,10 +181,20 @@ def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: floa
     origin_key = coord_to_keys(origin32.astype(np.float64), res) - shift
     # with a box, a ray's free voxels are those before it first leaves the box: none from outside
     rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
-    keys, depths, is_hit = voxels(mark(origin32, ends, hit, res, shift, rays, threads),
-                                  kbox if keep is None else keep, merge, threads)
+    blocks = mark(origin32, ends, hit, res, shift, rays, threads)
     summary = {"points": len(ends), "dropped": int(non_finite + outside), "outside_key_range": int(outside),
                "beyond_max_range": int(np.count_nonzero(~hit))}
+    return blocks, summary
+
+
+def cloud_voxels(points, origin32, max_range: float, discretize: bool, res: float, box, kbox, shift,
+                 threads: bool, keep=None, merge: bool = True):
+    """:func:`cloud_blocks` listed as updates: ``(keys, depths, is_hit, summary)``, the updates
+    (:func:`.blocks.block_voxels`) in Morton order, each voxel in one, only those within ``keep``
+    (2, 3) (default ``kbox``); ``merge``: nodes whose voxels are all marked alike as one update
+    (not for lazy updates)."""
+    blocks, summary = cloud_blocks(points, origin32, max_range, discretize, res, box, kbox, shift, threads)
+    keys, depths, is_hit = voxels(blocks, kbox if keep is None else keep, merge, threads)
     return keys, depths, is_hit, summary
 
 
@@ -196,40 +204,68 @@ def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray
     order, each a hit or a miss under ``rule`` = (l_hit, l_miss, l_min, l_max) (float32 log-odds;
     :func:`.update.apply_voxels`); with ``threads`` (one scan's updates: each voxel in one, in
     Morton order) many updates on two threads when Numba's count allows."""
-    if (threads and len(keys) >= _PARALLEL_VOXELS and _threads.thread_count() >= 2
-            and _apply_halves(pool, keys, depths, is_hit, rule, lazy)):
+
+    def run(meta, start, stop, limit, top):
+        return apply_voxels(pool.slots, meta, keys[:stop], depths[:stop], is_hit[:stop], start, *rule, not lazy, limit,
+                            top)
+
+    _apply(pool, run, keys, np.arange(len(keys) + 1), lazy, threads)
+
+
+def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = False) -> None:
+    """Apply a scan's marked blocks (:func:`mark`) to ``pool``, only voxels within the key box
+    ``kbox`` ((0, 3): everywhere): the updates :func:`apply` makes of :func:`voxels`, with no
+    list between (:func:`.update.apply_blocks`); with ``threads``, many blocks on two threads when
+    Numba's count allows."""
+    codes, hits, frees = blocks
+
+    def run(meta, start, stop, limit, top):
+        return apply_blocks(pool.slots, meta, codes[:stop], hits[:stop], frees[:stop], kbox, start, *rule, not lazy,
+                            not lazy, limit, top)
+
+    _apply(pool, run, codes - 1, B.marked_before(hits, frees), lazy, threads)
+
+
+def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool) -> None:
+    """Updates ``run(meta, start, stop, limit, top)`` (:func:`.update.apply_voxels` or
+    :func:`.update.apply_blocks` of a scan: items ``start..stop-1``, returning the item where the
+    slots below ``limit`` ran out and whether any value changed) whose items' first voxels have
+    packed keys ``keys``, Morton-sorted, and ``voxels[i]`` voxels before item ``i``: on two
+    threads (with ``threads``) when there are many voxels and Numba's count allows."""
+    if (threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _threads.thread_count() >= 2
+            and _apply_halves(pool, run, keys, voxels, lazy)):
         return
-    _apply_range(pool, keys, depths, is_hit, rule, lazy, 0, len(keys))
+    _apply_range(pool, run, 0, len(keys))
 
 
-def _apply_range(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool, start: int, stop: int) -> bool:
-    """Updates ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
-    keys, depths, is_hit = keys[:stop], depths[:stop], is_hit[:stop]
+def _apply_range(pool: P.Pool, run, start: int, stop: int) -> bool:
+    """Items ``start..stop-1`` on this thread, growing the pool as needed; whether any changed."""
     P.merge_spare(pool.slots, pool.meta)
     top = int(pool.meta[P.TOP])
     changed = False
+    first = start
     while True:
-        start, ch = apply_voxels(pool.slots, pool.meta, keys, depths, is_hit, start, *rule, not lazy,
-                                 pool.slots.shape[0], 0)
+        start, ch = run(pool.meta, start, stop, pool.slots.shape[0], 0)
         changed |= ch
-        if start == len(keys):
+        if start == stop:
             return changed
-        # out of slots: room for the rest at the rate of slots per voxel so far, and a margin
+        # out of slots: room for the rest at the rate of slots per item so far, and a margin
         used = int(pool.meta[P.TOP])
-        rate = (used - top) / max(start, 1)
-        pool.grow(used + 1.25 * rate * (len(keys) - start))
+        rate = (used - top) / max(start - first, 1)
+        pool.grow(used + 1.25 * rate * (stop - start))
 
 
-def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
-    """The voxels on two threads, when the path to the node all of them share exists down to
+def _apply_halves(pool: P.Pool, run, keys, voxels, lazy: bool) -> bool:
+    """The items on two threads, when the path to the node all of them share exists down to
     its children: each thread updates whole subtrees below that node, allocating slots from
     its own range, and the shared path is settled afterwards. False (nothing done) where the
-    path does not exist yet even after the first voxel (a pruned leaf on it absorbs it)."""
+    path does not exist yet even after the first item (a pruned leaf on it absorbs it)."""
+    n = len(keys)
     shared = shared_depth(keys[0], keys[-1])  # depth of that node
     path = P.path_to(pool.slots, keys[0], shared)
     first = 0
-    if not len(path):  # make it: the first voxel's update creates (or expands) the nodes on its way
-        _apply_range(pool, keys, depths, is_hit, rule, lazy, 0, 1)
+    if not len(path):  # make it: the first item's update creates (or expands) the nodes on its way
+        _apply_range(pool, run, 0, 1)
         path, first = P.path_to(pool.slots, keys[0], shared), 1
         if not len(path):
             return False
@@ -241,26 +277,24 @@ def _apply_halves(pool: P.Pool, keys, depths, is_hit, rule, lazy: bool) -> bool:
     # range's unused slots join the free list, so a margin given every scan would grow the pool
     # scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
-    need_a = _ROOM_PER_VOXEL * (split - first)
+    need_a = int(_ROOM_PER_VOXEL * (voxels[split] - voxels[first]))
     need_a -= P.free_slots(pool.slots, pool.meta[P.FREE], need_a)
-    # (at least one update's room at the top: apply_voxels counts free blocks only when it is short)
-    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else ROOM
-    room_b = 8 * ((_ROOM_PER_VOXEL * (len(keys) - split) + _ROOM_MARGIN) // 8 + 1)
+    # (at least one item's room at the top: the kernels count free blocks only when it is short)
+    room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else BLOCK_ROOM
+    room_b = 8 * ((int(_ROOM_PER_VOXEL * (voxels[n] - voxels[split])) + _ROOM_MARGIN) // 8 + 1)
     if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
     meta_a, meta_b = P.new_meta(top), P.new_meta(top + room_a)
     meta_a[P.FREE], meta_b[P.FREE] = pool.meta[P.FREE], pool.meta[P.SPARE]
     (end_a, changed_a), (end_b, changed_b) = run_jobs([
-        lambda: apply_voxels(pool.slots, meta_a, keys[:split], depths[:split], is_hit[:split], first,
-                             *rule, not lazy, top + room_a, shared + 1),
-        lambda: apply_voxels(pool.slots, meta_b, keys, depths, is_hit, split, *rule, not lazy,
-                             pool.slots.shape[0], shared + 1)], threads=2)
+        lambda: run(meta_a, first, split, top + room_a, shared + 1),
+        lambda: run(meta_b, split, n, pool.slots.shape[0], shared + 1)], threads=2)
     P.join_pools(pool.slots, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
     changed = changed_a or changed_b
     if end_a < split:  # a range ran out of slots: the rest here
-        changed |= _apply_range(pool, keys, depths, is_hit, rule, lazy, end_a, split)
-    if end_b < len(keys):
-        changed |= _apply_range(pool, keys, depths, is_hit, rule, lazy, end_b, len(keys))
+        changed |= _apply_range(pool, run, end_a, split)
+    if end_b < n:
+        changed |= _apply_range(pool, run, end_b, n)
     if changed and not lazy:
         P.settle_path(pool.slots, pool.meta, path)
     return True

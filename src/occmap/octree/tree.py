@@ -222,8 +222,8 @@ class OcTree(OneCallAtATime):
         scan's counts: ``scans``, ``points``, ``dropped``, ``beyond_max_range``
         (``docs/architecture.md``), and ``outside_key_range`` (of ``dropped``).
         """
-        keys, depths, is_hit, summary = self._scan_voxels(points, origin, max_range, discretize, lazy, threads=True)
-        insertion.apply(self._pool, keys, depths, is_hit, self._rule, lazy, threads=True)
+        blocks, summary = self._scan_blocks(points, origin, max_range, discretize, threads=True)
+        insertion.apply_marked(self._pool, blocks, self._bbx_keys(), self._rule, lazy, threads=True)
         return self._count(summary)
 
     def insert_point_clouds(self, clouds, origins=None, max_range: float = -1.0, discretize: bool = False,
@@ -248,26 +248,25 @@ class OcTree(OneCallAtATime):
         for k in range(len(pairs)):
             if pending is not None and pending.cancel():
                 pending = None
-            current = pending.result() if pending else self._scan_voxels(*pairs[k], max_range, discretize, lazy, True)
-            pending = (insertion.ahead(self._scan_voxels, *pairs[k + 1], max_range, discretize, lazy, True)
+            current = pending.result() if pending else self._scan_blocks(*pairs[k], max_range, discretize, True)
+            pending = (insertion.ahead(self._scan_blocks, *pairs[k + 1], max_range, discretize, True)
                        if ahead and k + 1 < len(pairs) else None)
-            keys, depths, is_hit, summary = current
+            blocks, summary = current
             # (the second core traces the next scan)
-            insertion.apply(self._pool, keys, depths, is_hit, self._rule, lazy, threads=pending is None)
+            insertion.apply_marked(self._pool, blocks, self._bbx_keys(), self._rule, lazy, threads=pending is None)
             for name, value in self._count(summary).items():
                 total[name] += value
         return total
 
-    def _scan_voxels(self, points, origin, max_range: float, discretize: bool, lazy: bool, threads: bool):
-        """A scan's updates (:func:`.insertion.cloud_voxels`: Morton-ordered keys, depths, hit
-        flags; voxels only for ``lazy`` updates) and its summary (no change to the tree: scans can
-        be traced ahead on another thread)."""
+    def _scan_blocks(self, points, origin, max_range: float, discretize: bool, threads: bool):
+        """A scan's marked blocks (:func:`.insertion.cloud_blocks`) and its summary (no change to
+        the tree: scans can be traced ahead on another thread)."""
         P = points_array("points", points)
         o32 = _origin(origin).astype(np.float32)
         self.coord_to_key(o32.astype(np.float64))  # (an origin out of range is refused)
         box = np.empty((0, 3), np.float32) if self.bbx is None else np.array(self.bbx, np.float32)
-        return insertion.cloud_voxels(P, o32, max_range, discretize, self.resolution, box, self._bbx_keys(), NO_SHIFT,
-                                      threads, merge=not lazy)
+        return insertion.cloud_blocks(P, o32, max_range, discretize, self.resolution, box, self._bbx_keys(), NO_SHIFT,
+                                      threads)
 
     def _count(self, summary: dict) -> dict:
         """This scan's counts (``scans`` = 1 and the summary's), added to :attr:`stats`."""

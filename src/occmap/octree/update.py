@@ -10,13 +10,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._intrinsics import prefetch
+from .._intrinsics import prefetch, trailing_zeros
 from .._jit import kernel
-from .keys import DEPTH, child_index, pack, shared_depth, unpack
+from .blocks import block_marks
+from .keys import DEPTH, block_key, child_index, pack, shared_depth, unpack
 from .pool import FREE, SIZE, TOP, alloc_block, free_slots, settle
 
 #: Slots one voxel update may allocate at most: a new block at every level.
 ROOM = 8 * DEPTH
+#: Depth of a block's node (8×8×8 voxels: :mod:`.blocks`).
+BLOCK_DEPTH = DEPTH - 3
+#: Slots one block's updates may allocate at most: a new block at every level down to the
+#: block's node, and every block of children below it.
+BLOCK_ROOM = 8 * (BLOCK_DEPTH + 1 + 8 + 64)
 #: Bits of a packed key that siblings (voxels of one parent) share: all but each axis's lowest.
 _SIBLINGS = ~pack.py_func(1, 1, 1)
 
@@ -207,6 +213,175 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
             j += 1
         path[DEPTH] = node
         done = j
+    if settle_nodes and known >= 0:
+        for d in range(min(dirty, known - 1), top - 1, -1):
+            settle(slots, meta, path[d], True, True)
+    return n, changed
+
+
+@kernel
+def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo, hi, settle_nodes, merge, limit,
+                 top):
+    """The updates of a scan's marked blocks (:mod:`.blocks`: codes and hit and free masks,
+    Morton-sorted, each block once) from block ``start`` on, only voxels within the key box
+    ``kbox`` ((0, 3): everywhere): each marked voxel once, a hit where hit (a voxel both hit and
+    crossed is a hit), else a miss; with ``merge``, a node of a block whose voxels are all marked
+    alike as one update of the node. The same updates, in the same (Morton) order, as
+    :func:`apply_voxels` of :func:`.blocks.block_voxels`, and the same tree, with no list between.
+    Returns (the number of blocks, or the one at which the slots below ``limit`` ran out — nothing
+    of it applied yet; whether any value changed); ``settle_nodes``, ``top`` as for
+    :func:`apply_voxels`.
+
+    One loop takes every step down: to the block's node, then through the block's masks (Morton
+    words: a word a child of the block's node, a byte a grandchild, a bit a voxel). At a node it
+    takes the next child with marked voxels below it (on the way to the block's node, the one
+    child on the way), made (a new node's empty block of children, a pruned leaf's eight copies)
+    unless every update below leaves that pruned leaf as it is (OctoMap's early abort); a child
+    whose voxels are one update takes it, another is gone down into. A node within the block is
+    settled when its children are done, if anything below it changed; the nodes above, when a
+    later block's walk leaves them (as :func:`apply_voxels` settles its path)."""
+    n = codes.shape[0]
+    changed = False
+    path = np.zeros(DEPTH + 1, np.int64)  # path[d]: node at depth d on the walk
+    new = np.zeros(DEPTH + 1, np.bool_)  # new[d]: path[d] was made on this walk (no children yet)
+    todo = np.zeros(DEPTH + 1, np.int64)  # within the block: children of path[d] still to visit (bits)
+    below = np.zeros(DEPTH + 1, np.bool_)  # within the block: a value changed below path[d]
+    known = -1  # deepest entry of path kept between blocks (at most the block's node's depth)
+    dirty = -1  # path[0..dirty] saw a change since the walk entered them
+    previous = 0
+    marked = np.empty(8, np.int64)
+    hit = np.empty(8, np.int64)
+    room = 0  # slots sure to be there for the blocks to come: those counted, less those taken since
+    for b in range(start, n):
+        if room < BLOCK_ROOM:  # (the free list is counted only when the top runs short)
+            room = limit - meta[TOP]
+            if room < BLOCK_ROOM and meta[FREE] >= 0:
+                room += free_slots(slots, meta[FREE], 16 * BLOCK_ROOM)
+            if room < BLOCK_ROOM:
+                if settle_nodes:
+                    for d in range(min(dirty, known - 1), top - 1, -1):
+                        settle(slots, meta, path[d], True, True)
+                return b, changed
+        base = block_key(codes[b])
+        if not block_marks(hits[b], frees[b], base, kbox, marked, hit):
+            continue
+        kx, ky, kz = unpack(base)
+        any_hit = any_free = False
+        whole = merge
+        for w in range(8):
+            any_hit |= hit[w] != 0
+            any_free |= marked[w] & ~hit[w] != 0
+            whole = whole and marked[w] == -1 and hit[w] == hit[0] and (hit[w] == 0 or hit[w] == -1)
+        # ---- leave the previous block's path up to the node both share
+        d = 0
+        if known >= 0:
+            shared = shared_depth(base, previous)
+            if settle_nodes:
+                for s in range(min(dirty, known - 1), max(shared, top - 1), -1):
+                    settle(slots, meta, path[s], True, True)
+                dirty = min(dirty, shared)
+            d = min(shared, known)
+        previous = base
+        new[d] = False
+        if d == 0 and np.isnan(slots[0].value):
+            slots[0].value = 0.0
+            slots[0].child = -1
+            meta[SIZE] += 1
+            new[0] = True
+        # ---- the walk
+        level = d
+        word = 0  # within the block: the word of the block's child gone down into
+        byte_h = np.int64(0)  # and the hit bits of the grandchild gone down into
+        while True:
+            if level < BLOCK_DEPTH:  # the one child on the way, for all of the block's updates
+                i = child_index(kx, ky, kz, level)
+                m, h, full = np.int64(0), np.int64(any_hit), np.int64(1)
+                f = any_free
+            else:
+                t = todo[level]
+                if t == 0:  # this node's children are done
+                    if below[level] and settle_nodes:
+                        settle(slots, meta, path[level], True, True)
+                    if level == BLOCK_DEPTH:
+                        break
+                    below[level - 1] |= below[level]
+                    level -= 1
+                    continue
+                i = trailing_zeros(t)
+                todo[level] = t & (t - 1)
+                if level == BLOCK_DEPTH:
+                    m, h, full = marked[i], hit[i], np.int64(-1)
+                elif level == BLOCK_DEPTH + 1:
+                    m, h, full = (marked[word] >> (8 * i)) & 0xFF, (hit[word] >> (8 * i)) & 0xFF, np.int64(0xFF)
+                else:
+                    m, h, full = np.int64(1), (byte_h >> i) & 1, np.int64(1)
+                f = m & ~h != 0
+            node = path[level]
+            c = slots[node].child
+            if c < 0:
+                if not new[level]:
+                    v = slots[node].value
+                    if (not f or v <= lo) and (h == 0 or v >= hi):  # OctoMap's early abort, for all of them
+                        if level < BLOCK_DEPTH:
+                            break
+                        continue
+                c = alloc_block(slots, meta, np.float32(np.nan) if new[level] else slots[node].value)
+                room -= 8
+                if not new[level]:
+                    meta[SIZE] += 8
+                slots[node].child = c
+            child = c + i
+            fresh = np.isnan(slots[child].value)
+            if fresh:
+                slots[child].value = 0.0
+                meta[SIZE] += 1
+            if (level == DEPTH - 1 or (level == BLOCK_DEPTH - 1 and whole)
+                    or (level >= BLOCK_DEPTH and merge and m == full and (h == 0 or h == full))):
+                # the child's voxels are one update: a leaf takes it as one voxel, an inner node
+                # passes it to its subtree
+                if slots[child].child >= 0:
+                    ch = update_subtree(slots, meta, child, h != 0, l_hit, l_miss, lo, hi, settle_nodes)
+                elif saturated(slots[child].value, h != 0, lo, hi):
+                    ch = False
+                else:
+                    slots[child].value = updated(slots[child].value, h != 0, l_hit, l_miss, lo, hi)
+                    ch = True
+                if level < BLOCK_DEPTH:  # (the whole block)
+                    level += 1
+                    path[level] = child
+                    below[level] = ch
+                    break
+                below[level] |= ch
+                continue
+            level += 1
+            path[level] = child
+            new[level] = fresh
+            if level == BLOCK_DEPTH:
+                t = 0
+                for w in range(8):
+                    if marked[w] != 0:
+                        t |= 1 << w
+            elif level == BLOCK_DEPTH + 1:
+                word = i
+                t = 0
+                for k in range(8):
+                    if (m >> (8 * k)) & 0xFF != 0:
+                        t |= 1 << k
+                g = slots[child].child
+                if g >= 0:  # the voxels below this node's children are fetched from memory side by side
+                    for j in range(g, g + 8):
+                        prefetch(slots, max(slots[j].child, 0))  # (a leaf's -1: the root, cached)
+            elif level == BLOCK_DEPTH + 2:
+                byte_h = h
+                t = m
+            else:
+                continue
+            todo[level] = t
+            below[level] = False
+        if level >= BLOCK_DEPTH and below[BLOCK_DEPTH]:
+            dirty = DEPTH
+            changed = True
+        known = min(level, BLOCK_DEPTH)
     if settle_nodes and known >= 0:
         for d in range(min(dirty, known - 1), top - 1, -1):
             settle(slots, meta, path[d], True, True)
