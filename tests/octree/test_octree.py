@@ -366,6 +366,42 @@ def test_blocks_applied_leave_the_tree_their_listed_voxels_leave(lazy, monkeypat
     assert any(start > 0 for start in starts)  # (the pool grew within a scan's blocks)
 
 
+def test_a_drive_s_sparse_scans_on_two_threads_give_the_one_thread_tree(monkeypatch):
+    """Sparse scans (a simulated drive: most voxels alone in their block) are cut for two threads
+    where half of their voxels lie on either side, deep in the tree: each side's paths pass
+    beside the shared path's nodes, which neither thread settles. The tree is the one thread's,
+    node for node, eager and lazy."""
+    from occmap.octree import insertion
+    from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive
+
+    drive = simulate_drive(4, VELODYNE_HDL32.with_azimuth_step(np.radians(2.0)), rng=3)
+    monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
+    cuts = []
+    halves = insertion._apply_halves
+
+    def counted(pool, run, keys, voxels, lazy):
+        cuts.append(len(keys))
+        return halves(pool, run, keys, voxels, lazy)
+
+    monkeypatch.setattr(insertion, "_apply_halves", counted)
+    for lazy in (False, True):
+        trees = []
+        for threads in (2, 1):
+            before = numba.get_num_threads()
+            numba.set_num_threads(threads)
+            try:
+                tree = OcTree(0.1)
+                for cloud in drive:
+                    tree.insert_point_cloud(cloud.world_points(), cloud.origin, lazy=lazy)
+            finally:
+                numba.set_num_threads(before)
+            if lazy:
+                tree.update_inner_occupancy()
+            trees.append(encode_ot(tree))
+        assert trees[0] == trees[1]
+    assert len(cuts) == 8
+
+
 def test_one_numba_thread_means_no_worker_thread(monkeypatch):
     """With ``numba.set_num_threads(1)`` a large scan is marked and applied on the calling thread
     alone (no pool of workers is asked for), its blocks applied in one range (not two: a call
@@ -963,9 +999,26 @@ def test_an_update_never_allocates_past_its_limit_when_the_free_list_runs_short(
     slots[0]["value"] = 0.0  # the root, a leaf
     meta = np.array([16, 8, 1], np.int64)  # top at 16, the free list: block 8
     args = (np.array([12345], np.int64), np.zeros(0, np.int8), np.array([True]), 0, 0.85, -0.4, -2.0, 3.5, True)
-    assert update.apply_voxels(slots, meta, *args, len(slots), 0) == (0, False)
+    no_spine = np.zeros(0, np.int64)
+    assert update.apply_voxels(slots, meta, *args, len(slots), no_spine) == (0, False)
     np.testing.assert_array_equal(meta, [16, 8, 1])
     grown = pool.new_slots(24 + update.ROOM)  # room for it: applied, within the slots given
     grown[:24] = slots
-    assert update.apply_voxels(grown, meta, *args, len(grown), 0) == (1, True)
+    assert update.apply_voxels(grown, meta, *args, len(grown), no_spine) == (1, True)
+    assert meta[pool.TOP] <= len(grown)
+    # a marked block the same (one voxel of it): it waits for the room a whole block may need
+    slots[:] = grown[:24]
+    slots["value"][8:] = np.nan
+    slots["child"][:] = -1
+    slots[0]["value"] = 0.0
+    meta[:] = [16, 8, 1]
+    words = np.zeros((1, 8), np.int64)
+    words[0, 0] = 1
+    block = (np.array([12345 + 1], np.int64), words, np.zeros((1, 8), np.int64), np.zeros((0, 3), np.int64), 0,
+             0.85, -0.4, -2.0, 3.5, True, True)
+    assert update.apply_blocks(slots, meta, *block, len(slots), no_spine) == (0, False)
+    np.testing.assert_array_equal(meta, [16, 8, 1])
+    grown = pool.new_slots(24 + update.BLOCK_ROOM)
+    grown[:24] = slots
+    assert update.apply_blocks(grown, meta, *block, len(grown), no_spine) == (1, True)
     assert meta[pool.TOP] <= len(grown)

@@ -26,7 +26,7 @@ from . import blocks as B
 from . import marking as M
 from . import pool as P
 from .keys import coord_to_keys, shared_depth
-from .update import BLOCK_ROOM, apply_blocks, apply_voxels, subtree_split
+from .update import BLOCK_ROOM, apply_blocks, apply_voxels
 
 #: Scans with at least this many rays are marked by several threads, in this many runs of rays.
 _PARALLEL_RAYS = 20_000
@@ -57,6 +57,7 @@ _kept = threading.local()
 _BLOCKS_PER_RAY = 1 / 32
 _NO_CUBE = (np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros((2, 3), np.int64))
 _NO_INDICES = np.zeros(0, np.int64)
+_NO_SPINE = np.zeros(0, np.int64)
 
 
 def _ray_room(n: int):
@@ -205,9 +206,9 @@ def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray
     :func:`.update.apply_voxels`); with ``threads`` (one scan's updates: each voxel in one, in
     Morton order) many updates on two threads when Numba's count allows."""
 
-    def run(meta, start, stop, limit, top):
+    def run(meta, start, stop, limit, spine):
         return apply_voxels(pool.slots, meta, keys[:stop], depths[:stop], is_hit[:stop], start, *rule, not lazy, limit,
-                            top)
+                            spine)
 
     _apply(pool, run, keys, np.arange(len(keys) + 1), lazy, threads)
 
@@ -219,21 +220,22 @@ def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = F
     Numba's count allows."""
     codes, hits, frees = blocks
 
-    def run(meta, start, stop, limit, top):
+    def run(meta, start, stop, limit, spine):
         return apply_blocks(pool.slots, meta, codes[:stop], hits[:stop], frees[:stop], kbox, start, *rule, not lazy,
-                            not lazy, limit, top)
+                            not lazy, limit, spine)
 
     _apply(pool, run, codes - 1, B.marked_before(hits, frees), lazy, threads)
 
 
 def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool) -> None:
-    """Updates ``run(meta, start, stop, limit, top)`` (:func:`.update.apply_voxels` or
-    :func:`.update.apply_blocks` of a scan: items ``start..stop-1``, returning the item where the
-    slots below ``limit`` ran out and whether any value changed) whose items' first voxels have
+    """Updates ``run(meta, start, stop, limit, spine)`` (:func:`.update.apply_voxels` or
+    :func:`.update.apply_blocks` of a scan: items ``start..stop-1``, nodes of ``spine`` left
+    unsettled, returning the item where the slots below ``limit`` ran out and whether any value
+    changed) whose items' first voxels have
     packed keys ``keys``, Morton-sorted, and ``voxels[i]`` voxels before item ``i``: on two
     threads (with ``threads``) when there are many voxels and Numba's count allows."""
-    if (threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _threads.thread_count() >= 2
-            and _apply_halves(pool, run, keys, voxels, lazy)):
+    if threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _threads.thread_count() >= 2:
+        _apply_halves(pool, run, keys, voxels, lazy)
         return
     _apply_range(pool, run, 0, len(keys))
 
@@ -245,7 +247,7 @@ def _apply_range(pool: P.Pool, run, start: int, stop: int) -> bool:
     changed = False
     first = start
     while True:
-        start, ch = run(pool.meta, start, stop, pool.slots.shape[0], 0)
+        start, ch = run(pool.meta, start, stop, pool.slots.shape[0], _NO_SPINE)
         changed |= ch
         if start == stop:
             return changed
@@ -255,21 +257,26 @@ def _apply_range(pool: P.Pool, run, start: int, stop: int) -> bool:
         pool.grow(used + 1.25 * rate * (stop - start))
 
 
-def _apply_halves(pool: P.Pool, run, keys, voxels, lazy: bool) -> bool:
-    """The items on two threads, when the path to the node all of them share exists down to
-    its children: each thread updates whole subtrees below that node, allocating slots from
-    its own range, and the shared path is settled afterwards. False (nothing done) where the
-    path does not exist yet even after the first item (a pruned leaf on it absorbs it)."""
+def _apply_halves(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
+    """The items on two threads, cut where half of their voxels lie on either side: the nodes
+    the two sides' paths share (the path to the node at the cut's depth, the deepest holding
+    items on both sides: each thread's items lie in that node's children on its side, or beside
+    the path higher up) must exist with their children; each thread updates its side with slots
+    from its own range, those nodes passed through, and they are settled afterwards. Where that
+    path does not exist even after the first item past the cut (a pruned leaf on it took that
+    item), all on this thread."""
     n = len(keys)
-    shared = shared_depth(keys[0], keys[-1])  # depth of that node
-    path = P.path_to(pool.slots, keys[0], shared)
-    first = 0
-    if not len(path):  # make it: the first item's update creates (or expands) the nodes on its way
-        _apply_range(pool, run, 0, 1)
-        path, first = P.path_to(pool.slots, keys[0], shared), 1
-        if not len(path):
-            return False
-    split = subtree_split(keys, shared, first)
+    split = min(max(int(np.searchsorted(voxels, voxels[n] / 2)), 1), n - 1)
+    first = split
+    depth = shared_depth(keys[split - 1], keys[split])
+    spine = P.path_to(pool.slots, keys[split], depth)
+    if not len(spine):  # make it: the item's update creates (or expands) the nodes on its way
+        _apply_range(pool, run, split, split + 1)
+        spine, first = P.path_to(pool.slots, keys[split], depth), split + 1
+        if not len(spine):  # (a pruned leaf on it took the item): the rest on this thread
+            _apply_range(pool, run, 0, split)
+            _apply_range(pool, run, first, n)
+            return
     # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
     # second its spare list (the blocks it freed before: P.join_pools), then slots above the
     # first's range; a thread that runs out leaves its rest to this one. (The first's range is
@@ -277,18 +284,18 @@ def _apply_halves(pool: P.Pool, run, keys, voxels, lazy: bool) -> bool:
     # range's unused slots join the free list, so a margin given every scan would grow the pool
     # scan after scan with slots never used.)
     top = int(pool.meta[P.TOP])
-    need_a = int(_ROOM_PER_VOXEL * (voxels[split] - voxels[first]))
+    need_a = int(_ROOM_PER_VOXEL * voxels[split])
     need_a -= P.free_slots(pool.slots, pool.meta[P.FREE], need_a)
     # (at least one item's room at the top: the kernels count free blocks only when it is short)
     room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else BLOCK_ROOM
-    room_b = 8 * ((int(_ROOM_PER_VOXEL * (voxels[n] - voxels[split])) + _ROOM_MARGIN) // 8 + 1)
+    room_b = 8 * ((int(_ROOM_PER_VOXEL * (voxels[n] - voxels[first])) + _ROOM_MARGIN) // 8 + 1)
     if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
     meta_a, meta_b = P.new_meta(top), P.new_meta(top + room_a)
     meta_a[P.FREE], meta_b[P.FREE] = pool.meta[P.FREE], pool.meta[P.SPARE]
     (end_a, changed_a), (end_b, changed_b) = run_jobs([
-        lambda: run(meta_a, first, split, top + room_a, shared + 1),
-        lambda: run(meta_b, split, n, pool.slots.shape[0], shared + 1)], threads=2)
+        lambda: run(meta_a, 0, split, top + room_a, spine),
+        lambda: run(meta_b, first, n, pool.slots.shape[0], spine)], threads=2)
     P.join_pools(pool.slots, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
     changed = changed_a or changed_b
     if end_a < split:  # a range ran out of slots: the rest here
@@ -296,5 +303,4 @@ def _apply_halves(pool: P.Pool, run, keys, voxels, lazy: bool) -> bool:
     if end_b < n:
         changed |= _apply_range(pool, run, end_b, n)
     if changed and not lazy:
-        P.settle_path(pool.slots, pool.meta, path)
-    return True
+        P.settle_path(pool.slots, pool.meta, spine)

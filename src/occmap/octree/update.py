@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._intrinsics import prefetch, trailing_zeros
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from .blocks import block_marks
 from .keys import DEPTH, block_key, child_index, pack, shared_depth, unpack
 from .pool import FREE, SIZE, TOP, alloc_block, free_slots, settle
@@ -41,16 +41,13 @@ def updated(v, hit, l_hit, l_miss, lo, hi):
     return lo if v < lo else (hi if v > hi else v)
 
 
-@kernel
-def subtree_split(keys, depth, first):
-    """Index in ``keys[first:]`` (packed, Morton order, all below one node at ``depth``) where one
-    child subtree of that node ends and the next begins, nearest the middle."""
-    n = keys.shape[0]
-    best = first
-    for i in range(first + 1, n):
-        if shared_depth(keys[i - 1], keys[i]) == depth and abs(2 * i - n - first) < abs(2 * best - n - first):
-            best = i
-    return best
+@inline_kernel
+def leave(slots, meta, path, deepest, shared, spine):
+    """Settle the nodes ``path[deepest]`` up to ``path[shared + 1]``, deepest first (a walk
+    leaving them), but those of ``spine`` (see :func:`apply_voxels`)."""
+    for s in range(deepest, shared, -1):
+        if s >= spine.shape[0] or path[s] != spine[s]:
+            settle(slots, meta, path[s], True, True)
 
 
 @kernel
@@ -94,15 +91,16 @@ def update_subtree(slots, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
 
 
 @kernel
-def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, top):
+def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, spine):
     """Apply updates ``start..`` in order, each as OctoMap's ``updateNode`` with a hit or a miss on
     every voxel of the node at ``depths[i]`` (int8; (0,): all 16, voxels) whose first voxel has
     packed key ``keys[i]``. Returns (the number of updates, or the one at which the slots below
     ``limit`` ran out — nothing of it applied yet: the caller makes room and resumes there;
     whether any value changed). With ``settle_nodes`` false (OctoMap's lazy evaluation) inner
     nodes are neither updated nor pruned (give voxels then: a node update settles its subtree).
-    Nodes above depth ``top`` are only passed through, never settled: two threads can update the
-    subtrees below one node side by side (see :func:`.insertion.apply`).
+    The nodes of ``spine`` (nodes from the root down, each with children; (0,): none) are only
+    passed through, never settled: two threads can update the items on either side of a cut side
+    by side, the nodes their paths share being those (see :func:`.insertion.apply`).
 
     A node update is the updates of its voxels at once: a leaf (a new node, or a pruned one) takes
     it as one voxel would, since its voxels would come out alike and be pruned back into it; an
@@ -130,8 +128,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         short = meta[TOP] + ROOM > cap
         if short and (meta[FREE] < 0 or free_slots(slots, meta[FREE], ROOM) < ROOM - (cap - meta[TOP])):
             if settle_nodes:
-                for d in range(min(dirty, known - 1), top - 1, -1):
-                    settle(slots, meta, path[d], True, True)
+                leave(slots, meta, path, min(dirty, known - 1), -1, spine)
             return i, changed
         key = keys[i]
         kx, ky, kz = unpack(key)
@@ -142,8 +139,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         if known >= 0:
             shared = shared_depth(key, previous)
             if settle_nodes:
-                for s in range(min(dirty, known - 1), max(shared, top - 1), -1):
-                    settle(slots, meta, path[s], True, True)
+                leave(slots, meta, path, min(dirty, known - 1), shared, spine)
                 dirty = min(dirty, shared)
             d = min(shared, known)
         previous = key
@@ -214,14 +210,13 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         path[DEPTH] = node
         done = j
     if settle_nodes and known >= 0:
-        for d in range(min(dirty, known - 1), top - 1, -1):
-            settle(slots, meta, path[d], True, True)
+        leave(slots, meta, path, min(dirty, known - 1), -1, spine)
     return n, changed
 
 
 @kernel
 def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo, hi, settle_nodes, merge, limit,
-                 top):
+                 spine):
     """The updates of a scan's marked blocks (:mod:`.blocks`: codes and hit and free masks,
     Morton-sorted, each block once) from block ``start`` on, only voxels within the key box
     ``kbox`` ((0, 3): everywhere): each marked voxel once, a hit where hit (a voxel both hit and
@@ -229,7 +224,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
     alike as one update of the node. The same updates, in the same (Morton) order, as
     :func:`apply_voxels` of :func:`.blocks.block_voxels`, and the same tree, with no list between.
     Returns (the number of blocks, or the one at which the slots below ``limit`` ran out — nothing
-    of it applied yet; whether any value changed); ``settle_nodes``, ``top`` as for
+    of it applied yet; whether any value changed); ``settle_nodes``, ``spine`` as for
     :func:`apply_voxels`.
 
     One loop takes every step down: to the block's node, then through the block's masks (Morton
@@ -259,8 +254,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 room += free_slots(slots, meta[FREE], 16 * BLOCK_ROOM)
             if room < BLOCK_ROOM:
                 if settle_nodes:
-                    for d in range(min(dirty, known - 1), top - 1, -1):
-                        settle(slots, meta, path[d], True, True)
+                    leave(slots, meta, path, min(dirty, known - 1), -1, spine)
                 return b, changed
         base = block_key(codes[b])
         if not block_marks(hits[b], frees[b], base, kbox, marked, hit):
@@ -277,8 +271,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
         if known >= 0:
             shared = shared_depth(base, previous)
             if settle_nodes:
-                for s in range(min(dirty, known - 1), max(shared, top - 1), -1):
-                    settle(slots, meta, path[s], True, True)
+                leave(slots, meta, path, min(dirty, known - 1), shared, spine)
                 dirty = min(dirty, shared)
             d = min(shared, known)
         previous = base
@@ -383,6 +376,5 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
             changed = True
         known = min(level, BLOCK_DEPTH)
     if settle_nodes and known >= 0:
-        for d in range(min(dirty, known - 1), top - 1, -1):
-            settle(slots, meta, path[d], True, True)
+        leave(slots, meta, path, min(dirty, known - 1), -1, spine)
     return n, changed
