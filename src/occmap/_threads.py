@@ -212,7 +212,7 @@ class ThreadChoice:
         if _forced is not None:
             yield _forced
             return
-        if not _free_for_parallel():
+        if not free_for_parallel():
             yield False
             return
         if not (self._warm and sample):  # the first call starts Numba's threads: not a fair sample either
@@ -270,7 +270,10 @@ def forced_path(parallel: bool):
         _forced = before
 
 
-def _free_for_parallel() -> bool:
+def free_for_parallel() -> bool:
+    """Whether other processes leave at least :data:`_FREE_FOR_PARALLEL` cores free lately
+    (:func:`free_cores`; where the system does not say, True): below that, a call split between
+    threads waits for a thread the scheduler has set aside, and one thread is the faster."""
     free = free_cores()
     return free is None or free >= _FREE_FOR_PARALLEL
 

@@ -367,23 +367,23 @@ def test_blocks_applied_leave_the_tree_their_listed_voxels_leave(lazy, monkeypat
 
 
 def test_a_drive_s_sparse_scans_on_two_threads_give_the_one_thread_tree(monkeypatch):
-    """Sparse scans (a simulated drive: most voxels alone in their block) are cut for two threads
-    where half of their voxels lie on either side, deep in the tree: each side's paths pass
-    beside the shared path's nodes, which neither thread settles. The tree is the one thread's,
-    node for node, eager and lazy."""
+    """Sparse scans (a simulated drive: most voxels alone in their block) are cut into runs of
+    about as many voxels for two threads, deep in the tree: each run's paths pass beside the
+    paths it shares with the runs on either side, whose nodes no thread settles. The tree is the
+    one thread's, node for node, eager and lazy."""
     from occmap.octree import insertion
     from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive
 
     drive = simulate_drive(4, VELODYNE_HDL32.with_azimuth_step(np.radians(2.0)), rng=3)
     monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
     cuts = []
-    halves = insertion._apply_halves
+    runs = insertion._apply_runs
 
     def counted(pool, run, keys, voxels, lazy):
         cuts.append(len(keys))
-        return halves(pool, run, keys, voxels, lazy)
+        return runs(pool, run, keys, voxels, lazy)
 
-    monkeypatch.setattr(insertion, "_apply_halves", counted)
+    monkeypatch.setattr(insertion, "_apply_runs", counted)
     for lazy in (False, True):
         trees = []
         for threads in (2, 1):
@@ -439,6 +439,37 @@ def test_one_numba_thread_means_no_worker_thread(monkeypatch):
     assert len(scans) == 3 and min(scans) >= insertion._PARALLEL_BLOCKS
     assert all(n == applied[i - 1][1] for i, (start, n) in enumerate(applied) if start > 0)
     assert encode_ot(one) == encode_ot(two)
+
+
+def test_a_busy_computer_means_no_worker_thread(monkeypatch):
+    """While other processes leave less than one and a half cores free, a large scan (and the
+    next of a stream) is marked and applied on the calling thread alone, as with one Numba
+    thread; with the cores free it asks for workers."""
+    from occmap import _threads
+
+    if _threads.thread_count() < 2:
+        pytest.skip("needs two Numba threads")
+    rng = np.random.default_rng(23)
+    clouds = [(_room_cloud(rng, 30_000, half=8.0), rng.uniform(-0.5, 0.5, 3)) for _ in range(3)]
+    free = OcTree(0.1)
+    free.insert_point_clouds([c for c, _ in clouds], [o for _, o in clouds])
+    asked = []
+    pool = _threads.pool
+
+    def counted(*args):
+        asked.append(args)
+        return pool(*args)
+
+    monkeypatch.setattr(_threads, "pool", counted)
+    monkeypatch.setattr(_threads, "free_cores", lambda: 0.9)
+    busy = OcTree(0.1)
+    busy.insert_point_cloud(*clouds[0])
+    busy.insert_point_clouds([c for c, _ in clouds[1:]], [o for _, o in clouds[1:]])
+    assert not asked
+    assert encode_ot(busy) == encode_ot(free)
+    monkeypatch.setattr(_threads, "free_cores", lambda: 1.6)
+    OcTree(0.1).insert_point_cloud(*clouds[0])
+    assert asked
 
 
 def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
@@ -999,7 +1030,7 @@ def test_an_update_never_allocates_past_its_limit_when_the_free_list_runs_short(
     slots[0]["value"] = 0.0  # the root, a leaf
     meta = np.array([16, 8, 1], np.int64)  # top at 16, the free list: block 8
     args = (np.array([12345], np.int64), np.zeros(0, np.int8), np.array([True]), 0, 0.85, -0.4, -2.0, 3.5, True)
-    no_spine = np.zeros(0, np.int64)
+    no_spine = np.full((2, 17), -1, np.int64)
     assert update.apply_voxels(slots, meta, *args, len(slots), no_spine) == (0, False)
     np.testing.assert_array_equal(meta, [16, 8, 1])
     grown = pool.new_slots(24 + update.ROOM)  # room for it: applied, within the slots given

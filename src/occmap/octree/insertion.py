@@ -2,14 +2,17 @@
 :mod:`.update` over threads (OctoMap's ``insertPointCloud`` / ``insertRay`` / ``updateNode``,
 without a tree class: functions of a :class:`.pool.Pool` and plain arrays).
 
-A scan goes through three stages: its rays are marked into blocks (:func:`scan_voxels`, which
-leaves the tree alone, so the next scan can be traced while the tree takes this one), the blocks
-are listed as voxels in Morton order, and the voxels update the pool (:func:`apply`). Every
-Numba kernel releases the GIL, so Python threads run kernels side by side: the calling thread and
-workers, as many threads in all as Numba has (:func:`occmap._threads.share`). The work is cut into runs
-that the threads take in turn and a worker that has not started when the calling thread is done
-is cancelled, so on a busy computer a scan takes about what one thread takes. (A per-call choice
-by measured cost, as the 2D kernels make, would compare scans of very different cost per point.)
+A scan goes through two stages: its rays are marked into blocks (:func:`cloud_blocks`, which
+leaves the tree alone, so the next scan can be traced while the tree takes this one), and the
+blocks update the pool (:func:`apply_marked`; listed as voxels in Morton order first where a list
+is wanted: :func:`cloud_voxels`, :func:`apply`). Every Numba kernel releases the GIL, so Python
+threads run kernels side by side: the calling thread and workers, as many threads in all as Numba
+has (:func:`occmap._threads.share`). The work is cut into runs that the threads take in turn and
+a worker that has not started when the calling thread is done is cancelled; and while other
+processes keep the cores busy, a scan takes one thread (:func:`occmap._threads.free_for_parallel`:
+a worker the scheduler sets aside in the middle of its run keeps the calling thread waiting).
+(A per-call choice by measured cost, as the 2D kernels make, would compare scans of very
+different cost per point.)
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from .._threads import run_jobs, share
 from . import blocks as B
 from . import marking as M
 from . import pool as P
-from .keys import coord_to_keys, shared_depth
+from .keys import DEPTH, coord_to_keys, shared_depth
 from .update import BLOCK_ROOM, apply_blocks, apply_voxels
 
 #: Scans with at least this many rays are marked by several threads, in this many runs of rays.
@@ -37,6 +40,9 @@ _PARALLEL_BLOCKS = 256
 _LIST_RUNS = 8
 #: Scans with at least this many voxels update the tree on two threads.
 _PARALLEL_VOXELS = 20_000
+#: Scans with at least this many voxels update the tree in this many runs, which two threads
+#: take in turn.
+_APPLY_RUNS = 8
 #: Slots a thread's range holds: this many a voxel, and a margin.
 _ROOM_PER_VOXEL = 2
 _ROOM_MARGIN = 8 * 16 * 8
@@ -57,7 +63,14 @@ _kept = threading.local()
 _BLOCKS_PER_RAY = 1 / 32
 _NO_CUBE = (np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros((2, 3), np.int64))
 _NO_INDICES = np.zeros(0, np.int64)
-_NO_SPINE = np.zeros(0, np.int64)
+_NO_SPINES = np.full((2, DEPTH + 1), -1, np.int64)
+
+
+def _parallel() -> bool:
+    """Whether a large scan's work may be shared between threads: Numba allows two or more, and
+    other processes leave the cores for them (:func:`occmap._threads.free_for_parallel`: on a
+    busy computer a thread the scheduler sets aside keeps the others waiting at the end)."""
+    return _threads.thread_count() >= 2 and _threads.free_for_parallel()
 
 
 def _ray_room(n: int):
@@ -131,7 +144,7 @@ def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
     corner = M.cube_corner(origin, ends, res, shift) if rays and n >= _CUBE_RAYS else -1
     # room for the blocks at the rate of this thread's last scan, and a quarter more
     room = 1.25 * getattr(_kept, "blocks_per_ray", _BLOCKS_PER_RAY) * n
-    if not threads or n < _PARALLEL_RAYS or _threads.thread_count() < 2:
+    if not (threads and n >= _PARALLEL_RAYS and _parallel()):
         parts = [_mark_runs(origin, ends, hit, res, shift, rays, corner, deque([(0, n)]), max(256, int(room)))]
     else:
         bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
@@ -150,7 +163,7 @@ def voxels(blocks, kbox, merge: bool, threads: bool):
     hit flags); with ``threads``, many blocks are listed by several threads, in runs (Morton order
     kept)."""
     n = len(blocks[0])
-    if not threads or n < _PARALLEL_BLOCKS or _threads.thread_count() < 2:  # (one thread: one call, no copy)
+    if not (threads and n >= _PARALLEL_BLOCKS and _parallel()):  # (one thread: one call, no copy)
         return B.block_voxels(*blocks, kbox, merge)
     bounds = np.linspace(0, n, _LIST_RUNS + 1).astype(np.int64).tolist()
     parts = run_jobs([lambda a=a, z=z: B.block_voxels(*(b[a:z] for b in blocks), kbox, merge)
@@ -206,9 +219,9 @@ def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray
     :func:`.update.apply_voxels`); with ``threads`` (one scan's updates: each voxel in one, in
     Morton order) many updates on two threads when Numba's count allows."""
 
-    def run(meta, start, stop, limit, spine):
+    def run(meta, start, stop, limit, spines):
         return apply_voxels(pool.slots, meta, keys[:stop], depths[:stop], is_hit[:stop], start, *rule, not lazy, limit,
-                            spine)
+                            spines)
 
     _apply(pool, run, keys, np.arange(len(keys) + 1), lazy, threads)
 
@@ -220,22 +233,22 @@ def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = F
     Numba's count allows."""
     codes, hits, frees = blocks
 
-    def run(meta, start, stop, limit, spine):
+    def run(meta, start, stop, limit, spines):
         return apply_blocks(pool.slots, meta, codes[:stop], hits[:stop], frees[:stop], kbox, start, *rule, not lazy,
-                            not lazy, limit, spine)
+                            not lazy, limit, spines)
 
     _apply(pool, run, codes - 1, B.marked_before(hits, frees), lazy, threads)
 
 
 def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool) -> None:
-    """Updates ``run(meta, start, stop, limit, spine)`` (:func:`.update.apply_voxels` or
-    :func:`.update.apply_blocks` of a scan: items ``start..stop-1``, nodes of ``spine`` left
+    """Updates ``run(meta, start, stop, limit, spines)`` (:func:`.update.apply_voxels` or
+    :func:`.update.apply_blocks` of a scan: items ``start..stop-1``, nodes of ``spines`` left
     unsettled, returning the item where the slots below ``limit`` ran out and whether any value
     changed) whose items' first voxels have
     packed keys ``keys``, Morton-sorted, and ``voxels[i]`` voxels before item ``i``: on two
     threads (with ``threads``) when there are many voxels and Numba's count allows."""
-    if threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _threads.thread_count() >= 2:
-        _apply_halves(pool, run, keys, voxels, lazy)
+    if threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _parallel():
+        _apply_runs(pool, run, keys, voxels, lazy)
         return
     _apply_range(pool, run, 0, len(keys))
 
@@ -247,7 +260,7 @@ def _apply_range(pool: P.Pool, run, start: int, stop: int) -> bool:
     changed = False
     first = start
     while True:
-        start, ch = run(pool.meta, start, stop, pool.slots.shape[0], _NO_SPINE)
+        start, ch = run(pool.meta, start, stop, pool.slots.shape[0], _NO_SPINES)
         changed |= ch
         if start == stop:
             return changed
@@ -257,50 +270,76 @@ def _apply_range(pool: P.Pool, run, start: int, stop: int) -> bool:
         pool.grow(used + 1.25 * rate * (stop - start))
 
 
-def _apply_halves(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
-    """The items on two threads, cut where half of their voxels lie on either side: the nodes
-    the two sides' paths share (the path to the node at the cut's depth, the deepest holding
-    items on both sides: each thread's items lie in that node's children on its side, or beside
-    the path higher up) must exist with their children; each thread updates its side with slots
-    from its own range, those nodes passed through, and they are settled afterwards. Where that
-    path does not exist even after the first item past the cut (a pruned leaf on it took that
-    item), all on this thread."""
+def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
+    """The items in runs of about as many voxels each, which two threads take in turn (a thread
+    that is done early takes more: on a busy computer a scan takes about what one thread takes).
+    Where two runs meet, the nodes their paths share (the path to the node at the cut's depth, the
+    deepest holding items of both) must exist with their children: a run's items lie below
+    those nodes' children on its side, or beside that path higher up; its thread passes them
+    through, and they are settled after all runs. Each thread takes slots from its own range; one
+    that runs out leaves the rest of its run, and the runs left, to this thread afterwards. Where
+    a cut's path does not exist even after the item past the cut is applied (a pruned leaf on it
+    took that item), the rest is applied on this thread."""
     n = len(keys)
-    split = min(max(int(np.searchsorted(voxels, voxels[n] / 2)), 1), n - 1)
-    first = split
-    depth = shared_depth(keys[split - 1], keys[split])
-    spine = P.path_to(pool.slots, keys[split], depth)
-    if not len(spine):  # make it: the item's update creates (or expands) the nodes on its way
-        _apply_range(pool, run, split, split + 1)
-        spine, first = P.path_to(pool.slots, keys[split], depth), split + 1
-        if not len(spine):  # (a pruned leaf on it took the item): the rest on this thread
-            _apply_range(pool, run, 0, split)
-            _apply_range(pool, run, first, n)
+    cuts = np.unique(np.clip(np.searchsorted(voxels, np.linspace(0, voxels[n], _APPLY_RUNS + 1)[1:-1]), 1, n - 1))
+    depths = [shared_depth(keys[c - 1], keys[c]) for c in cuts.tolist()]
+    starts = [0]
+    for c, depth in zip(cuts.tolist(), depths):
+        first = c
+        if not len(P.path_to(pool.slots, keys[c], depth)):  # make it: that item's update makes the nodes on its way
+            _apply_range(pool, run, c, c + 1)
+            first = c + 1
+        starts.append(first)
+    spines = [_NO_SPINES[0]]
+    for c, depth in zip(cuts.tolist(), depths):  # (once all are made: one item's settling may prune another's)
+        path = P.path_to(pool.slots, keys[c], depth)
+        if not len(path):
+            for a, z in zip(starts, [int(c) for c in cuts] + [n]):
+                _apply_range(pool, run, a, z)
             return
+        spine = np.full(DEPTH + 1, -1, np.int64)
+        spine[:len(path)] = path
+        spines.append(spine)
+    spines.append(_NO_SPINES[0])
+    stops = [int(c) for c in cuts] + [n]
+    runs = deque((a, z, np.stack([spines[r], spines[r + 1]])) for r, (a, z) in enumerate(zip(starts, stops)))
     # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
     # second its spare list (the blocks it freed before: P.join_pools), then slots above the
-    # first's range; a thread that runs out leaves its rest to this one. (The first's range is
-    # what the free list may lack, and none where the free list holds what it may need: the
-    # range's unused slots join the free list, so a margin given every scan would grow the pool
-    # scan after scan with slots never used.)
+    # first's range, each range sized for half of the voxels. (The first's range is what the free
+    # list may lack, and none where the free list holds what it may need: the range's unused slots
+    # join the free list, so a margin given every scan would grow the pool scan after scan with
+    # slots never used.)
     top = int(pool.meta[P.TOP])
-    need_a = int(_ROOM_PER_VOXEL * voxels[split])
-    need_a -= P.free_slots(pool.slots, pool.meta[P.FREE], need_a)
+    half = int(_ROOM_PER_VOXEL * voxels[n] / 2)
+    need_a = half - P.free_slots(pool.slots, pool.meta[P.FREE], half)
     # (at least one item's room at the top: the kernels count free blocks only when it is short)
     room_a = 8 * ((need_a + _ROOM_MARGIN) // 8 + 1) if need_a > 0 else BLOCK_ROOM
-    room_b = 8 * ((int(_ROOM_PER_VOXEL * (voxels[n] - voxels[first])) + _ROOM_MARGIN) // 8 + 1)
+    room_b = 8 * ((half + _ROOM_MARGIN) // 8 + 1)
     if pool.slots.shape[0] < top + room_a + room_b:
         pool.grow(top + room_a + room_b)
     meta_a, meta_b = P.new_meta(top), P.new_meta(top + room_a)
     meta_a[P.FREE], meta_b[P.FREE] = pool.meta[P.FREE], pool.meta[P.SPARE]
-    (end_a, changed_a), (end_b, changed_b) = run_jobs([
-        lambda: run(meta_a, 0, split, top + room_a, spine),
-        lambda: run(meta_b, first, n, pool.slots.shape[0], spine)], threads=2)
+    ranges = deque([(meta_a, top + room_a), (meta_b, pool.slots.shape[0])])
+    left = []  # (start, stop) of items a thread left for want of room
+
+    def take():
+        meta, limit = ranges.popleft()
+        changed = False
+        while True:
+            try:
+                a, z, bounds = runs.popleft()
+            except IndexError:
+                return changed
+            end, ch = run(meta, a, z, limit, bounds)
+            changed |= ch
+            if end < z:
+                left.append((end, z))
+                return changed
+
+    changed = any(share(take, 2))
     P.join_pools(pool.slots, pool.meta, meta_a, meta_b, int(meta_a[P.TOP]), top + room_a)
-    changed = changed_a or changed_b
-    if end_a < split:  # a range ran out of slots: the rest here
-        changed |= _apply_range(pool, run, end_a, split)
-    if end_b < n:
-        changed |= _apply_range(pool, run, end_b, n)
+    for a, z in left + [(a, z) for a, z, _ in runs]:
+        changed |= _apply_range(pool, run, a, z)
     if changed and not lazy:
-        P.settle_path(pool.slots, pool.meta, spine)
+        for spine in spines[1:-1]:
+            P.settle_path(pool.slots, pool.meta, spine[spine >= 0])

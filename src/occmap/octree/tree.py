@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import checks
-from .._threads import OneCallAtATime, no_lock, thread_count
+from .._threads import OneCallAtATime, free_for_parallel, no_lock, thread_count
 from ..errors import InvalidArgumentError, ShapeError
 from ..logodds import logit32, occupancy_classes
 from . import insertion, pool, query, views
@@ -230,9 +230,10 @@ class OcTree(OneCallAtATime):
                             lazy: bool = False) -> dict:
         """Integrate many scans in order, each as :meth:`insert_point_cloud`. ``clouds`` holds
         (N_i, 3) arrays with ``origins`` (S, 3), or objects with ``world_points()`` and ``origin``
-        (:class:`occmap.cloud.PointCloud`). With two threads or more (Numba's count), the next
-        scan's rays are traced on another thread (shared with the workers where it is large)
-        while the tree takes the current one (here when that thread has not started by then).
+        (:class:`occmap.cloud.PointCloud`). With two threads or more (Numba's count) and cores
+        that other processes leave free, the next scan's rays are traced on another thread (shared
+        with the workers where it is large) while the tree takes the current one (here when that
+        thread has not started by then).
         Returns the summed summary."""
         clouds = list(clouds)
         if origins is None:
@@ -250,7 +251,7 @@ class OcTree(OneCallAtATime):
                 pending = None
             current = pending.result() if pending else self._scan_blocks(*pairs[k], max_range, discretize, True)
             pending = (insertion.ahead(self._scan_blocks, *pairs[k + 1], max_range, discretize, True)
-                       if ahead and k + 1 < len(pairs) else None)
+                       if ahead and k + 1 < len(pairs) and free_for_parallel() else None)
             blocks, summary = current
             # (the second core traces the next scan)
             insertion.apply_marked(self._pool, blocks, self._bbx_keys(), self._rule, lazy, threads=pending is None)

@@ -42,11 +42,11 @@ def updated(v, hit, l_hit, l_miss, lo, hi):
 
 
 @inline_kernel
-def leave(slots, meta, path, deepest, shared, spine):
+def leave(slots, meta, path, deepest, shared, spines):
     """Settle the nodes ``path[deepest]`` up to ``path[shared + 1]``, deepest first (a walk
-    leaving them), but those of ``spine`` (see :func:`apply_voxels`)."""
+    leaving them), but those of ``spines`` (see :func:`apply_voxels`)."""
     for s in range(deepest, shared, -1):
-        if s >= spine.shape[0] or path[s] != spine[s]:
+        if path[s] != spines[0, s] and path[s] != spines[1, s]:
             settle(slots, meta, path[s], True, True)
 
 
@@ -91,16 +91,17 @@ def update_subtree(slots, meta, node, hit, l_hit, l_miss, lo, hi, settle_nodes):
 
 
 @kernel
-def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, spine):
+def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, spines):
     """Apply updates ``start..`` in order, each as OctoMap's ``updateNode`` with a hit or a miss on
     every voxel of the node at ``depths[i]`` (int8; (0,): all 16, voxels) whose first voxel has
     packed key ``keys[i]``. Returns (the number of updates, or the one at which the slots below
     ``limit`` ran out — nothing of it applied yet: the caller makes room and resumes there;
     whether any value changed). With ``settle_nodes`` false (OctoMap's lazy evaluation) inner
     nodes are neither updated nor pruned (give voxels then: a node update settles its subtree).
-    The nodes of ``spine`` (nodes from the root down, each with children; (0,): none) are only
-    passed through, never settled: two threads can update the items on either side of a cut side
-    by side, the nodes their paths share being those (see :func:`.insertion.apply`).
+    The nodes of ``spines`` (int64 (2, 17): two paths from the root down, ``spines[k, d]`` the
+    node at depth d or -1) are only passed through, never settled: threads can update runs of
+    items side by side, the nodes a run's paths share with the runs on either side being those
+    (see :func:`.insertion.apply`).
 
     A node update is the updates of its voxels at once: a leaf (a new node, or a pruned one) takes
     it as one voxel would, since its voxels would come out alike and be pruned back into it; an
@@ -128,7 +129,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         short = meta[TOP] + ROOM > cap
         if short and (meta[FREE] < 0 or free_slots(slots, meta[FREE], ROOM) < ROOM - (cap - meta[TOP])):
             if settle_nodes:
-                leave(slots, meta, path, min(dirty, known - 1), -1, spine)
+                leave(slots, meta, path, min(dirty, known - 1), -1, spines)
             return i, changed
         key = keys[i]
         kx, ky, kz = unpack(key)
@@ -139,7 +140,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         if known >= 0:
             shared = shared_depth(key, previous)
             if settle_nodes:
-                leave(slots, meta, path, min(dirty, known - 1), shared, spine)
+                leave(slots, meta, path, min(dirty, known - 1), shared, spines)
                 dirty = min(dirty, shared)
             d = min(shared, known)
         previous = key
@@ -210,13 +211,13 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         path[DEPTH] = node
         done = j
     if settle_nodes and known >= 0:
-        leave(slots, meta, path, min(dirty, known - 1), -1, spine)
+        leave(slots, meta, path, min(dirty, known - 1), -1, spines)
     return n, changed
 
 
 @kernel
 def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo, hi, settle_nodes, merge, limit,
-                 spine):
+                 spines):
     """The updates of a scan's marked blocks (:mod:`.blocks`: codes and hit and free masks,
     Morton-sorted, each block once) from block ``start`` on, only voxels within the key box
     ``kbox`` ((0, 3): everywhere): each marked voxel once, a hit where hit (a voxel both hit and
@@ -224,7 +225,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
     alike as one update of the node. The same updates, in the same (Morton) order, as
     :func:`apply_voxels` of :func:`.blocks.block_voxels`, and the same tree, with no list between.
     Returns (the number of blocks, or the one at which the slots below ``limit`` ran out — nothing
-    of it applied yet; whether any value changed); ``settle_nodes``, ``spine`` as for
+    of it applied yet; whether any value changed); ``settle_nodes``, ``spines`` as for
     :func:`apply_voxels`.
 
     One loop takes every step down: to the block's node, then through the block's masks (Morton
@@ -254,7 +255,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 room += free_slots(slots, meta[FREE], 16 * BLOCK_ROOM)
             if room < BLOCK_ROOM:
                 if settle_nodes:
-                    leave(slots, meta, path, min(dirty, known - 1), -1, spine)
+                    leave(slots, meta, path, min(dirty, known - 1), -1, spines)
                 return b, changed
         base = block_key(codes[b])
         if not block_marks(hits[b], frees[b], base, kbox, marked, hit):
@@ -271,7 +272,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
         if known >= 0:
             shared = shared_depth(base, previous)
             if settle_nodes:
-                leave(slots, meta, path, min(dirty, known - 1), shared, spine)
+                leave(slots, meta, path, min(dirty, known - 1), shared, spines)
                 dirty = min(dirty, shared)
             d = min(shared, known)
         previous = base
@@ -376,5 +377,5 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
             changed = True
         known = min(level, BLOCK_DEPTH)
     if settle_nodes and known >= 0:
-        leave(slots, meta, path, min(dirty, known - 1), -1, spine)
+        leave(slots, meta, path, min(dirty, known - 1), -1, spines)
     return n, changed
