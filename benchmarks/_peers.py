@@ -91,6 +91,7 @@ class OccmapProcess:
 
 def _serve() -> None:
     """The child of :class:`OccmapProcess`: one request a line on stdin, seconds a line on stdout."""
+    from occmap._threads import free_for_parallel, thread_count
     from occmap.octree import OcTree
 
     loaded, warm = {}, set()
@@ -102,6 +103,10 @@ def _serve() -> None:
         if (path, res, max_range, discretize) not in warm:
             OcTree(res).insert_point_clouds([scans[0][0]], [scans[0][1]], max_range=max_range, discretize=discretize)
             warm.add((path, res, max_range, discretize))
+        if thread_count() >= 2:  # the other mappers' rounds have just ended: wait until occmap sees the cores free
+            deadline = time.monotonic() + 1.0
+            while not free_for_parallel() and time.monotonic() < deadline:
+                time.sleep(0.02)
         tree = OcTree(res)
         t0 = time.perf_counter()
         tree.insert_point_clouds([p for p, _ in scans], [o for _, o in scans], max_range=max_range,
