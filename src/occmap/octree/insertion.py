@@ -38,10 +38,9 @@ _MARK_RUNS = 8
 #: many runs of blocks.
 _PARALLEL_BLOCKS = 256
 _LIST_RUNS = 8
-#: Scans with at least this many voxels update the tree on two threads.
+#: Scans with at least this many voxels update the tree on two threads, in this many runs of
+#: about as many voxels each.
 _PARALLEL_VOXELS = 20_000
-#: Scans with at least this many voxels update the tree in this many runs, which two threads
-#: take in turn.
 _APPLY_RUNS = 8
 #: Slots a thread's range holds: this many a voxel, and a margin.
 _ROOM_PER_VOXEL = 2
@@ -84,8 +83,8 @@ def _ray_room(n: int):
     return room
 
 
-def ahead(scan_voxels, *args):
-    """``scan_voxels(*args)`` (the next scan of ``OcTree.insert_point_clouds``) submitted to a
+def ahead(scan_blocks, *args):
+    """``scan_blocks(*args)`` (the next scan of ``OcTree.insert_point_clouds``) submitted to a
     thread of its own while the calling thread's tree takes the current scan; it runs with the
     calling thread's Numba thread count (a per-thread setting), so that its rays are marked by
     that thread and the workers together (:func:`mark`): a scan whose marking outweighs the
@@ -95,7 +94,7 @@ def ahead(scan_voxels, *args):
 
     def traced():
         numba.set_num_threads(n)
-        return scan_voxels(*args)
+        return scan_blocks(*args)
 
     return _threads.pool("octree-next", 1).submit(traced)
 
@@ -217,7 +216,7 @@ def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray
     """Apply the updates ``keys`` (packed first voxels) at ``depths`` ((0,): voxels) to ``pool`` in
     order, each a hit or a miss under ``rule`` = (l_hit, l_miss, l_min, l_max) (float32 log-odds;
     :func:`.update.apply_voxels`); with ``threads`` (one scan's updates: each voxel in one, in
-    Morton order) many updates on two threads when Numba's count allows."""
+    Morton order) many updates on two threads when Numba's count and the machine's load allow."""
 
     def run(meta, start, stop, limit, spines):
         return apply_voxels(pool.slots, meta, keys[:stop], depths[:stop], is_hit[:stop], start, *rule, not lazy, limit,
@@ -230,7 +229,7 @@ def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = F
     """Apply a scan's marked blocks (:func:`mark`) to ``pool``, only voxels within the key box
     ``kbox`` ((0, 3): everywhere): the updates :func:`apply` makes of :func:`voxels`, with no
     list between (:func:`.update.apply_blocks`); with ``threads``, many blocks on two threads when
-    Numba's count allows."""
+    Numba's count and the machine's load allow."""
     codes, hits, frees = blocks
 
     def run(meta, start, stop, limit, spines):
@@ -246,7 +245,8 @@ def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool) -> None:
     unsettled, returning the item where the slots below ``limit`` ran out and whether any value
     changed) whose items' first voxels have
     packed keys ``keys``, Morton-sorted, and ``voxels[i]`` voxels before item ``i``: on two
-    threads (with ``threads``) when there are many voxels and Numba's count allows."""
+    threads (with ``threads``) when there are many voxels and Numba's count and the machine's
+    load allow (:func:`_parallel`)."""
     if threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _parallel():
         _apply_runs(pool, run, keys, voxels, lazy)
         return
