@@ -18,6 +18,10 @@ def add_parser(subparsers):
     return p
 
 
+#: Seconds the command waits for the server to close after Ctrl-C.
+_STOP_SECONDS = 10.0
+
+
 def run(args) -> int:
     import signal
     import threading
@@ -26,6 +30,9 @@ def run(args) -> int:
     from ..viz.viewer import DEFAULT_MAX_VOXELS, Viewer
 
     viewer = Viewer(args.file, port=args.port, max_voxels=args.max_voxels or DEFAULT_MAX_VOXELS)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):  # (before the address is printed: Ctrl-C may follow at once)
+        signal.signal(sig, lambda *_: stop.set())
     try:
         t = viewer.timings
         print(f"{viewer.scene.path}: {viewer.scene.kind}, {viewer.scene.summary}")
@@ -36,13 +43,11 @@ def run(args) -> int:
         print(f"serving at {viewer.url} (Ctrl-C to stop)", flush=True)
         if not args.no_browser:
             webbrowser.open(viewer.url)
-        stop = threading.Event()
-        signal.signal(signal.SIGTERM, lambda *_: stop.set())
-        try:
-            stop.wait()
-        except KeyboardInterrupt:
-            pass
+        stop.wait()
     finally:
-        viewer.stop()
+        # (bounded: a server thread stuck in its teardown must not keep Ctrl-C from ending the command)
+        closing = threading.Thread(target=viewer.stop, daemon=True)
+        closing.start()
+        closing.join(_STOP_SECONDS)
     print("stopped")
     return 0

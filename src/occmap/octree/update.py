@@ -42,6 +42,22 @@ def updated(v, hit, l_hit, l_miss, lo, hi):
 
 
 @inline_kernel
+def resume(slots, meta, path, known, dirty, key, previous, settle_nodes, spines):
+    """Where a walk down to packed key ``key`` starts, after one to ``previous`` whose nodes
+    ``path[0..known]`` are kept (``known`` < 0: none) and ``path[0..dirty]`` saw a change: it
+    leaves that path up to the node both share, settling the nodes it leaves (with
+    ``settle_nodes``; see :func:`leave`). Returns (the depth of the node to start from, ``dirty``
+    now)."""
+    if known < 0:
+        return 0, dirty
+    shared = shared_depth(key, previous)
+    if settle_nodes:
+        leave(slots, meta, path, min(dirty, known - 1), shared, spines)
+        dirty = min(dirty, shared)
+    return min(shared, known), dirty
+
+
+@inline_kernel
 def leave(slots, meta, path, deepest, shared, spines):
     """Settle the nodes ``path[deepest]`` up to ``path[shared + 1]``, deepest first (a walk
     leaving them), but those of ``spines`` (see :func:`apply_voxels`)."""
@@ -135,12 +151,13 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         kx, ky, kz = unpack(key)
         hit = is_hit[i]
         target = depths[i] if depths.shape[0] else DEPTH
-        # ---- leave the previous voxel's path up to the node both share
         d = 0
         if known >= 0:
             shared = shared_depth(key, previous)
             if settle_nodes:
-                leave(slots, meta, path, min(dirty, known - 1), shared, spines)
+                for s in range(min(dirty, known - 1), shared, -1):
+                    if path[s] != spines[0, s] and path[s] != spines[1, s]:
+                        settle(slots, meta, path[s], True, True)
                 dirty = min(dirty, shared)
             d = min(shared, known)
         previous = key
@@ -267,14 +284,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
             any_hit |= hit[w] != 0
             any_free |= marked[w] & ~hit[w] != 0
             whole = whole and marked[w] == -1 and hit[w] == hit[0] and (hit[w] == 0 or hit[w] == -1)
-        # ---- leave the previous block's path up to the node both share
-        d = 0
-        if known >= 0:
-            shared = shared_depth(base, previous)
-            if settle_nodes:
-                leave(slots, meta, path, min(dirty, known - 1), shared, spines)
-                dirty = min(dirty, shared)
-            d = min(shared, known)
+        d, dirty = resume(slots, meta, path, known, dirty, base, previous, settle_nodes, spines)
         previous = base
         new[d] = False
         if d == 0 and np.isnan(slots[0].value):
