@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._intrinsics import bit_length, popcount, trailing_zeros
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from .keys import block_key, morton, pack, unpack
 
 _FIBONACCI = 0x9E3779B97F4A7C15  # 2^64 / golden ratio
@@ -150,12 +150,21 @@ def _inside(kbox, key, size):
             and kbox[0, 2] <= kz and kz + size - 1 <= kbox[1, 2])
 
 
-@kernel
-def _uniform(marked, hit, size):
-    """Whether ``size`` (8, 64) voxels' bits of ``marked`` are all set and their ``hit`` bits
-    all alike (bits from 0; words of int64)."""
+@inline_kernel
+def uniform(marked, hit, size):
+    """Whether ``size`` (1, 8, 64) voxels' bits of ``marked`` are all set and their ``hit`` bits
+    all alike (bits from 0; words of int64): a node's voxels, one update."""
     full = np.int64(-1) if size == 64 else (np.int64(1) << size) - 1
     return marked & full == full and (hit & full == 0 or hit & full == full)
+
+
+@kernel
+def uniform_block(marked, hit):
+    """Whether a block's voxels (Morton words, :func:`block_marks`) are all marked and all alike."""
+    whole = True
+    for w in range(8):
+        whole = whole and uniform(marked[w], hit[w], 64) and hit[w] == hit[0]
+    return whole
 
 
 @kernel
@@ -223,17 +232,13 @@ def block_voxels(codes, hits, frees, kbox, merge):
         base = block_key(codes[b])
         if not block_marks(hits[b], frees[b], base, kbox, marked, hit):
             continue
-        if merge:
-            whole = True
-            for w in range(8):
-                whole = whole and _uniform(marked[w], hit[w], 64) and hit[w] == hit[0]
-            if whole:
-                keys[n], depths[n], is_hit[n] = base, 13, hit[0] != 0
-                n += 1
-                continue
+        if merge and uniform_block(marked, hit):
+            keys[n], depths[n], is_hit[n] = base, 13, hit[0] != 0
+            n += 1
+            continue
         for w in range(8):
             first = base + _MORTON_OFFSET[w << 6]
-            if merge and _uniform(marked[w], hit[w], 64):
+            if merge and uniform(marked[w], hit[w], 64):
                 keys[n], depths[n], is_hit[n] = first, 14, hit[w] != 0
                 n += 1
                 continue
@@ -241,7 +246,7 @@ def block_voxels(codes, hits, frees, kbox, merge):
                 shift = 8 * byte
                 m, hm = marked[w] >> shift, hit[w] >> shift
                 node = base + _MORTON_OFFSET[(w << 6) | shift]
-                if merge and _uniform(m, hm, 8):
+                if merge and uniform(m, hm, 8):
                     keys[n], depths[n], is_hit[n] = node, 15, hm & 1 != 0
                     n += 1
                     continue

@@ -243,10 +243,9 @@ def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool) -> None:
     """Updates ``run(meta, start, stop, limit, spines)`` (:func:`.update.apply_voxels` or
     :func:`.update.apply_blocks` of a scan: items ``start..stop-1``, nodes of ``spines`` left
     unsettled, returning the item where the slots below ``limit`` ran out and whether any value
-    changed) whose items' first voxels have
-    packed keys ``keys``, Morton-sorted, and ``voxels[i]`` voxels before item ``i``: on two
-    threads (with ``threads``) when there are many voxels and Numba's count and the machine's
-    load allow (:func:`_parallel`)."""
+    changed) whose items' first voxels have packed keys ``keys``, Morton-sorted, and ``voxels[i]``
+    voxels before item ``i``: on two threads (with ``threads``) when there are many voxels and
+    Numba's count and the machine's load allow (:func:`_parallel`)."""
     if threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _parallel():
         _apply_runs(pool, run, keys, voxels, lazy)
         return
@@ -281,28 +280,26 @@ def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
     a cut's path does not exist even after the item past the cut is applied (a pruned leaf on it
     took that item), the rest is applied on this thread."""
     n = len(keys)
-    cuts = np.unique(np.clip(np.searchsorted(voxels, np.linspace(0, voxels[n], _APPLY_RUNS + 1)[1:-1]), 1, n - 1))
-    depths = [shared_depth(keys[c - 1], keys[c]) for c in cuts.tolist()]
-    starts = [0]
-    for c, depth in zip(cuts.tolist(), depths):
+    cuts = np.unique(np.clip(np.searchsorted(voxels, np.linspace(0, voxels[n], _APPLY_RUNS + 1)[1:-1]), 1,
+                             n - 1)).tolist()
+    depths = [shared_depth(keys[c - 1], keys[c]) for c in cuts]
+    starts, stops = [0], cuts + [n]
+    for c, depth in zip(cuts, depths):
         first = c
         if not len(P.path_to(pool.slots, keys[c], depth)):  # make it: that item's update makes the nodes on its way
             _apply_range(pool, run, c, c + 1)
             first = c + 1
         starts.append(first)
-    spines = [_NO_SPINES[0]]
-    for c, depth in zip(cuts.tolist(), depths):  # (once all are made: one item's settling may prune another's)
+    # spines[k + 1]: the path at cut k (-1 below its depth); rows 0 and -1 none, for the end runs
+    spines = np.full((len(cuts) + 2, DEPTH + 1), -1, np.int64)
+    for k, (c, depth) in enumerate(zip(cuts, depths)):  # (once all are made: one item's settling may prune another's)
         path = P.path_to(pool.slots, keys[c], depth)
         if not len(path):
-            for a, z in zip(starts, [int(c) for c in cuts] + [n]):
+            for a, z in zip(starts, stops):
                 _apply_range(pool, run, a, z)
             return
-        spine = np.full(DEPTH + 1, -1, np.int64)
-        spine[:len(path)] = path
-        spines.append(spine)
-    spines.append(_NO_SPINES[0])
-    stops = [int(c) for c in cuts] + [n]
-    runs = deque((a, z, np.stack([spines[r], spines[r + 1]])) for r, (a, z) in enumerate(zip(starts, stops)))
+        spines[k + 1, :len(path)] = path
+    runs = deque((a, z, spines[r:r + 2]) for r, (a, z) in enumerate(zip(starts, stops)))
     # slot ranges: the first thread takes the free list, then slots from the top of the pool, the
     # second its spare list (the blocks it freed before: P.join_pools), then slots above the
     # first's range, each range sized for half of the voxels. (The first's range is what the free

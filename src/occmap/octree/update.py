@@ -12,7 +12,7 @@ import numpy as np
 
 from .._intrinsics import prefetch, trailing_zeros
 from .._jit import inline_kernel, kernel
-from .blocks import block_marks
+from .blocks import block_marks, uniform, uniform_block
 from .keys import DEPTH, block_key, child_index, pack, shared_depth, unpack
 from .pool import FREE, SIZE, TOP, alloc_block, free_slots, settle
 
@@ -279,11 +279,10 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
             continue
         kx, ky, kz = unpack(base)
         any_hit = any_free = False
-        whole = merge
         for w in range(8):
             any_hit |= hit[w] != 0
             any_free |= marked[w] & ~hit[w] != 0
-            whole = whole and marked[w] == -1 and hit[w] == hit[0] and (hit[w] == 0 or hit[w] == -1)
+        whole = merge and uniform_block(marked, hit)
         d, dirty = resume(slots, meta, path, known, dirty, base, previous, settle_nodes, spines)
         previous = base
         new[d] = False
@@ -299,7 +298,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
         while True:
             if level < BLOCK_DEPTH:  # the one child on the way, for all of the block's updates
                 i = child_index(kx, ky, kz, level)
-                m, h, full = np.int64(0), np.int64(any_hit), np.int64(1)
+                m, h, width = np.int64(0), np.int64(any_hit), 1
                 f = any_free
             else:
                 t = todo[level]
@@ -314,11 +313,11 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 i = trailing_zeros(t)
                 todo[level] = t & (t - 1)
                 if level == BLOCK_DEPTH:
-                    m, h, full = marked[i], hit[i], np.int64(-1)
+                    m, h, width = marked[i], hit[i], 64
                 elif level == BLOCK_DEPTH + 1:
-                    m, h, full = (marked[word] >> (8 * i)) & 0xFF, (hit[word] >> (8 * i)) & 0xFF, np.int64(0xFF)
+                    m, h, width = (marked[word] >> (8 * i)) & 0xFF, (hit[word] >> (8 * i)) & 0xFF, 8
                 else:
-                    m, h, full = np.int64(1), (byte_h >> i) & 1, np.int64(1)
+                    m, h, width = np.int64(1), (byte_h >> i) & 1, 1
                 f = m & ~h != 0
             node = path[level]
             c = slots[node].child
@@ -340,7 +339,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 slots[child].value = 0.0
                 meta[SIZE] += 1
             if (level == DEPTH - 1 or (level == BLOCK_DEPTH - 1 and whole)
-                    or (level >= BLOCK_DEPTH and merge and m == full and (h == 0 or h == full))):
+                    or (level >= BLOCK_DEPTH and merge and uniform(m, h, width))):
                 # the child's voxels are one update: a leaf takes it as one voxel, an inner node
                 # passes it to its subtree
                 if slots[child].child >= 0:
