@@ -81,6 +81,30 @@ def test_update_shrinks_the_covariance_and_keeps_it_symmetric():
     assert np.all(np.abs(z[:, :2] - s2[:, :2]) < np.abs(z[:, :2] - s[:, :2]))
 
 
+@pytest.mark.parametrize("m", [1, 2, 3])
+def test_update_is_the_joseph_form_of_the_textbook_gain(m):
+    n = 50
+    s = _states(n)
+    A = RNG.normal(size=(n, 5, 5))
+    P = A @ A.transpose(0, 2, 1) + np.eye(5)
+    H = RNG.normal(size=(n, m, 5))
+    B = RNG.normal(size=(n, m, m))
+    R = B @ B.transpose(0, 2, 1) + 0.1 * np.eye(m)
+    y = RNG.normal(size=(n, m))
+    S = H @ P @ H.transpose(0, 2, 1) + R
+    K = P @ H.transpose(0, 2, 1) @ np.linalg.inv(S)
+    want = s + (K @ y[..., None])[..., 0]
+    want[:, 2] = np.arctan2(np.sin(want[:, 2]), np.cos(want[:, 2]))
+    I_KH = np.eye(5) - K @ H
+    want_P = I_KH @ P @ I_KH.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
+    s_in, P_in = s.copy(), P.copy()
+    got, got_P = ekf.update(s, P, y, H, R)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got_P, want_P, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(s, s_in)  # new arrays; the inputs are left alone
+    np.testing.assert_array_equal(P, P_in)
+
+
 def test_box_heading_is_known_modulo_pi():
     s = np.zeros((1, 5))
     y, _ = ekf.pose_innovation(s, np.array([[0.0, 0.0, math.pi - 0.1]]), with_heading=True)

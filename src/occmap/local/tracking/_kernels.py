@@ -1,6 +1,6 @@
 """Numba kernels of the tracker: optimal assignment (the Hungarian method), the clustering, box
-fitting and occlusion test of detections, and the probability that a place lies under a tracked
-object. Plain arrays in and out; the callers check shapes and values."""
+fitting and occlusion test of detections, box corners, and the probability that a place lies under
+a tracked object. Plain arrays in and out; the callers check shapes and values."""
 
 from __future__ import annotations
 
@@ -60,6 +60,70 @@ def min_cost_assignment(cost, out):
     for j in range(1, m + 1):
         if owner[j] != 0:
             out[owner[j] - 1] = j - 1
+    return out
+
+
+@kernel
+def gated_assignment(cost, rows, cols):
+    """:func:`~.assignment.assign` of a cost matrix ``(n, m)`` (``inf`` = not allowed; no NaN, no
+    −inf): the matched pairs into ``rows`` and ``cols`` (room for ``min(n, m)``), sorted by row;
+    returns their number."""
+    n, m = cost.shape
+    lo = np.inf
+    for i in range(n):
+        for j in range(m):
+            if cost[i, j] < lo:
+                lo = cost[i, j]
+    if lo == np.inf:
+        return 0
+    total = 0.0
+    for i in range(n):
+        for j in range(m):
+            if cost[i, j] < np.inf:
+                total += cost[i, j] - lo
+    big = 1.0 + total * 2.0  # more than any sum of allowed costs (shifted to be non-negative)
+    flip = n > m
+    work = np.empty((m, n) if flip else (n, m))
+    for i in range(n):
+        for j in range(m):
+            c = cost[i, j] - lo if cost[i, j] < np.inf else big
+            if flip:
+                work[j, i] = c
+            else:
+                work[i, j] = c
+    chosen = min_cost_assignment(work, np.empty(work.shape[0], np.int64))
+    col_of = chosen
+    if flip:  # chosen[j] is column j's row
+        col_of = np.full(n, -1, np.int64)
+        for j in range(m):
+            col_of[chosen[j]] = j
+    k = 0
+    for i in range(n):
+        j = col_of[i]
+        if j >= 0 and cost[i, j] < np.inf:
+            rows[k] = i
+            cols[k] = j
+            k += 1
+    return k
+
+
+@inline_kernel
+def corner(x, y, c, s, length, width, k):
+    """Corner ``k`` (0 – 3, counter-clockwise from the rear right) of a box centred at ``(x, y)``
+    with heading ``(cos, sin) = (c, s)`` along its ``length`` and ``width`` across (m)."""
+    u = (0.5 if k == 1 or k == 2 else -0.5) * length
+    v = (0.5 if k >= 2 else -0.5) * width
+    return x + c * u - s * v, y + s * u + c * v
+
+
+@kernel
+def box_corners(x, y, heading, length, width, out):
+    """:func:`~.detection.box_corners` into ``out`` (N, 4, 2)."""
+    for i in range(x.shape[0]):
+        c = np.cos(heading[i])
+        s = np.sin(heading[i])
+        for k in range(4):
+            out[i, k, 0], out[i, k, 1] = corner(x[i], y[i], c, s, length[i], width[i], k)
     return out
 
 
@@ -393,11 +457,26 @@ def beyond_ends(points, point_layers, starts, scene, scene_layers, n_layers, sx,
 @kernel
 def measure_boxes(corners, axes, size, sx, sy, occluded, track, bare_end, position_var, centre, covariance, seen,
                   side, lever):
-    """:meth:`~.tracker.Tracker._measure` for ``P`` pairs of a detected box and a track, flat:
-    ``corners`` (P, 4, 2), ``axes`` (P, 2, 2) (rows), ``size`` (P, 2), the sensor at ``(sx, sy)``,
-    ``occluded`` (P,), the track's centre ``track`` (P, 2) or (0, 2) (none: the interval's middle),
-    ``bare_end`` (P, 2) or (0, 2) (none); into ``centre`` (P, 2), ``covariance`` (P, 2, 2),
-    ``seen`` (P, 2), ``side`` (P, 2) and ``lever`` (P, 2)."""
+    """What a detected box says of an object, for ``P`` pairs of a box and a track: the box's
+    ``corners`` (P, 4, 2) seen from the sensor at ``(sx, sy)``, the object's ``size`` (P, 2) along
+    the measuring ``axes`` (P, 2, 2) (rows). Into ``centre`` (P, 2) and its ``covariance``
+    (P, 2, 2) (m, world; ``position_var`` per axis, more where only bounded), the extent ``seen``
+    (P, 2) and the ``side`` (P, 2) along the axes, and the ``lever`` (P, 2): from the centre to
+    the point of the box that placed it (an edge, a corner; zero where only bounded), in world
+    axes (m).
+
+    Along an axis where the sensor lies beyond the extent seen, the near edge is the object's
+    (``side`` +1: the object lies toward +axis from its lower edge, −1 from its upper edge) and
+    the centre half the size behind it. Elsewhere — the sensor within the extent (``side`` 0),
+    or the axis of an ``occluded`` (P,) box more across the line of sight (where the occluder
+    may cut it) — the box only bounds the centre: it lies where an object of that size still
+    covers all that is seen. Given the ``track``'s centre (P, 2) the measurement is the point of
+    that interval nearest to it (none of a bias a part seen for many scans would build up);
+    without it ((0, 2)) the interval's middle, uncertain by its length (uniform). An occluded
+    box's ``bare_end`` (P, 2; NaN: none; (0, 2): none at all) is the object's own edge along
+    that axis: the centre lies half the size from it toward the cut end. On the simulated street
+    a car driving away 25 – 30 m off, the northern part of its rear seen past a nearer object,
+    drifted 1.2 m sideways in 1.5 s while only bounded there."""
     lo = np.empty(2)
     hi = np.empty(2)
     across = np.empty(2)

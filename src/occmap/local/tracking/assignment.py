@@ -28,20 +28,7 @@ def assign(cost) -> tuple[np.ndarray, np.ndarray]:
         raise ShapeError(f"cost must be a matrix (n, m), got shape {c.shape}")
     if np.isnan(c).any() or (c == -np.inf).any():
         raise InvalidArgumentError("cost holds NaN or -inf")
-    allowed = np.isfinite(c)
-    if not allowed.any():
-        return np.empty(0, np.int64), np.empty(0, np.int64)
-    shifted = c - c[allowed].min()  # non-negative allowed costs
-    big = 1.0 + shifted[allowed].sum() * 2.0
-    work = np.where(allowed, shifted, big)
-    flip = work.shape[0] > work.shape[1]
-    if flip:
-        work = work.T
-    cols = K.min_cost_assignment(np.ascontiguousarray(work), np.empty(work.shape[0], np.int64))
-    rows = np.arange(work.shape[0])
-    if flip:
-        rows, cols = cols, rows
-    keep = allowed[rows, cols]
-    rows, cols = rows[keep], cols[keep]
-    order = np.argsort(rows)
-    return rows[order], cols[order]
+    k = min(c.shape)
+    rows, cols = np.empty(k, np.int64), np.empty(k, np.int64)
+    k = K.gated_assignment(np.ascontiguousarray(c), rows, cols)
+    return rows[:k], cols[:k]

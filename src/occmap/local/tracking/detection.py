@@ -77,15 +77,6 @@ class Detections(NamedTuple):
         """Per detection: an end of it is cut, so its extent may be cut short."""
         return self.cut.any(axis=1)
 
-    @property
-    def bare_end(self) -> np.ndarray:
-        """Per detection ``(M, 2)``: the bare end of a view cut at its other end (the object's own
-        edge, whatever hides the rest: :meth:`~.tracker.Tracker._measure` measures the centre from
-        it), NaN for the others."""
-        one = (self.bare.sum(axis=1) == 1) & (self.cut.sum(axis=1) == 1)
-        end = self.ends[np.arange(len(self)), np.argmax(self.bare, axis=1)]
-        return np.where(one[:, None], end, np.nan)
-
     @staticmethod
     def empty() -> Detections:
         f = np.empty(0)
@@ -96,10 +87,9 @@ class Detections(NamedTuple):
 def box_corners(x, y, heading, length, width) -> np.ndarray:
     """Corners ``(N, 4, 2)`` of boxes centred at ``(x, y)`` (N,) with ``heading`` (rad) along
     their ``length`` and ``width`` across (m): counter-clockwise from the rear right."""
-    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
-    u = np.array([-0.5, 0.5, 0.5, -0.5])[None] * np.asarray(length)[:, None]
-    v = np.array([-0.5, -0.5, 0.5, 0.5])[None] * np.asarray(width)[:, None]
-    return np.stack([np.asarray(x)[:, None] + c * u - s * v, np.asarray(y)[:, None] + s * u + c * v], -1)
+    x, y, heading, length, width = (np.ascontiguousarray(a, dtype=np.float64)
+                                    for a in np.broadcast_arrays(x, y, heading, length, width))
+    return K.box_corners(x, y, heading, length, width, np.empty(x.shape + (4, 2)))
 
 
 def _fit_sample(starts):

@@ -30,7 +30,6 @@ import numpy as np
 
 from ..._jit import kernel
 from ...geometry._kernels import wrap_angle_one
-from ...geometry.so2 import wrap_angle
 
 __all__ = ["STATE", "pose_innovation", "predict", "radial_velocity_innovation", "update"]
 
@@ -127,26 +126,43 @@ def predict(states: np.ndarray, covs: np.ndarray | None, dt, accel: float, yaw_a
     return out, out_covs
 
 
+@kernel
+def pose_innovation_one(s, z, ox, oy, y, H):
+    """:func:`pose_innovation` of one state ``s`` (5,) and measurement ``z``, into ``y`` (m,) and
+    ``H`` (m, 5), ``m`` = 2 (the point) or 3 (and the heading) from ``y``'s length."""
+    m = y.shape[0]
+    c, sn = np.cos(s[2]), np.sin(s[2])
+    H[:, :] = 0.0
+    for k in range(m):
+        y[k] = z[k] - s[k]
+        H[k, k] = 1.0
+    y[0] -= c * ox - sn * oy
+    y[1] -= sn * ox + c * oy
+    H[0, 2] = -sn * ox - c * oy
+    H[1, 2] = c * ox - sn * oy
+    if m == 3:
+        y[2] = wrap_angle_one(2.0 * y[2]) / 2.0  # a box's heading is known modulo π
+    return y
+
+
+@kernel
+def _pose_innovations(states, z, offset, y, H):
+    for n in range(states.shape[0]):
+        pose_innovation_one(states[n], z[n], offset[n, 0], offset[n, 1], y[n], H[n])
+    return y
+
+
 def pose_innovation(states: np.ndarray, z: np.ndarray, with_heading: bool, offset=None):
     """Innovation ``(N, m)`` and Jacobian ``(N, m, 5)`` of measurements ``z`` ``(N, 2)`` of the point
     at ``offset`` ``(N, 2)`` (m, in the object's frame: along its heading and to its left; None:
     the centre), or of that point and the heading ``(N, 3)`` when ``with_heading`` (``m`` = 2 or
     3): ``h(s) = (x, y) + Rot(θ)·offset``. A point off the centre ties the heading to where it is
     seen: a heading error swings it about the centre."""
-    m = 3 if with_heading else 2
-    y = z[:, :m] - states[:, :m]
-    H = np.zeros((states.shape[0], m, 5))
-    for k in range(m):
-        H[:, k, k] = 1.0
-    if offset is not None:
-        c, s = np.cos(states[:, 2]), np.sin(states[:, 2])
-        ox, oy = offset[:, 0], offset[:, 1]
-        y[:, 0] -= c * ox - s * oy
-        y[:, 1] -= s * ox + c * oy
-        H[:, 0, 2] = -s * ox - c * oy
-        H[:, 1, 2] = c * ox - s * oy
-    if with_heading:
-        y[:, 2] = wrap_angle(2.0 * y[:, 2]) / 2.0  # a box's heading is known modulo π
+    s = np.ascontiguousarray(states, dtype=np.float64)
+    n, m = s.shape[0], 3 if with_heading else 2
+    off = np.zeros((n, 2)) if offset is None else np.ascontiguousarray(offset, dtype=np.float64)
+    y, H = np.empty((n, m)), np.empty((n, m, 5))
+    _pose_innovations(s, np.ascontiguousarray(z, dtype=np.float64), off, y, H)
     return y, H
 
 
@@ -167,13 +183,109 @@ def innovation_covariance(covs: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.
     return H @ covs @ H.transpose(0, 2, 1) + R
 
 
+@kernel
+def _solve(A, B):
+    """``B ← A⁻¹ B`` for a small square ``A`` (m, m) (overwritten) and ``B`` (m, k): Gaussian
+    elimination with partial pivoting (LAPACK's ``gesv``)."""
+    m = A.shape[0]
+    for col in range(m):
+        pivot = col
+        for r in range(col + 1, m):
+            if abs(A[r, col]) > abs(A[pivot, col]):
+                pivot = r
+        if pivot != col:
+            for j in range(m):
+                A[col, j], A[pivot, j] = A[pivot, j], A[col, j]
+            for j in range(B.shape[1]):
+                B[col, j], B[pivot, j] = B[pivot, j], B[col, j]
+        for r in range(col + 1, m):
+            f = A[r, col] / A[col, col]
+            for j in range(col, m):
+                A[r, j] -= f * A[col, j]
+            for j in range(B.shape[1]):
+                B[r, j] -= f * B[col, j]
+    for col in range(m - 1, -1, -1):
+        for j in range(B.shape[1]):
+            acc = B[col, j]
+            for k in range(col + 1, m):
+                acc -= A[col, k] * B[k, j]
+            B[col, j] = acc / A[col, col]
+    return B
+
+
+@kernel
+def update_one(s, P, y, H, R):
+    """One state ``s`` (5,) and covariance ``P`` (5, 5), in place, after a measurement with
+    innovation ``y`` (m,), Jacobian ``H`` (m, 5) and noise ``R`` (m, m): Joseph form, the heading
+    wrapped, ``P`` symmetrised. The gain ``K = P Hᵀ S⁻¹`` is taken as ``(S⁻¹ H P)ᵀ`` (``S``, ``P``
+    symmetric)."""
+    m = y.shape[0]
+    X = np.zeros((m, 5))  # H P, then S⁻¹ H P = Kᵀ
+    for i in range(m):
+        for j in range(5):
+            acc = 0.0
+            for k in range(5):
+                acc += H[i, k] * P[k, j]
+            X[i, j] = acc
+    S = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            acc = R[i, j]
+            for k in range(5):
+                acc += X[i, k] * H[j, k]
+            S[i, j] = acc
+    _solve(S, X)
+    A = np.empty((5, 5))  # I − K H
+    for i in range(5):
+        acc = 0.0
+        for a in range(m):
+            acc += X[a, i] * y[a]
+        s[i] += acc
+        for j in range(5):
+            acc = 1.0 if i == j else 0.0
+            for a in range(m):
+                acc -= X[a, i] * H[a, j]
+            A[i, j] = acc
+    s[2] = wrap_angle_one(s[2])
+    AP = np.empty((5, 5))
+    for i in range(5):
+        for j in range(5):
+            acc = 0.0
+            for k in range(5):
+                acc += A[i, k] * P[k, j]
+            AP[i, j] = acc
+    KR = np.empty((5, m))
+    for i in range(5):
+        for b in range(m):
+            acc = 0.0
+            for a in range(m):
+                acc += X[a, i] * R[a, b]
+            KR[i, b] = acc
+    for i in range(5):
+        for j in range(i, 5):
+            acc = 0.0
+            for k in range(5):
+                acc += AP[i, k] * A[j, k]
+            for b in range(m):
+                acc += KR[i, b] * X[b, j]
+            P[i, j] = acc
+    for i in range(5):
+        for j in range(i):
+            P[i, j] = P[j, i]
+    return s
+
+
+@kernel
+def _updates(states, covs, y, H, R):
+    for n in range(states.shape[0]):
+        update_one(states[n], covs[n], y[n], H[n], R[n])
+    return states
+
+
 def update(states: np.ndarray, covs: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray):
     """States and covariances after measurements with innovations ``y`` ``(N, m)``, Jacobians ``H``
     ``(N, m, 5)`` and noise ``R`` ``(N, m, m)``; returns new arrays."""
-    S = innovation_covariance(covs, H, R)
-    K = np.linalg.solve(S, H @ covs).transpose(0, 2, 1)  # P Hᵀ S⁻¹, S and P symmetric
-    out = states + (K @ y[..., None])[..., 0]
-    out[:, 2] = wrap_angle(out[:, 2])
-    A = np.eye(5) - K @ H
-    P = A @ covs @ A.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
-    return out, 0.5 * (P + P.transpose(0, 2, 1))
+    out = np.array(states, dtype=np.float64, order="C")
+    out_covs = np.array(covs, dtype=np.float64, order="C")
+    _updates(out, out_covs, *(np.ascontiguousarray(a, dtype=np.float64) for a in (y, H, R)))
+    return out, out_covs
