@@ -293,6 +293,13 @@ def test_the_occupancy_models_error_function_is_within_its_stated_bound():
     assert np.abs(ours - exact).max() <= 1.5e-7
     np.testing.assert_array_equal([K._erf(-v) for v in x[x > 0]], -ours[x > 0])
     assert K._erf(6.5) == pytest.approx(1.0, abs=1e-15)
+    def formula(v):  # 7.1.26 as printed, for the shortcut far out: it must change no bit
+        t = 1.0 / (1.0 + 0.3275911 * abs(v))
+        poly = t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429))))
+        return math.copysign(1.0 - poly * math.exp(-v * v), v)
+
+    far = x[np.abs(x) >= 5.0]
+    assert [K._erf(v) for v in far] == [formula(v) for v in far]
 
 
 @pytest.mark.parametrize("heading", [0.0, math.pi / 2, -math.pi, 0.3, -2.0])

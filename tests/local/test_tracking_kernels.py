@@ -1,6 +1,6 @@
 """The tracker's shortcut kernels against plain references: the returns beyond clusters' ends
-(exact bearings only near the sectors it reads) and the promotion of mostly-moving components
-(searches stopped at an object's span)."""
+(exact bearings only near the sectors it reads), the promotion of mostly-moving components
+(searches stopped at an object's span) and the radix sort of cell keys."""
 
 from __future__ import annotations
 
@@ -122,3 +122,10 @@ def test_promotion_equals_whole_components_and_leaves_the_scratch_clear():
         assert not grid.any()
         promoted += out.sum()
     assert promoted > 1000
+
+
+def test_stable_order_is_numpys_stable_argsort():
+    rng = np.random.default_rng(7)
+    for n, top in ((0, 1), (1, 1), (7, 1), (1_000, 255), (1_000, 256), (20_000, 40_000), (5_000, 2 ** 62)):
+        key = rng.integers(0, top, n, dtype=np.int64)  # many equal keys where top is small
+        np.testing.assert_array_equal(K.stable_order(key), np.argsort(key, kind="stable"))
