@@ -446,23 +446,32 @@ def beyond_ends(points, point_layers, starts, scene, scene_layers, n_layers, sx,
             mx += points[i, 0] - sx
             my += points[i, 1] - sy
         mid = np.arctan2(my, mx)
+        # the ends by a pseudo-angle about the mean direction, rising from -pi to pi (turned
+        # by pi: _pseudo_bearing's cut lies behind the cluster); exact bearings for the two only
         lo = np.inf
         hi = -np.inf
+        ends[k, 0] = ends[k, 1] = a
         for i in range(a, b):
             dx = points[i, 0] - sx
             dy = points[i, 1] - sy
+            q = _pseudo_bearing(-(mx * dx + my * dy), -(mx * dy - my * dx))
+            if q < lo:
+                lo = q
+                ends[k, 0] = i
+            if q > hi:
+                hi = q
+                ends[k, 1] = i
+        for e in range(2):
+            dx = points[ends[k, e], 0] - sx
+            dy = points[ends[k, e], 1] - sy
             rel = np.arctan2(dy, dx) - mid
             rel = rel - 2.0 * np.pi * np.floor((rel + np.pi) / (2.0 * np.pi))
-            if rel < lo:
-                lo = rel
+            if e == 0:
                 r_lo[k] = np.hypot(dx, dy)
-                ends[k, 0] = i
-            if rel > hi:
-                hi = rel
+                b_lo[k] = int((mid + rel + np.pi) * scale)
+            else:
                 r_hi[k] = np.hypot(dx, dy)
-                ends[k, 1] = i
-        b_lo[k] = int((mid + lo + np.pi) * scale)
-        b_hi[k] = int((mid + hi + np.pi) * scale)
+                b_hi[k] = int((mid + rel + np.pi) * scale)
         for j in range(1, reach + 1):
             need[(b_lo[k] - j) % bins] = True
             need[(b_hi[k] + j) % bins] = True
