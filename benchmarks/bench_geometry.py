@@ -231,8 +231,8 @@ def main() -> int:
             "a quaternion to any matrix by an eigen-decomposition). Every result is checked equal to "
             "occmap's first (quaternions up to sign, rotation vectors as rotations). occmap's single calls go from a C "
             "entry (`geometry/_single.c`) straight to the Numba kernel; numpy-quaternion's product and slerp return its "
-            "own scalar type, occmap's functions a NumPy array, whose allocation (~45 ns here) is most of the "
-            "difference left in one call.\n\n" + calls
+            "own scalar type, occmap's functions a NumPy array: one returned before that nothing holds any more is "
+            "written again (allocating one took ~45 ns, half of a call).\n\n" + calls
         )
         write_section("bench_geometry", body)
     return 0

@@ -90,6 +90,43 @@ def test_the_c_path_is_taken_and_other_inputs_give_the_same_result(rng):
     np.testing.assert_array_equal(g.rot_z(1), g.rot_z(1.0))
 
 
+def test_an_output_is_reused_only_once_nothing_can_see_it():
+    """The C path writes an earlier output again only when nothing but itself holds it: outputs
+    kept in names, a view, a buffer or a weak reference keep their values, an output whose shape
+    or type was changed in place is not handed out again, and one dropped is (no allocation)."""
+    import weakref
+
+    q, q2 = np.array([0.5, 0.5, 0.5, 0.5]), np.array([0.6, 0.0, 0.8, 0.0])
+    product = g.quat_multiply(q, q2).copy()
+    kept = [g.quat_multiply(q, q2) for _ in range(3)]  # three names at once: more than the two spares
+    view, buffer = g.quat_multiply(q, q2)[1:], memoryview(g.quat_multiply(q, q2))
+    watched = g.quat_multiply(q, q2)
+    ref = weakref.ref(watched)
+    del watched
+    for _ in range(10):
+        g.quat_multiply(q2, q)  # another value, into whatever spare is free
+    for out in kept + ([] if ref() is None else [ref()]):  # a weakly held output lives on unchanged, or not at all
+        np.testing.assert_array_equal(out, product)
+    np.testing.assert_array_equal(view, product[1:])
+    np.testing.assert_array_equal(np.asarray(buffer), product)
+    assert len({id(out) for out in kept}) == 3
+    reshaped = g.quat_multiply(q, q2)
+    reshaped.shape = (2, 2)
+    retyped = g.quat_multiply(q, q2)
+    retyped.dtype = np.int64
+    del reshaped, retyped, kept, view, buffer
+    for _ in range(3):
+        out = g.quat_multiply(q, q2)
+        assert out.shape == (4,) and out.dtype == np.float64 and out.flags.c_contiguous and out.flags.writeable
+        np.testing.assert_array_equal(out, product)
+    del out
+    a, b = g.quat_multiply(q, q2), g.quat_multiply(q, q2)
+    buffers = {a.ctypes.data, b.ctypes.data}
+    del a, b
+    taken = [np.empty(4) for _ in range(8)]  # would take the blocks freed had the outputs been freed
+    assert g.quat_multiply(q, q2).ctypes.data in buffers and not buffers & {t.ctypes.data for t in taken}
+
+
 def test_an_unbound_call_and_a_wrong_call_go_to_the_fallback():
     calls = []
     fresh = SingleCall(((4,),), (4,), lambda *v, **k: calls.append((v, k)) or "fallback")

@@ -186,7 +186,7 @@ def entry(kernel, out_trailing: tuple[int, ...], *operands: tuple, args: tuple =
     ``(trailing, name, kind)`` as in :func:`run`.
 
     A single element — every operand a C-contiguous float64 array of exactly its trailing shape,
-    a scalar a Python or NumPy float — is handled in C (:class:`._single.SingleCall`: ~0.1 µs),
+    a scalar a Python or NumPy float — is handled in C (:class:`._single.SingleCall`: ~40 ns),
     which calls the kernel compiled for one element (:func:`_single_kernel`, compiled or loaded
     from the disk cache at the function's first call). ``one``, when given, is the kernel's
     single-element form, which that path calls instead, without ``args`` and with floats for

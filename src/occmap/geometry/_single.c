@@ -4,8 +4,10 @@
  * multiplication; a quaternion product is 16 of them. A SingleCall holds the address of a Numba
  * cfunc (the same kernel the batches run: no formula lives here) and the shapes one element of
  * each operand has. Called with exactly such operands -- float64 C-contiguous arrays in native
- * byte order, Python floats for scalars -- it allocates the output, passes the operands' data
- * pointers to the cfunc and returns the output: ~0.1 us. Anything else (batches, lists, other
+ * byte order, Python floats for scalars -- it takes an output, passes the operands' data
+ * pointers to the cfunc and returns the output: ~40 ns. The output is one it returned before
+ * when nothing but the SingleCall holds that array any more (allocating one, ~45 ns, was half of
+ * a call; see take_spare), else a new one. Anything else (batches, lists, other
  * dtypes, an element the kernel rejects, a cfunc not bound yet) goes to its Python fallback, which
  * handles every case and names what is wrong. Only the argument handling lives in this file.
  *
@@ -38,6 +40,7 @@ typedef struct {
     npy_intp out_dims[MAX_NDIM];
     PyObject *fallback;
     PyObject *owner;                /* keeps the cfunc's machine code alive while it is bound */
+    PyObject *spare[2];             /* outputs returned before, reused once nothing else holds them */
     PyObject *dict;                 /* __doc__, __name__, __wrapped__...: a public function's face */
 } SingleCall;
 
@@ -49,6 +52,30 @@ static int is_element(PyObject *o, int ndim, const npy_intp *dims) {
     for (int d = 0; d < ndim; d++)
         if (PyArray_DIM(a, d) != dims[d]) return 0;
     return 1;
+}
+
+/* Whether a spare output may be written again: nothing but the spare slot holds it (no name, no
+ * view, no buffer, no weak reference can see it change) and it is still an output's shape, as
+ * NumPy's temporary elision reuses an operand only its own expression holds. */
+static int reusable(SingleCall *self, PyObject *o) {
+    if (o == NULL || Py_REFCNT(o) != 1 || ((PyArrayObject_fields *)o)->weakreflist != NULL) return 0;
+    PyArrayObject *a = (PyArrayObject *)o;
+    if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISCARRAY(a) || PyArray_NDIM(a) != self->out_ndim) return 0;
+    for (int d = 0; d < self->out_ndim; d++)
+        if (PyArray_DIM(a, d) != self->out_dims[d]) return 0;
+    return 1;
+}
+
+/* A new reference to an output array: a spare no one holds any more, else a new array kept as a
+ * spare. Two spares: a loop's ``x = f(...)`` holds the last output while the next is made. */
+static PyObject *take_spare(SingleCall *self) {
+    for (int k = 0; k < 2; k++)
+        if (reusable(self, self->spare[k])) return Py_NewRef(self->spare[k]);
+    PyObject *out = PyArray_SimpleNew(self->out_ndim, self->out_dims, NPY_DOUBLE);
+    if (out == NULL) return NULL;
+    Py_XSETREF(self->spare[1], self->spare[0]);
+    self->spare[0] = Py_NewRef(out);
+    return out;
 }
 
 static PyObject *single_call(PyObject *self_, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
@@ -68,7 +95,7 @@ static PyObject *single_call(PyObject *self_, PyObject *const *args, size_t narg
             data[i] = (const double *)PyArray_DATA((PyArrayObject *)o);
         }
     }
-    PyObject *out = PyArray_SimpleNew(self->out_ndim, self->out_dims, NPY_DOUBLE);
+    PyObject *out = take_spare(self);
     if (out == NULL) return NULL;
     if (self->kernel(data, (double *)PyArray_DATA((PyArrayObject *)out)) == 0) return out;
     Py_DECREF(out);
@@ -157,6 +184,8 @@ static int single_traverse(PyObject *self_, visitproc visit, void *arg) {
     Py_VISIT(self->fallback);
     Py_VISIT(self->owner);
     Py_VISIT(self->dict);
+    Py_VISIT(self->spare[0]);
+    Py_VISIT(self->spare[1]);
     return 0;
 }
 
@@ -166,6 +195,8 @@ static int single_clear(PyObject *self_) {
     Py_CLEAR(self->fallback);
     Py_CLEAR(self->owner);
     Py_CLEAR(self->dict);
+    Py_CLEAR(self->spare[0]);
+    Py_CLEAR(self->spare[1]);
     return 0;
 }
 
