@@ -209,7 +209,7 @@ class Tracker:
         # (x, y, stamp) of the centres of whole views (no end cut) in the last confirm_window
         # scans, newest first (NaN: no whole view in that scan), for the confirmation test
         self.centres = np.empty((0, self.params.confirm_window, 3))
-        # the view the wait for a velocity started from (see _correct): its ends, which were bare,
+        # the view the wait for a velocity started from (see _steps.correct): its ends, which were bare,
         # whether it was whole (no end cut)
         self.birth_ends = np.empty((0, 2, 2))
         self.birth_bare = np.empty((0, 2), bool)
