@@ -357,21 +357,20 @@ def count_hidden(tracks, missed, sx, sy):
     n = missed.shape[0]
     if n < 2:
         return
-    corners = np.empty((n, 4, 2))
+    corners = np.empty((n, 4, 2))  # each box's corners and centre's range, from the sensor
+    ranges = np.empty(n)
     for k in range(n):
         c, s = np.cos(tracks.state[k, 2]), np.sin(tracks.state[k, 2])
         for e in range(4):
             x, y = K.corner(tracks.state[k, 0], tracks.state[k, 1], c, s, tracks.size[k, 0], tracks.size[k, 1], e)
             corners[k, e, 0], corners[k, e, 1] = x - sx, y - sy
+        ranges[k] = np.hypot(tracks.state[k, 0] - sx, tracks.state[k, 1] - sy)
     for i in range(n):
         if not missed[i]:
             continue
         dx, dy = tracks.state[i, 0] - sx, tracks.state[i, 1] - sy
-        r = np.hypot(dx, dy)
         for k in range(n):
-            if k == i or tracks.status[k] != CONFIRMED:
-                continue
-            if not np.hypot(tracks.state[k, 0] - sx, tracks.state[k, 1] - sy) < r:
+            if k == i or tracks.status[k] != CONFIRMED or not ranges[k] < ranges[i]:
                 continue
             lo, hi, wide = np.inf, -np.inf, 0.0
             for e in range(4):  # bearings of the corners relative to the direction of the centre

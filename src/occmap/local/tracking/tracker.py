@@ -142,11 +142,14 @@ class TrackArrays(NamedTuple):
     birth_whole: np.ndarray
 
 
+#: The fields of :class:`Detections` that are not float64 arrays, and their types.
+_DETECTION_TYPES = {"points": np.int64, "cut": np.bool_, "oriented": np.bool_, "bare": np.bool_}
+
+
 def _for_kernels(det: Detections) -> Detections:
     """Detections as the kernels take them: contiguous arrays of one type per field."""
-    return Detections(*(np.ascontiguousarray(a, dtype=t) for a, t in zip(det, (
-        np.float64, np.float64, np.float64, np.float64, np.float64, np.int64, np.bool_, np.bool_, np.float64,
-        np.bool_))))
+    return Detections(*(np.ascontiguousarray(getattr(det, name), dtype=_DETECTION_TYPES.get(name, np.float64))
+                        for name in Detections._fields))
 
 
 class Tracks(NamedTuple):
