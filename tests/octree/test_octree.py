@@ -472,27 +472,39 @@ def test_a_busy_computer_means_no_worker_thread(monkeypatch):
     assert asked
 
 
-def test_two_thread_updates_that_run_out_of_room_match_octomap(monkeypatch):
-    """The tree updated on two threads with slot ranges far too small: each thread stops where
-    its range is full and the rest is applied on one thread; the tree is still OctoMap's."""
+@pytest.mark.parametrize("room_per_voxel", [0, 4])
+def test_two_thread_updates_in_small_chunks_match_octomap(monkeypatch, room_per_voxel):
+    """The tree updated on two threads taking slots in chunks of two blocks' room: with room
+    for many chunks each kernel stops and resumes at every chunk; with room for a few the
+    threads find none left, stop, and the rest is applied on one thread. The tree is still
+    OctoMap's."""
     octomap = _octomap()
-    from occmap.octree import insertion
-    monkeypatch.setattr(insertion, "_ROOM_PER_VOXEL", 0)
+    from occmap import _threads
+    from occmap.octree import insertion, update
+    monkeypatch.setattr(insertion, "_ROOM_PER_VOXEL", room_per_voxel)
+    monkeypatch.setattr(insertion, "_CHUNK", 2 * update.BLOCK_ROOM)
     monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
+    monkeypatch.setattr(_threads, "thread_count", lambda: 2)
+    monkeypatch.setattr(_threads, "free_for_parallel", lambda: True)
+    resumed = []
+    runs = insertion._apply_runs
+    monkeypatch.setattr(insertion, "_apply_runs", lambda pool, run, *rest: runs(
+        pool, lambda *args: resumed.append(args[1]) or run(*args), *rest))
     rng = np.random.default_rng(12)
     ours, ref = OcTree(0.2), octomap.OcTree(0.2)
     for origin in ((0.3, -0.2, 0.1), (1.1, 0.4, -0.7)):
         pts = _room_cloud(rng, 3000, half=6.0)
         ours.insert_point_cloud(pts, np.array(origin))
         ref.insertPointCloud(pts, np.array(origin))
+    assert len(resumed) > 40  # (the kernels resumed at many chunks, or the one thread took the rest)
     assert encode_ot(ours) == ref.write()
 
 
 def test_scans_inserted_again_on_two_threads_leave_the_pool_as_it_is(monkeypatch):
-    """A scan inserted again adds no nodes: once the first thread's slot range of an earlier scan
-    is on the free list, later scans take their slots from it and reserve no range of their own,
-    so the slots in use (``meta[TOP]``) stop growing (a margin reserved every scan grew them by a
-    thousand slots a scan, written onto the free list and never used)."""
+    """A scan inserted again adds no nodes: the threads take their slots from the blocks freed
+    before (the free and spare lists) and give back the unused end of the chunk they took from
+    the top, so the slots in use (``meta[TOP]``) stop growing (a margin reserved every scan grew
+    them by a thousand slots a scan, written onto the free list and never used)."""
     from occmap import _threads
     from occmap.octree import insertion, pool
 
@@ -504,7 +516,7 @@ def test_scans_inserted_again_on_two_threads_leave_the_pool_as_it_is(monkeypatch
     for _ in range(6):
         tree.insert_point_cloud(cloud, np.array([0.1, 0.2, 0.3]))
         tops.append(int(tree._pool.meta[pool.TOP]))
-    assert tops[-1] - tops[1] < insertion._ROOM_MARGIN, tops
+    assert tops[-1] == tops[1], tops
 
 
 def test_scans_seen_again_in_turn_on_two_threads_stop_growing_the_pool(monkeypatch):

@@ -17,7 +17,8 @@ Slot 0 is the root; block 0 holds only it, real blocks start at slot 8. ``meta``
 allocator and counters: ``meta[TOP]`` the next never-used slot, ``meta[FREE]`` the free-list head
 (−1: empty), ``meta[SIZE]`` the number of nodes (OctoMap's ``size()``), ``meta[SPARE]`` the head of
 a second free list: the blocks the second thread of a two-thread update freed, which it takes
-first the next time (:func:`join_pools`; a one-thread update joins it to the first, :func:`merge_spare`).
+first the next time (:func:`.insertion._apply_runs`; a one-thread update joins it to the first,
+:func:`merge_spare`).
 """
 
 from __future__ import annotations
@@ -93,34 +94,23 @@ def free_slots(slots, head, limit):
 
 
 @kernel
-def join_pools(slots, meta, meta_a, meta_b, gap_lo, gap_hi):
-    """After two threads allocated from slot ranges [·, gap_hi) (``meta_a``, with the pool's free
-    list) and [gap_hi, ·) (``meta_b``, with its spare list): one pool again, node counts added.
-    The blocks the second thread freed, and the spare blocks it did not take, stay its spare list
-    for the next time (no walk here; and so that it takes its slots from its own frees, not from
-    the top: a robot standing still, its scans re-seen, leaves the pool as it was). Where the
-    second took slots from the top, the first range's unused blocks [gap_lo, gap_hi) join the
-    free list (made empty slots, as freed blocks are); where it took none, the pool ends where the
-    first range's use did."""
-    free = meta_a[FREE]
-    if meta_b[TOP] > gap_hi:
-        for c in range(gap_lo, gap_hi, 8):
-            for j in range(c, c + 8):
-                slots[j].value = np.nan
-                slots[j].child = -1
-            slots[c].child = free
-            free = c
-        meta[TOP] = meta_b[TOP]
-    else:
-        meta[TOP] = gap_lo
+def free_range(slots, meta, lo, hi):
+    """The unused blocks of slots ``lo .. hi`` (a thread's slot chunk it did not fill, see
+    :func:`.insertion._apply_runs`) made empty slots, as freed blocks are, and put on ``meta``'s
+    free list."""
+    free = meta[FREE]
+    for c in range(lo, hi, 8):
+        for j in range(c, c + 8):
+            slots[j].value = np.nan
+            slots[j].child = -1
+        slots[c].child = free
+        free = c
     meta[FREE] = free
-    meta[SPARE] = meta_b[FREE]
-    meta[SIZE] += meta_a[SIZE] + meta_b[SIZE]
 
 
 @kernel
 def merge_spare(slots, meta):
-    """The spare list (see :func:`join_pools`) joined to the free list, for a one-thread update:
+    """The spare list (see the module's description) joined to the free list, for a one-thread update:
     walks the spare list once, to its end."""
     c = meta[SPARE]
     if c < 0:
