@@ -43,11 +43,10 @@ _LIST_RUNS = 8
 #: than the second thread saves: the update of a scan with 225k voxels, in slots already in
 #: memory, took 1.77 ms on one thread and 2.13 ms on two; with 617k, 10.2 and 8.3 ms.)
 _PARALLEL_VOXELS = 250_000
-#: Slots a two-thread update may need, a voxel (the pool's room is made that large first), and
-#: the chunks of slots its threads take from the top as they need them: the slots of a huge page
-#: (2 MiB), each chunk one (a chunk's start, then its end, at a multiple of this), so that the
-#: threads do not fault on the same page (the system clears a huge page for each thread that
-#: faults on it, and keeps one).
+#: Slots a two-thread update may need, a voxel (the pool's room is made that large first); and
+#: the slots of a huge page (2 MiB): the chunks of slots the threads take from the top as they need
+#: them end at multiples of it, so that the two never fault on one page (the system clears a huge
+#: page for each thread that faults on it, and keeps one).
 _ROOM_PER_VOXEL = 2
 _CHUNK = (2 << 20) // P.SLOT.itemsize
 #: Scans with at least this many rays mark the voxels near the sensor in a dense cube (see
@@ -285,7 +284,7 @@ def _apply_range(pool: P.Pool, run, start: int, stop: int) -> bool:
 
 
 def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
-    """The items in runs of about as many voxels each, which two threads take in turn (a thread
+    """The items in runs of voxels (:func:`_guided`), which two threads take in turn (a thread
     that is done early takes more: on a busy computer a scan takes about what one thread takes).
     Where two runs meet, the nodes their paths share (the path to the node at the cut's depth, the
     deepest holding items of both) must exist with their children: a run's items lie below
