@@ -31,13 +31,12 @@ from . import pool as P
 from .keys import DEPTH, coord_to_keys, shared_depth
 from .update import BLOCK_ROOM, apply_blocks, apply_voxels
 
-#: Scans with at least this many rays are marked by several threads, in this many runs of rays.
+#: Scans with at least this many rays are marked by several threads, in runs of rays
+#: (:func:`_guided`).
 _PARALLEL_RAYS = 20_000
-_MARK_RUNS = 8
-#: Scans with at least this many marked blocks list their voxels on several threads, in this
-#: many runs of blocks.
+#: Scans with at least this many marked blocks list their voxels on several threads, in runs of
+#: blocks (:func:`_guided`).
 _PARALLEL_BLOCKS = 256
-_LIST_RUNS = 8
 #: Scans with at least this many voxels update the tree on two threads, in runs of voxels
 #: (:func:`_guided`). (Below it the threads' start, the cuts between runs and the join cost more
 #: than the second thread saves: the update of a scan with 225k voxels, in slots already in
@@ -160,7 +159,7 @@ def mark(origin, ends, hit, res, shift, rays: bool, threads: bool):
     if not (threads and n >= _PARALLEL_RAYS and _parallel()):
         parts = [_mark_runs(origin, ends, hit, res, shift, rays, corner, deque([(0, n)]), max(256, int(room)))]
     else:
-        bounds = np.linspace(0, n, _MARK_RUNS + 1).astype(np.int64).tolist()
+        bounds = _guided(n).astype(np.int64).tolist()
         runs = deque(zip(bounds[:-1], bounds[1:]))
         capacity = max(256, int(room / 2))
         parts = [p for p in share(lambda: _mark_runs(origin, ends, hit, res, shift, rays, corner, runs, capacity))
@@ -178,7 +177,7 @@ def voxels(blocks, kbox, merge: bool, threads: bool):
     n = len(blocks[0])
     if not (threads and n >= _PARALLEL_BLOCKS and _parallel()):  # (one thread: one call, no copy)
         return B.block_voxels(*blocks, kbox, merge)
-    bounds = np.linspace(0, n, _LIST_RUNS + 1).astype(np.int64).tolist()
+    bounds = _guided(n).astype(np.int64).tolist()
     parts = run_jobs([lambda a=a, z=z: B.block_voxels(*(b[a:z] for b in blocks), kbox, merge)
                       for a, z in zip(bounds[:-1], bounds[1:])])
     return tuple(np.concatenate(arrays) for arrays in zip(*parts))
