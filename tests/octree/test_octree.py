@@ -577,6 +577,28 @@ def test_a_scan_like_the_last_one_fits_its_block_storage_from_the_start(monkeypa
     assert encode_ot(small) == encode_ot(tree)
 
 
+@pytest.mark.parametrize("points", [3000, 6000])  # (marked without the dense cube, and with it)
+def test_block_storage_kept_between_scans_is_emptied_before_reuse(monkeypatch, points):
+    """A thread keeps its block storage from scan to scan: each scan empties it (table and the
+    masks it held) and marks into the same arrays, and the trees are OctoMap's scan after scan
+    (masks left over from the scan before would mark voxels it never crossed)."""
+    octomap = _octomap()
+    from occmap.octree import insertion
+
+    monkeypatch.setattr(insertion._kept, "storage", None, raising=False)
+    rng = np.random.default_rng(31)
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    kept = []
+    for k, half in enumerate((6.0, 5.0, 5.5)):
+        pts = _room_cloud(rng, points, half=half)
+        origin = rng.uniform(-0.5, 0.5, 3)
+        ours.insert_point_cloud(pts, origin)
+        ref.insertPointCloud(pts, origin)
+        kept.append(insertion._kept.storage)
+        assert encode_ot(ours) == ref.write(), k
+    assert kept[0] is not None and kept[2] is kept[1]  # (the first may be outgrown)
+
+
 def test_discretize_matches_octomap():
     octomap = _octomap()
     rng = np.random.default_rng(7)

@@ -39,6 +39,17 @@ def new_blocks(capacity):
 
 
 @kernel
+def empty_blocks(table, slots, codes, hits, frees, count):
+    """Block storage emptied for reuse, as :func:`new_blocks` leaves it: the table and the masks
+    of the blocks it held zeroed (the codes and slots are read only where the table holds one)."""
+    n = count[0]
+    table[:] = 0
+    hits[:n] = 0
+    frees[:n] = 0
+    count[0] = 0
+
+
+@kernel
 def home(code, mask):
     """Hash slot where a probe for ``code`` starts (Fibonacci hashing: the top bits of the product,
     which depend on every bit of the code)."""

@@ -57,9 +57,11 @@ VOXELS = np.zeros(0, np.int8)
 
 
 #: Per thread, its cube (:func:`.marking.new_cube`: 2.25 MiB) kept between scans, zeroed, its box empty;
-#: ``blocks_per_ray``, the blocks its last scan's rays marked outside the cube, a ray (the
-#: first room for the next scan's blocks: storage that fills up is grown and rehashed); and
-#: ``rays``, room for a scan's rays (:func:`_ray_room`).
+#: ``storage``, its block storage (:func:`_storage`); ``blocks_per_ray``, the blocks its last
+#: scan's rays marked outside the cube, a ray (the room asked for the next scan's blocks: storage
+#: that fills up is grown and rehashed); and ``rays``, room for a scan's rays (:func:`_ray_room`).
+#: (Scratch allocated anew each scan goes back to the system and is faulted in again: on a
+#: virtual machine after a pause, a page the host took back costs tens of microseconds.)
 _kept = threading.local()
 #: Blocks a ray is taken to mark before a thread has marked a scan.
 _BLOCKS_PER_RAY = 1 / 32
@@ -112,6 +114,21 @@ def ahead(scan_blocks, *args):
     return _threads.pool("octree-next", 1).submit(traced)
 
 
+def _storage(capacity: int):
+    """This thread's block storage kept from its last scan (taken until the blocks marked in it
+    are copied out), emptied, where it has room for ``capacity`` blocks and not eight times more
+    (emptying clears its table); else new storage, at least twice the kept one's room where that
+    was too small (so that storage kept for scans of one size stops being replaced)."""
+    storage = getattr(_kept, "storage", None)
+    _kept.storage = None
+    if storage is None or len(storage[2]) > 8 * capacity:
+        return B.new_blocks(capacity)
+    if len(storage[2]) < capacity:
+        return B.new_blocks(max(capacity, 2 * len(storage[2])))
+    B.empty_blocks(*storage)
+    return storage
+
+
 def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacity: int):
     """Block masks of the runs ``(start, stop)`` of rays this thread takes from ``runs`` (shared
     by the threads, each run taken once) until none is left, grown until they fit, a block
@@ -125,7 +142,7 @@ def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacit
         except IndexError:
             break
         if storage is None:  # (a thread that finds the runs taken allocates nothing)
-            storage = B.new_blocks(capacity)
+            storage = _storage(capacity)
             cube = _NO_CUBE
             if corner >= 0:  # this thread's kept cube, taken until cube_blocks has zeroed it again
                 cube = getattr(_kept, "cube", None) or M.new_cube()
@@ -143,6 +160,9 @@ def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacit
     if corner >= 0:  # and the cube's (merge_blocks ors a block marked in both)
         blocks = tuple(np.concatenate(pair) for pair in zip(blocks, M.cube_blocks(*cube, corner)))
         _kept.cube = cube
+    else:
+        blocks = tuple(b.copy() for b in blocks)
+    _kept.storage = storage
     return blocks, n
 
 
