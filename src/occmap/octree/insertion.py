@@ -61,7 +61,7 @@ VOXELS = np.zeros(0, np.int8)
 #: scan's rays marked outside the cube, a ray (the room asked for the next scan's blocks: storage
 #: that fills up is grown and rehashed); and ``rays``, room for a scan's rays (:func:`_ray_room`).
 #: (Scratch allocated anew each scan goes back to the system and is faulted in again: on a
-#: virtual machine after a pause, a page the host took back costs tens of microseconds.)
+#: virtual machine after a pause, memory the host has taken back costs about 2 ms a MiB.)
 _kept = threading.local()
 #: Blocks a ray is taken to mark before a thread has marked a scan.
 _BLOCKS_PER_RAY = 1 / 32
