@@ -131,10 +131,11 @@ def _storage(capacity: int):
 
 def _mark_runs(origin, ends, hit, res, shift, rays, corner, runs: deque, capacity: int):
     """Block masks of the runs ``(start, stop)`` of rays this thread takes from ``runs`` (shared
-    by the threads, each run taken once) until none is left, grown until they fit, a block
-    possibly listed twice; with a cube (``corner`` ≥ 0) the voxels around the sensor are marked
-    in a dense one of this thread's. Returns them with the number of blocks marked outside the
-    cube, or None when the runs were all taken."""
+    by the threads, each run taken once) until none is left, marked in this thread's storage
+    (:func:`_storage`, grown until they fit) and copied out, a block possibly listed twice; with
+    a cube (``corner`` ≥ 0) the voxels around the sensor are marked in a dense one of this
+    thread's. Returns them with the number of blocks marked outside the cube, or None when the
+    runs were all taken."""
     storage = cube = None
     while True:
         try:
