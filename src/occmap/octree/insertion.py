@@ -347,6 +347,7 @@ def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
     need = int(_ROOM_PER_VOXEL * voxels[n]) + 2 * _CHUNK
     if pool.slots.shape[0] < top + need:
         pool.grow(top + need)
+    capacity = pool.slots.shape[0]  # (the pool does not grow while the threads run)
     unused = [top]  # the first slot no chunk holds
     lock = threading.Lock()
     meta_a, meta_b = P.new_meta(top), P.new_meta(top)
@@ -373,9 +374,9 @@ def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
                     with lock:
                         lo = unused[0]
                         hi = (lo + BLOCK_ROOM) // _CHUNK * _CHUNK + _CHUNK
-                        if hi <= pool.slots.shape[0]:
+                        if hi <= capacity:
                             unused[0] = hi
-                    if hi > pool.slots.shape[0]:
+                    if hi > capacity:
                         left.append((a, z))
                         return changed
                     P.free_range(pool.slots, meta, int(meta[P.TOP]), limit)
