@@ -44,14 +44,14 @@ def settle(slots, meta, node, set_max, prune):
     Returns True when it was pruned."""
     c = slots[node].child
     first = slots[c].value
-    m = -np.inf
-    collapsible = prune
+    m = np.float32(-np.inf)  # (float32, as the values: no conversions)
+    leaves = alike = True  # (no early exit: the eight are one cache line, branches cost more)
     for j in range(c, c + 8):
         v = slots[j].value
-        if v > m:  # false for NaN: missing children do not count
-            m = v
-        collapsible = collapsible and slots[j].child < 0 and v == first  # NaN (no child) never equals
-    if collapsible:
+        m = max(m, v) if v == v else m  # missing children (NaN) do not count
+        leaves &= slots[j].child < 0
+        alike &= v == first  # NaN (no child) never equals
+    if prune and leaves and alike:
         slots[node].value = first
         slots[node].child = -1
         for j in range(c, c + 8):

@@ -347,7 +347,6 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
         # ---- the walk
         level = d
         word = 0  # within the block: the word of the block's child gone down into
-        byte_h = np.int64(0)  # and the hit bits of the grandchild gone down into
         while True:
             if level < BLOCK_DEPTH:  # the one child on the way, for all of the block's updates
                 i = child_index(kx, ky, kz, level)
@@ -362,12 +361,6 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                         break
                     below[level - 1] |= below[level]
                     level -= 1
-                    continue
-                if level == DEPTH - 1:  # the children are voxels: all of them at once
-                    todo[level] = 0
-                    ch, taken = update_children(slots, meta, path[level], new[level], t, byte_h, l_hit, l_miss, lo, hi)
-                    below[level] |= ch
-                    room -= taken
                     continue
                 i = trailing_zeros(t)
                 todo[level] = t & (t - 1)
@@ -413,6 +406,13 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                     break
                 below[level] |= ch
                 continue
+            if level == DEPTH - 2:  # the child's children are voxels: all of them at once
+                ch, taken = update_children(slots, meta, child, fresh, m, h, l_hit, l_miss, lo, hi)
+                room -= taken
+                if ch and settle_nodes:
+                    settle(slots, meta, child, True, True)
+                below[level] |= ch
+                continue
             level += 1
             path[level] = child
             new[level] = fresh
@@ -431,9 +431,6 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 if g >= 0:  # the voxels below this node's children are fetched from memory side by side
                     for j in range(g, g + 8):
                         prefetch(slots, max(slots[j].child, 0))  # (a leaf's -1: the root, cached)
-            elif level == BLOCK_DEPTH + 2:
-                byte_h = h
-                t = m
             else:
                 continue
             todo[level] = t
