@@ -1065,11 +1065,11 @@ def test_an_update_never_allocates_past_its_limit_when_the_free_list_runs_short(
     meta = np.array([16, 8, 1], np.int64)  # top at 16, the free list: block 8
     args = (np.array([12345], np.int64), np.zeros(0, np.int8), np.array([True]), 0, 0.85, -0.4, -2.0, 3.5, True)
     no_spine = np.full((2, 17), -1, np.int64)
-    assert update.apply_voxels(slots, meta, *args, len(slots), no_spine) == (0, False)
+    assert update.apply_voxels(slots, meta, *args, len(slots), no_spine, update.new_work()) == (0, False)
     np.testing.assert_array_equal(meta, [16, 8, 1])
     grown = pool.new_slots(24 + update.ROOM)  # room for it: applied, within the slots given
     grown[:24] = slots
-    assert update.apply_voxels(grown, meta, *args, len(grown), no_spine) == (1, True)
+    assert update.apply_voxels(grown, meta, *args, len(grown), no_spine, update.new_work()) == (1, True)
     assert meta[pool.TOP] <= len(grown)
     # a marked block the same (one voxel of it): it waits for the room a whole block may need
     slots[:] = grown[:24]
@@ -1081,9 +1081,9 @@ def test_an_update_never_allocates_past_its_limit_when_the_free_list_runs_short(
     words[0, 0] = 1
     block = (np.array([12345 + 1], np.int64), words, np.zeros((1, 8), np.int64), np.zeros((0, 3), np.int64), 0,
              0.85, -0.4, -2.0, 3.5, True, True)
-    assert update.apply_blocks(slots, meta, *block, len(slots), no_spine) == (0, False)
+    assert update.apply_blocks(slots, meta, *block, len(slots), no_spine, update.new_work()) == (0, False)
     np.testing.assert_array_equal(meta, [16, 8, 1])
     grown = pool.new_slots(24 + update.BLOCK_ROOM)
     grown[:24] = slots
-    assert update.apply_blocks(grown, meta, *block, len(grown), no_spine) == (1, True)
+    assert update.apply_blocks(grown, meta, *block, len(grown), no_spine, update.new_work()) == (1, True)
     assert meta[pool.TOP] <= len(grown)

@@ -199,13 +199,12 @@ def block_marks(hits, frees, base, kbox, marked, hit):
     of the block's child ``w``, byte ``k`` of it the 8 of that child's child ``k``, bit ``j`` of
     the byte that node's child ``j``, as :func:`.keys.child_index` numbers children), only those
     within the key box ``kbox`` ((0, 3): everywhere) of the block whose first voxel has packed
-    key ``base``. Returns whether any voxel is marked."""
-    either = np.empty(8, np.int64)
+    key ``base``. Returns whether any voxel is marked. Allocates nothing."""
     any_hit = np.int64(0)
     for w in range(8):
-        either[w] = hits[w] | frees[w]
+        hit[w] = hits[w] | frees[w]  # (hit holds the voxels marked, in the masks' order, for a moment)
         any_hit |= hits[w]
-    morton_words(either, marked)
+    morton_words(hit, marked)
     if any_hit != 0:  # (most blocks hold free voxels only)
         morton_words(hits, hit)
     else:

@@ -29,7 +29,7 @@ from . import blocks as B
 from . import marking as M
 from . import pool as P
 from .keys import DEPTH, coord_to_keys, shared_depth
-from .update import BLOCK_ROOM, apply_blocks, apply_voxels
+from .update import BLOCK_ROOM, apply_blocks, apply_voxels, new_work
 
 #: Scans with at least this many rays are marked by several threads, in runs of rays
 #: (:func:`_guided`).
@@ -254,7 +254,7 @@ def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray
 
     def run(meta, start, stop, limit, spines):
         return apply_voxels(pool.slots, meta, keys[:stop], depths[:stop], is_hit[:stop], start, *rule, not lazy, limit,
-                            spines)
+                            spines, new_work())
 
     _apply(pool, run, keys, np.arange(len(keys) + 1), lazy, threads)
 
@@ -268,7 +268,7 @@ def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = F
 
     def run(meta, start, stop, limit, spines):
         return apply_blocks(pool.slots, meta, codes[:stop], hits[:stop], frees[:stop], kbox, start, *rule, not lazy,
-                            not lazy, limit, spines)
+                            not lazy, limit, spines, new_work())
 
     _apply(pool, run, codes - 1, B.marked_before(hits, frees), lazy, threads)
 

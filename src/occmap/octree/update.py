@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._intrinsics import prefetch, trailing_zeros
-from .._jit import inline_kernel, kernel
+from .._jit import inline_kernel, kernel, kernel_without_refcounts
 from .blocks import block_marks, uniform, uniform_block
 from .keys import DEPTH, block_key, child_index, pack, shared_depth, unpack
 from .pool import FREE, SIZE, TOP, alloc_block, free_slots, settle
@@ -25,6 +25,14 @@ BLOCK_DEPTH = DEPTH - 3
 BLOCK_ROOM = 8 * (BLOCK_DEPTH + 1 + 8 + 64)
 #: Bits of a packed key that siblings (voxels of one parent) share: all but each axis's lowest.
 _SIBLINGS = ~pack.py_func(1, 1, 1)
+
+
+def new_work() -> np.ndarray:
+    """Scratch for :func:`apply_voxels` and :func:`apply_blocks`, which allocate nothing (they run
+    without reference counting: :data:`.._jit.kernel_without_refcounts`): int64 (8, 17), rows
+    0 the walk's path, 1-3 :func:`update_subtree`'s, 4-6 :func:`apply_blocks`' flags and child
+    bits per depth, 7 a block's masks. A thread's own: kernels running side by side each take one."""
+    return np.zeros((8, DEPTH + 1), np.int64)
 
 
 @kernel
@@ -155,8 +163,8 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
         sp -= 1
 
 
-@kernel
-def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, spines):
+@kernel_without_refcounts
+def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi, settle_nodes, limit, spines, work):
     """Apply updates ``start..`` in order, each as OctoMap's ``updateNode`` with a hit or a miss on
     every voxel of the node at ``depths[i]`` (int8; (0,): all 16, voxels) whose first voxel has
     packed key ``keys[i]``. Returns (the number of updates, or the one at which the slots below
@@ -166,7 +174,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
     The nodes of ``spines`` (int64 (2, 17): two paths from the root down, ``spines[k, d]`` the
     node at depth d or -1) are only passed through, never settled: threads can update runs of
     items side by side, the nodes a run's paths share with the runs on either side being those
-    (see :func:`.insertion.apply`).
+    (see :func:`.insertion.apply`). ``work``: scratch (:func:`new_work`).
 
     A node update is the updates of its voxels at once: a leaf (a new node, or a pruned one) takes
     it as one voxel would, since its voxels would come out alike and be pruned back into it; an
@@ -181,8 +189,9 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
     n = keys.shape[0]
     cap = limit
     changed = False
-    path = np.zeros(DEPTH + 1, np.int64)  # path[d]: node at depth d on the last walk
-    scratch = np.empty((3, DEPTH + 1), np.int64)  # for update_subtree
+    work[:] = 0
+    path = work[0]  # path[d]: node at depth d on the last walk
+    scratch = work[1:4]  # for update_subtree
     known = -1  # deepest valid entry of path
     dirty = -1  # path[0..dirty] saw a change since the walk entered them
     previous = 0
@@ -282,9 +291,9 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
     return n, changed
 
 
-@kernel
+@kernel_without_refcounts
 def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo, hi, settle_nodes, merge, limit,
-                 spines):
+                 spines, work):
     """The updates of a scan's marked blocks (:mod:`.blocks`: codes and hit and free masks,
     Morton-sorted, each block once) from block ``start`` on, only voxels within the key box
     ``kbox`` ((0, 3): everywhere): each marked voxel once, a hit where hit (a voxel both hit and
@@ -292,7 +301,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
     alike as one update of the node. The same updates, in the same (Morton) order, as
     :func:`apply_voxels` of :func:`.blocks.block_voxels`, and the same tree, with no list between.
     Returns (the number of blocks, or the one at which the slots below ``limit`` ran out — nothing
-    of it applied yet; whether any value changed); ``settle_nodes``, ``spines`` as for
+    of it applied yet; whether any value changed); ``settle_nodes``, ``spines``, ``work`` as for
     :func:`apply_voxels`.
 
     One loop takes every step down: to the block's node, then through the block's masks (Morton
@@ -307,16 +316,17 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
     later block's walk leaves them (as :func:`apply_voxels` settles its path)."""
     n = codes.shape[0]
     changed = False
-    path = np.zeros(DEPTH + 1, np.int64)  # path[d]: node at depth d on the walk
-    scratch = np.empty((3, DEPTH + 1), np.int64)  # for update_subtree
-    new = np.zeros(DEPTH + 1, np.bool_)  # new[d]: path[d] was made on this walk (no children yet)
-    todo = np.zeros(DEPTH + 1, np.int64)  # within the block: children of path[d] still to visit (bits)
-    below = np.zeros(DEPTH + 1, np.bool_)  # within the block: a value changed below path[d]
+    work[:] = 0
+    path = work[0]  # path[d]: node at depth d on the walk
+    scratch = work[1:4]  # for update_subtree
+    new = work[4]  # new[d]: path[d] was made on this walk (no children yet)
+    todo = work[5]  # within the block: children of path[d] still to visit (bits)
+    below = work[6]  # within the block: a value changed below path[d]
     known = -1  # deepest entry of path kept between blocks (at most the block's node's depth)
     dirty = -1  # path[0..dirty] saw a change since the walk entered them
     previous = 0
-    marked = np.empty(8, np.int64)
-    hit = np.empty(8, np.int64)
+    marked = work[7, :8]
+    hit = work[7, 8:16]
     room = 0  # slots sure to be there for the blocks to come: those counted, less those taken since
     for b in range(start, n):
         if room < BLOCK_ROOM:  # (the free list is counted only when the top runs short)
