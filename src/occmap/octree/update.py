@@ -431,6 +431,11 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 for w in range(8):
                     if marked[w] != 0:
                         t |= 1 << w
+                g = slots[child].child
+                if g >= 0:  # the blocks of children of its children with marks below, side by side
+                    for w in range(8):
+                        if marked[w] != 0:
+                            prefetch(slots, max(slots[g + w].child, 0))
             elif level == BLOCK_DEPTH + 1:
                 word = i
                 t = 0
