@@ -366,6 +366,56 @@ def test_blocks_applied_leave_the_tree_their_listed_voxels_leave(lazy, monkeypat
     assert any(start > 0 for start in starts)  # (the pool grew within a scan's blocks)
 
 
+def test_update_kernels_take_scratch_left_dirty_by_an_earlier_call(monkeypatch):
+    """The update kernels allocate nothing (they run without reference counting): their scratch
+    comes from the caller (``update.new_work``), who may hand the same array to call after call.
+    Left full of another call's values (here every entry 3: a slot of the root's block, no node)
+    it gives the tree fresh scratch gives, scan after scan, from the blocks and from a list."""
+    from occmap.octree import insertion, update
+
+    def dirty():
+        return np.full((8, 17), 3, np.int64)
+
+    rng = np.random.default_rng(11)
+    scans = [(_room_cloud(rng, 3000, half=3.0), rng.uniform(-0.3, 0.3, 3)) for _ in range(4)]
+    keys, is_hit = np.array([12345, 12346, 300 << 40 | 200 << 20 | 100], np.int64), np.array([True, False, True])
+
+    def build():
+        tree = OcTree(0.1)
+        for pts, origin in scans:
+            tree.insert_point_cloud(pts, origin)
+        scanned = encode_ot(tree)
+        tree.update_voxels(keys, is_hit)
+        return scanned, encode_ot(tree)
+
+    assert update.new_work().shape == (8, 17) and not update.new_work().any()
+    fresh = build()
+    monkeypatch.setattr(insertion, "new_work", dirty)
+    assert build() == fresh
+
+
+def test_update_voxels_rejects_keys_depths_and_flags_it_cannot_apply():
+    """Packed keys are checked before anything changes: a field beyond 65535 (once written into
+    the tree it left the node pool inconsistent), a negative key, a depth beyond 0 .. 16, flags or
+    depths of another length."""
+    tree = OcTree(0.1)
+    tree.insert_point_cloud(np.array([[1.0, 2.0, 0.5]]), np.zeros(3))
+    before = encode_ot(tree)
+    good = np.array([12345, 300 << 40 | 200 << 20 | 100], np.int64)
+    for keys in ([12345, 99999], [-1, 12345], [12345, 65536 << 20], [12345, 65536 << 40]):
+        with pytest.raises(InvalidArgumentError, match=r"keys\[1\]|keys\[0\]"):
+            tree.update_voxels(np.array(keys, np.int64), np.array([True, True]))
+    with pytest.raises(InvalidArgumentError, match=r"depths\[1\] = 17"):
+        tree.update_voxels(good, np.array([True, False]), depths=np.array([16, 17]))
+    with pytest.raises(ShapeError):
+        tree.update_voxels(good, np.array([True]))
+    with pytest.raises(ShapeError):
+        tree.update_voxels(good, np.array([True, False]), depths=np.array([16]))
+    assert encode_ot(tree) == before
+    tree.update_voxels(good, np.array([True, False]), depths=np.array([16, 15]))
+    assert encode_ot(tree) != before  # (and encodes: the pool is consistent)
+
+
 def test_a_drive_s_sparse_scans_on_two_threads_give_the_one_thread_tree(monkeypatch):
     """Sparse scans (a simulated drive: most voxels alone in their block) are cut into runs of
     about as many voxels for two threads, deep in the tree: each run's paths pass beside the

@@ -143,6 +143,12 @@ def keys_in_range(keys: np.ndarray) -> np.ndarray:
     return np.all((keys >= 0) & (keys <= MAX_KEY), axis=-1)
 
 
+def packed_in_range(keys: np.ndarray) -> np.ndarray:
+    """Per packed key (:func:`pack`, int64): whether it packs three keys of 0 .. 65535."""
+    return ((keys >= 0) & ((keys & _FIELD_MASK) <= MAX_KEY) & (((keys >> FIELD) & _FIELD_MASK) <= MAX_KEY)
+            & ((keys >> (2 * FIELD)) <= MAX_KEY))
+
+
 def pack_keys(keys: np.ndarray) -> np.ndarray:
     """:func:`pack` of int64 keys (..., 3)."""
     return keys[..., 0] + (keys[..., 1] << FIELD) + (keys[..., 2] << (2 * FIELD))

@@ -22,7 +22,8 @@ from .._threads import OneCallAtATime, free_for_parallel, no_lock, thread_count
 from ..errors import InvalidArgumentError, ShapeError
 from ..logodds import logit32, occupancy_classes
 from . import insertion, pool, query, views
-from .keys import CENTER, MAX_KEY, NO_SHIFT, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys
+from .keys import (CENTER, MAX_KEY, NO_SHIFT, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys,
+                   packed_in_range)
 from .marking import prepare_rays, ray_voxels
 
 
@@ -319,10 +320,28 @@ class OcTree(OneCallAtATime):
         keys), each with one hit (``is_hit``) or miss, as one scan updates them: each key once, in
         Morton order when ``threads`` (then many voxels go on two threads). With ``depths`` (int8),
         ``keys[i]`` is the first voxel of the node at ``depths[i]``, all of whose voxels take the
-        update. The path by which tiled maps (:mod:`occmap.world`) apply a scan to their tiles."""
-        depths = insertion.VOXELS if depths is None else np.ascontiguousarray(depths, np.int8)
-        insertion.apply(self._pool, np.ascontiguousarray(keys, np.int64), depths,
-                        np.ascontiguousarray(is_hit, np.bool_), self._rule, False, threads)
+        update. The path by which tiled maps (:mod:`occmap.world`) apply a scan to their tiles.
+        Checked before anything changes: shapes (one flag and depth a key), every key packing keys of
+        0 .. 65535, depths 0 .. 16 (:class:`ShapeError`, :class:`InvalidArgumentError`)."""
+        keys = np.ascontiguousarray(keys, np.int64)
+        is_hit = np.ascontiguousarray(is_hit, np.bool_)
+        if keys.ndim != 1 or is_hit.shape != keys.shape:
+            raise ShapeError(f"keys must be 1-D and is_hit of the same shape, got {keys.shape} and {is_hit.shape}")
+        bad = np.flatnonzero(~packed_in_range(keys))
+        if len(bad):
+            raise InvalidArgumentError(f"keys[{bad[0]}] = {keys[bad[0]]} does not pack three keys of 0 .. {MAX_KEY} "
+                                       f"({len(bad)} such keys)")
+        if depths is None:
+            depths = insertion.VOXELS
+        else:
+            depths = np.asarray(depths)
+            if depths.shape != keys.shape:
+                raise ShapeError(f"depths must have the shape of keys {keys.shape}, got {depths.shape}")
+            bad = np.flatnonzero((depths < 0) | (depths > 16))
+            if len(bad):
+                raise InvalidArgumentError(f"depths[{bad[0]}] = {depths[bad[0]]} is not a depth of 0 .. 16")
+            depths = np.ascontiguousarray(depths, np.int8)
+        insertion.apply(self._pool, keys, depths, is_hit, self._rule, False, threads)
 
     def update_inner_occupancy(self) -> None:
         """Set every inner node to the maximum of its children (after ``lazy`` insertions)."""
