@@ -54,16 +54,23 @@ def settle(slots, meta, node, set_max, prune):
     if prune and leaves and alike:
         slots[node].value = first
         slots[node].child = -1
-        for j in range(c, c + 8):
-            slots[j].value = np.nan
-            slots[j].child = -1
-        slots[c].child = meta[FREE]  # the block joins the free list
-        meta[FREE] = c
+        free_block(slots, meta, c)
         meta[SIZE] -= 8
         return True
     if set_max:
         slots[node].value = m
     return False
+
+
+@inline_kernel
+def free_block(slots, meta, c):
+    """Block ``c`` made empty slots (NaN, no children) and put at the head of ``meta``'s free list
+    (linked through its first slot's ``child``)."""
+    for j in range(c, c + 8):
+        slots[j].value = np.nan
+        slots[j].child = -1
+    slots[c].child = meta[FREE]
+    meta[FREE] = c
 
 
 @kernel
@@ -98,14 +105,8 @@ def free_range(slots, meta, lo, hi):
     """The unused blocks of slots ``lo .. hi`` (a thread's slot chunk it did not fill, see
     :func:`.insertion._apply_runs`) made empty slots, as freed blocks are, and put on ``meta``'s
     free list."""
-    free = meta[FREE]
     for c in range(lo, hi, 8):
-        for j in range(c, c + 8):
-            slots[j].value = np.nan
-            slots[j].child = -1
-        slots[c].child = free
-        free = c
-    meta[FREE] = free
+        free_block(slots, meta, c)
 
 
 @kernel

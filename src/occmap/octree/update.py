@@ -110,7 +110,7 @@ def update_children(slots, meta, node, new, marked, hit, l_hit, l_miss, lo, hi):
     return changed, taken
 
 
-@kernel
+@kernel_without_refcounts
 def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_nodes, scratch):
     """Every voxel below inner ``node`` (at ``depth``) takes one hit (``hit``) or miss, leaving
     what OctoMap's ``updateNode`` on each of them, in any order, leaves: a leaf below it (a pruned
