@@ -75,12 +75,13 @@ def leave(slots, meta, path, deepest, shared, spines):
 
 
 @inline_kernel
-def update_children(slots, meta, node, new, marked, hit, l_hit, l_miss, lo, hi):
+def update_children(slots, meta, node, new, marked, hit, l_hit, l_miss, lo, hi, settle_nodes):
     """Each voxel child ``k`` of ``node`` (depth 15) whose bit is set in ``marked`` takes a hit
     (bit ``k`` of ``hit``) or a miss, as :func:`apply_blocks` updates a voxel: a missing child
     (NaN) becomes a new leaf; a pruned ``node`` (no children, not ``new``) is expanded into eight
     copies of its value unless each update leaves that value as it is (OctoMap's early abort).
-    Returns (whether any value changed, the slots taken: 8 or 0)."""
+    Then ``node`` is settled, with ``settle_nodes``, if any value changed. Returns (whether any
+    did, the slots taken: 8 or 0)."""
     c = slots[node].child
     taken = 0
     if c < 0:
@@ -107,6 +108,8 @@ def update_children(slots, meta, node, new, marked, hit, l_hit, l_miss, lo, hi):
             slots[c + k].value = updated(v, is_hit, l_hit, l_miss, lo, hi)
             changed = True
     meta[SIZE] += fresh
+    if changed and settle_nodes:
+        settle(slots, meta, node, True, True)
     return changed, taken
 
 
@@ -121,10 +124,7 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
     (3, 17) of the caller's. Returns whether any value changed."""
     voxels_hit = 0xFF if hit else 0
     if depth == DEPTH - 1:
-        changed = update_children(slots, meta, node, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi)[0]
-        if changed and settle_nodes:
-            settle(slots, meta, node, True, True)
-        return changed
+        return update_children(slots, meta, node, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi, settle_nodes)[0]
     stack, next_child, below = scratch[0], scratch[1], scratch[2]  # below[s]: a value changed below stack[s]
     stack[0] = node
     next_child[0] = 0
@@ -137,10 +137,8 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
             next_child[sp] = i + 1
             j = c + i
             if slots[j].child >= 0 and depth + sp + 1 == DEPTH - 1:  # its children are voxels
-                if update_children(slots, meta, j, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi)[0]:
+                if update_children(slots, meta, j, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi, settle_nodes)[0]:
                     below[sp] = 1
-                    if settle_nodes:
-                        settle(slots, meta, j, True, True)
                 continue
             if slots[j].child >= 0:
                 sp += 1
@@ -417,10 +415,8 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 below[level] |= ch
                 continue
             if level == DEPTH - 2:  # the child's children are voxels: all of them at once
-                ch, taken = update_children(slots, meta, child, fresh, m, h, l_hit, l_miss, lo, hi)
+                ch, taken = update_children(slots, meta, child, fresh, m, h, l_hit, l_miss, lo, hi, settle_nodes)
                 room -= taken
-                if ch and settle_nodes:
-                    settle(slots, meta, child, True, True)
                 below[level] |= ch
                 continue
             level += 1
