@@ -63,12 +63,18 @@ def settle(slots, meta, node, set_max, prune):
 
 
 @inline_kernel
+def fill_block(slots, c, value):
+    """The eight slots of block ``c`` set to ``value`` (float32; NaN: no node) with no children."""
+    for j in range(c, c + 8):
+        slots[j].value = value
+        slots[j].child = -1
+
+
+@inline_kernel
 def free_block(slots, meta, c):
     """Block ``c`` made empty slots (NaN, no children) and put at the head of ``meta``'s free list
     (linked through its first slot's ``child``)."""
-    for j in range(c, c + 8):
-        slots[j].value = np.nan
-        slots[j].child = -1
+    fill_block(slots, c, np.float32(np.nan))
     slots[c].child = meta[FREE]
     meta[FREE] = c
 
@@ -177,9 +183,7 @@ def alloc_block(slots, meta, fill):
     else:
         c = meta[TOP]
         meta[TOP] = c + 8
-    for j in range(c, c + 8):
-        slots[j].value = fill
-        slots[j].child = -1
+    fill_block(slots, c, fill)
     return c
 
 
