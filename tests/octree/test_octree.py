@@ -84,6 +84,16 @@ def assert_same_as_octomap(ours: OcTree, ref) -> None:
     np.testing.assert_array_equal(a[:, 4].astype(np.float32), b[:, 4].astype(np.float32))
 
 
+def _cores_free(monkeypatch):
+    """The machine's load judged free for threads (:func:`occmap._threads.free_for_parallel`), so
+    that a test of the threads' paths takes them however busy the machine running it is."""
+    from occmap import _threads
+    from occmap.octree import tree
+
+    monkeypatch.setattr(_threads, "free_for_parallel", lambda: True)
+    monkeypatch.setattr(tree, "free_for_parallel", lambda: True)
+
+
 def _room_cloud(rng, n, half=4.0):
     """Points on the walls, floor and ceiling of a box around the origin, plus a few inside."""
     pts = rng.uniform(-half, half, size=(n, 3))
@@ -426,6 +436,7 @@ def test_a_drive_s_sparse_scans_on_two_threads_give_the_one_thread_tree(monkeypa
 
     drive = simulate_drive(4, VELODYNE_HDL32.with_azimuth_step(np.radians(2.0)), rng=3)
     monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
+    _cores_free(monkeypatch)
     cuts = []
     runs = insertion._apply_runs
 
@@ -535,7 +546,7 @@ def test_two_thread_updates_in_small_chunks_match_octomap(monkeypatch, room_per_
     monkeypatch.setattr(insertion, "_CHUNK", 2 * update.BLOCK_ROOM)
     monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
     monkeypatch.setattr(_threads, "thread_count", lambda: 2)
-    monkeypatch.setattr(_threads, "free_for_parallel", lambda: True)
+    _cores_free(monkeypatch)
     resumed = []
     runs = insertion._apply_runs
     monkeypatch.setattr(insertion, "_apply_runs", lambda pool, run, *rest: runs(
@@ -941,6 +952,7 @@ def test_the_next_scan_is_marked_by_the_threads_of_the_caller(monkeypatch):
 
     monkeypatch.setattr(insertion, "share", recording)
     monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
+    _cores_free(monkeypatch)
     rng = np.random.default_rng(19)
     clouds = [(_room_cloud(rng, 3000), rng.uniform(-0.5, 0.5, 3)) for _ in range(3)]
     before = numba.get_num_threads()
