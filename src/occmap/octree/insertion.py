@@ -43,9 +43,10 @@ _PARALLEL_BLOCKS = 256
 #: memory, took 1.77 ms on one thread and 2.13 ms on two; with 617k, 10.2 and 8.3 ms.)
 _PARALLEL_VOXELS = 250_000
 #: Slots a two-thread update may need, a voxel (the pool's room is made that large first); and
-#: the slots of a huge page (2 MiB): the chunks of slots the threads take from the top as they need
-#: them end at multiples of it, so that the two never fault on one page (the system clears a huge
-#: page for each thread that faults on it, and keeps one).
+#: the slots of 2 MiB: the chunks of slots the threads take from the top as they need them end at
+#: multiples of it, so that the two never fault on one page (not even a huge one: the pool asks
+#: for small pages, :func:`.pool._reserve`, but where huge ones were given, the system would clear
+#: one for each thread that faults on it, and keep one). (Chunks of 256 or 64 KiB: no faster.)
 _ROOM_PER_VOXEL = 2
 _CHUNK = (2 << 20) // P.SLOT.itemsize
 #: Scans with at least this many rays mark the voxels near the sensor in a dense cube (see
