@@ -75,6 +75,18 @@ def probability(name: str, value) -> float:
     return v
 
 
+def probability_on_side(name: str, value, occupied: bool) -> float:
+    """A probability on the occupied side of 0.5 (``occupied``: in (0.5, 1)) or on the free side
+    (in (0, 0.5)): what a sensor model's hit and miss must be, so that a hit makes a cell more
+    likely occupied and a miss less."""
+    v = probability(name, value)
+    if occupied and not v > 0.5:
+        raise InvalidArgumentError(f"{name} must be in (0.5, 1), got {value!r}")
+    if not occupied and not v < 0.5:
+        raise InvalidArgumentError(f"{name} must be in (0, 0.5), got {value!r}")
+    return v
+
+
 def fraction(name: str, value, *, zero: bool = True) -> float:
     """A share in ``[0, 1]`` (in ``(0, 1]`` when ``zero`` is false)."""
     what = "a fraction in [0, 1]" if zero else "a fraction in (0, 1]"

@@ -671,6 +671,40 @@ def test_discretize_matches_octomap():
     assert_same_as_octomap(ours, ref)
 
 
+@pytest.mark.parametrize("clamp", [(0.6, 0.9), (0.1, 0.4)])
+def test_clamping_bounds_that_leave_out_even_odds_match_octomap(clamp):
+    """A new node takes its first update from log-odds 0, clamped: with both bounds on one side of
+    0.5, a miss (or a hit) on a new voxel moves it to the nearer bound although the update points
+    the other way (a new voxel left unknown, counted as a node, was the bug). Scans as blocks
+    (whole nodes of one update among them), discretized, lazy, and updates of voxels and their
+    siblings one after another: OctoMap's trees byte for byte."""
+    octomap = _octomap()
+    rng = np.random.default_rng(31)
+
+    def ref_tree():
+        t = octomap.OcTree(0.1)
+        t.setClampingThresMin(clamp[0])
+        t.setClampingThresMax(clamp[1])
+        return t
+
+    for kwargs in ({}, {"discretize": True}, {"lazy_eval": True}):
+        ours, ref = OcTree(0.1, clamp=clamp), ref_tree()
+        for _ in range(2):
+            pts, origin = _room_cloud(rng, 6000), rng.uniform(-0.3, 0.3, 3)
+            ours.insert_point_cloud(pts, origin, discretize=kwargs.get("discretize", False),
+                                    lazy=kwargs.get("lazy_eval", False))
+            ref.insertPointCloud(pts, origin, **kwargs)
+        assert encode_ot(ours) == ref.write()
+    ours, ref = OcTree(0.1, clamp=clamp), ref_tree()
+    voxels = rng.integers(-3, 3, size=(40, 3))
+    pts = (np.repeat(voxels, rng.integers(1, 4, len(voxels)), axis=0) + 0.5) * 0.1
+    occupied = rng.random(len(pts)) < 0.5
+    ours.update_nodes(pts, occupied)
+    for p, o in zip(pts, occupied):
+        ref.updateNode(p, bool(o))
+    assert encode_ot(ours) == ref.write()
+
+
 def test_points_outside_the_key_range_are_skipped_as_octomap_does():
     """OctoMap skips a ray whose end lies outside the key range (``computeRayKeys`` fails) and
     inserts the rest; with a max range the cut end is what counts. Discretized, OctoMap's
@@ -862,6 +896,10 @@ def test_bad_input_raises_clear_errors():
         OcTree(0.0)
     with pytest.raises(InvalidArgumentError):
         OcTree(0.1, prob_hit=1.0)
+    with pytest.raises(InvalidArgumentError, match="prob_hit must be in"):  # a hit that lowers occupancy
+        OcTree(0.1, prob_hit=0.4)
+    with pytest.raises(InvalidArgumentError, match="prob_miss must be in"):
+        OcTree(0.1, prob_miss=0.5)
     assert tree.num_nodes() == 0
 
 

@@ -19,16 +19,6 @@ from ..geometry.so2 import wrap_angle
 from ..logodds import logit, probability
 
 
-def _on_side(name: str, p, occupied: bool) -> float:
-    """A probability on the occupied side of 0.5 (``occupied``) or the free side."""
-    v = checks.probability(name, p)
-    if occupied and not v > 0.5:
-        raise InvalidArgumentError(f"{name} must be in (0.5, 1), got {p!r}")
-    if not occupied and not v < 0.5:
-        raise InvalidArgumentError(f"{name} must be in (0, 0.5), got {p!r}")
-    return v
-
-
 class _HitMiss:
     """What a model's ``prob_hit`` / ``prob_miss`` add to a cell: their log-odds."""
 
@@ -53,8 +43,8 @@ class LidarModel(_HitMiss):
     prob_miss: float = 0.4
 
     def __post_init__(self):
-        object.__setattr__(self, "prob_hit", _on_side("prob_hit", self.prob_hit, True))
-        object.__setattr__(self, "prob_miss", _on_side("prob_miss", self.prob_miss, False))
+        object.__setattr__(self, "prob_hit", checks.probability_on_side("prob_hit", self.prob_hit, True))
+        object.__setattr__(self, "prob_miss", checks.probability_on_side("prob_miss", self.prob_miss, False))
 
 
 @dataclass(frozen=True)
@@ -124,8 +114,8 @@ class SonarModel(_HitMiss):
         if not (width < widest or width == widest == math.inf):
             raise InvalidArgumentError(f"beam_width must be {what}, got {self.beam_width!r}")
         object.__setattr__(self, "beam_width", width)
-        object.__setattr__(self, "prob_hit", _on_side("prob_hit", self.prob_hit, True))
-        object.__setattr__(self, "prob_miss", _on_side("prob_miss", self.prob_miss, False))
+        object.__setattr__(self, "prob_hit", checks.probability_on_side("prob_hit", self.prob_hit, True))
+        object.__setattr__(self, "prob_miss", checks.probability_on_side("prob_miss", self.prob_miss, False))
         if self.arc is not None:
             object.__setattr__(self, "arc", checks.positive("arc", self.arc, "metres"))
         object.__setattr__(self, "min_range", checks.non_negative("min_range", self.min_range, "metres"))
@@ -230,11 +220,11 @@ class RadarModel(_HitMiss):
     def __post_init__(self):
         object.__setattr__(self, "sigma_range", checks.positive("sigma_range", self.sigma_range, "metres"))
         object.__setattr__(self, "extent", checks.positive("extent", self.extent, "standard deviations"))
-        object.__setattr__(self, "prob_hit", _on_side("prob_hit", self.prob_hit, True))
-        object.__setattr__(self, "prob_miss", _on_side("prob_miss", self.prob_miss, False))
+        object.__setattr__(self, "prob_hit", checks.probability_on_side("prob_hit", self.prob_hit, True))
+        object.__setattr__(self, "prob_miss", checks.probability_on_side("prob_miss", self.prob_miss, False))
         object.__setattr__(self, "static_speed", checks.positive("static_speed", self.static_speed, "m/s"))
         object.__setattr__(self, "obstacle_probability",
-                           _on_side("obstacle_probability", self.obstacle_probability, True))
+                           checks.probability_on_side("obstacle_probability", self.obstacle_probability, True))
         object.__setattr__(self, "ghost_margin", checks.non_negative("ghost_margin", self.ghost_margin, "metres"))
 
 

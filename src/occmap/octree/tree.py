@@ -100,9 +100,12 @@ class OcTree(OneCallAtATime):
     resolution : float
         Edge of a depth-16 voxel in metres.
     prob_hit, prob_miss : float
-        Sensor model: occupancy probability after a hit / a pass-through (OctoMap: 0.7 / 0.4).
+        Sensor model: occupancy probability after a hit / a pass-through (OctoMap: 0.7 / 0.4);
+        a hit above 0.5, a miss below (as the 2D sensor models take them; OctoMap takes any, and
+        its early abort then stops a hit below 0.5 only at the lower clamp).
     clamp : (p_min, p_max)
-        Clamping bounds in probability (OctoMap: 0.1192 / 0.971).
+        Clamping bounds in probability (OctoMap: 0.1192 / 0.971), p_min < p_max; a new node takes
+        its first update clamped to them, as OctoMap's does, even where 0.5 lies outside.
     occupied_threshold : float
         Probability at or above which a node counts as occupied (OctoMap: 0.5).
     """
@@ -110,8 +113,8 @@ class OcTree(OneCallAtATime):
     def __init__(self, resolution: float, prob_hit: float = 0.7, prob_miss: float = 0.4,
                  clamp=(0.1192, 0.971), occupied_threshold: float = 0.5):
         self.resolution = checks.resolution(resolution)
-        self.prob_hit = checks.probability("prob_hit", prob_hit)
-        self.prob_miss = checks.probability("prob_miss", prob_miss)
+        self.prob_hit = checks.probability_on_side("prob_hit", prob_hit, True)
+        self.prob_miss = checks.probability_on_side("prob_miss", prob_miss, False)
         self.clamp = (checks.probability("clamp[0]", clamp[0]), checks.probability("clamp[1]", clamp[1]))
         self.occupied_threshold = checks.probability("occupied_threshold", occupied_threshold)
         if not self.clamp[0] < self.clamp[1]:

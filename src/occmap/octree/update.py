@@ -50,6 +50,19 @@ def updated(v, hit, l_hit, l_miss, lo, hi):
 
 
 @inline_kernel
+def update_leaf(slots, node, made, hit, l_hit, l_miss, lo, hi):
+    """Leaf ``node`` takes a hit (``hit``) or a miss: a new one (NaN, or ``made`` just now by the
+    caller) from log-odds 0, as a node OctoMap has just made takes it (clamped: where 0 lies
+    outside the clamping bounds, to the nearer one), an existing one unless it is saturated
+    (OctoMap's early abort). Returns whether its value changed."""
+    v = slots[node].value
+    if saturated(v, hit, lo, hi) and not made:  # (NaN never is)
+        return False
+    slots[node].value = updated(np.float32(0.0) if made or np.isnan(v) else v, hit, l_hit, l_miss, lo, hi)
+    return True
+
+
+@inline_kernel
 def resume(slots, meta, path, known, dirty, key, previous, settle_nodes, spines):
     """Where a walk down to packed key ``key`` starts, after one to ``previous`` whose nodes
     ``path[0..known]`` are kept (``known`` < 0: none) and ``path[0..dirty]`` saw a change: it
@@ -99,14 +112,8 @@ def update_children(slots, meta, node, new, marked, hit, l_hit, l_miss, lo, hi, 
     while marked != 0:
         k = trailing_zeros(marked)
         marked &= marked - 1
-        v = slots[c + k].value
-        if np.isnan(v):
-            v = np.float32(0.0)
-            fresh += 1
-        is_hit = (hit >> k) & 1 != 0
-        if not saturated(v, is_hit, lo, hi):
-            slots[c + k].value = updated(v, is_hit, l_hit, l_miss, lo, hi)
-            changed = True
+        fresh += np.isnan(slots[c + k].value)
+        changed |= update_leaf(slots, c + k, False, (hit >> k) & 1 != 0, l_hit, l_miss, lo, hi)
     meta[SIZE] += fresh
     if changed and settle_nodes:
         settle(slots, meta, node, True, True)
@@ -146,11 +153,8 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
                 next_child[sp] = 0
                 below[sp] = 0
                 continue
-            if np.isnan(slots[j].value):  # (a slot of a child block with no node in it)
-                slots[j].value = 0.0
-                meta[SIZE] += 1
-            if not saturated(slots[j].value, hit, lo, hi):
-                slots[j].value = updated(slots[j].value, hit, l_hit, l_miss, lo, hi)
+            meta[SIZE] += np.isnan(slots[j].value)  # (a slot of a child block with no node in it)
+            if update_leaf(slots, j, False, hit, l_hit, l_miss, lo, hi):
                 below[sp] = 1
             continue
         if below[sp] and settle_nodes:
@@ -260,8 +264,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
                 dirty = DEPTH
                 changed = True
             continue
-        if not saturated(slots[node].value, hit, lo, hi):
-            slots[node].value = updated(slots[node].value, hit, l_hit, l_miss, lo, hi)
+        if update_leaf(slots, node, created, hit, l_hit, l_miss, lo, hi):
             dirty = DEPTH
             changed = True
         if d < DEPTH:
@@ -273,12 +276,8 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         while j < n and (keys[j] ^ key) & _SIBLINGS == 0 and (depths.shape[0] == 0 or depths[j] == DEPTH):
             previous = keys[j]
             node = c + child_index(*unpack(previous), DEPTH - 1)
-            hit = is_hit[j]
-            if np.isnan(slots[node].value):
-                slots[node].value = 0.0
-                meta[SIZE] += 1
-            if not saturated(slots[node].value, hit, lo, hi):
-                slots[node].value = updated(slots[node].value, hit, l_hit, l_miss, lo, hi)
+            meta[SIZE] += np.isnan(slots[node].value)
+            if update_leaf(slots, node, False, is_hit[j], l_hit, l_miss, lo, hi):
                 dirty = DEPTH
                 changed = True
             j += 1
@@ -402,11 +401,8 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 if slots[child].child >= 0:
                     ch = update_subtree(slots, meta, child, level + 1, h != 0, l_hit, l_miss, lo, hi, settle_nodes,
                                         scratch)
-                elif saturated(slots[child].value, h != 0, lo, hi):
-                    ch = False
                 else:
-                    slots[child].value = updated(slots[child].value, h != 0, l_hit, l_miss, lo, hi)
-                    ch = True
+                    ch = update_leaf(slots, child, fresh, h != 0, l_hit, l_miss, lo, hi)
                 if level < BLOCK_DEPTH:  # (the whole block)
                     level += 1
                     path[level] = child
