@@ -321,3 +321,34 @@ def test_read_ahead_switches_threads_often_while_a_reader_runs_and_restores_the_
         assert inside == [pytest.approx(1e-5, rel=1e-6)] * 2
     finally:
         sys.setswitchinterval(before)
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2
+                    or occmap._threads._current_cpu() is None, reason="needs two CPUs and a system that sets a thread's")
+def test_share_keeps_its_worker_off_the_callers_cpu_until_the_callers_call_returns():
+    """The worker runs on the CPUs it may use less the caller's while the caller works (Linux
+    would often put it on the caller's CPU, another idle), and has them all back once the
+    caller's own call returns, while it still runs (so that a worker set aside never keeps the
+    caller waiting for a CPU it may not use); a worker that has not started is cancelled."""
+    caller = threading.get_native_id()
+    full = os.sched_getaffinity(0)
+    started = threading.Event()
+    seen = {}
+
+    def task():
+        if threading.get_native_id() == caller:
+            if not started.wait(10):
+                pytest.skip("the worker did not start within 10 s")
+            return "caller"
+        seen["while the caller works"] = os.sched_getaffinity(0)
+        started.set()
+        deadline = time.monotonic() + 10
+        while os.sched_getaffinity(0) != full and time.monotonic() < deadline:
+            time.sleep(0.001)
+        seen["after the caller's call"] = os.sched_getaffinity(0)
+        return "worker"
+
+    assert occmap._threads.share(task, 2) == ["caller", "worker"]
+    away = seen["while the caller works"]  # (the CPU the caller ran on when it called share)
+    assert away < full and len(away) == len(full) - 1
+    assert seen["after the caller's call"] == full
