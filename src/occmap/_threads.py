@@ -294,12 +294,14 @@ _forked_from_openmp = False
 
 
 def _forked() -> None:
-    """In a child made by ``fork``: the parent's pool threads do not exist here; and where the
+    """In a child made by ``fork``: the parent's pool threads (and its calls keeping workers away,
+    :class:`_Away`) do not exist here; and where the
     parent ran parallel kernels on OpenMP (Numba started before occmap could load TBB, e.g. a
     caller's own parallel code ran first), a parallel region would abort the child (GNU OpenMP),
     so the child's calls take one thread."""
     global _forked_from_openmp
     _pools.clear()
+    _Away._active, _Away._active_lock = set(), threading.Lock()  # (a parent's thread may have held the lock)
     if "numba" in sys.modules and not _forked_from_openmp:
         try:
             _forked_from_openmp = sys.modules["numba"].threading_layer() == "omp"
