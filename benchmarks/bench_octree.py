@@ -376,9 +376,10 @@ def main() -> int:
         "with `NUMBA_NUM_THREADS=1` pinned to one CPU (`sched_setaffinity`), so that every thread it starts shares "
         "that core; occmap on two threads: a process of its own too (`NUMBA_NUM_THREADS=2`, not pinned), so both are "
         "timed alike (in the benchmark's own process, between the other mappers' rounds, some rows' two-thread "
-        "figures read far lower: the HDL-32E pair at 0.05 m 0.66× one core there, 1.53× in a process of its own); each of its rounds starts once occmap sees the "
-        "cores free (it takes one thread while other processes keep them busy, judged over the last tenth of a second "
-        "or more, and the round before was another mapper's); the ratio plain / "
+        "figures read far lower: the HDL-32E pair at 0.05 m 0.66× one core there, 1.53× in a process of its own); "
+        "each of its rounds starts once occmap sees the cores free (it takes one thread while other processes keep "
+        "them busy, judged over the last tenth of a second or more, and the round before was another mapper's); the "
+        "ratio plain / "
         "`discretize=True` is timed in the benchmark's process, both alike. " + bonxai,
         "",
         "OctoMap 1.10 through octomap-python (its PyPI wheel, single-threaded), default parameters "
