@@ -377,21 +377,25 @@ class _Away:
                 other.release()
 
     def run(self, task):
+        """``task()`` on this worker, off the caller's CPU unless released."""
         mask = None
         with self._lock:
             if not self._released and self._caller is not None:
-                mask = os.sched_getaffinity(0)
-                if mask - {self._caller}:
-                    os.sched_setaffinity(0, mask - {self._caller})
-                    self._workers.append((threading.get_native_id(), mask))
-                else:
+                try:
+                    mask = os.sched_getaffinity(0)
+                    if mask - {self._caller}:
+                        os.sched_setaffinity(0, mask - {self._caller})
+                        self._workers.append((threading.get_native_id(), mask))
+                    else:
+                        mask = None
+                except OSError:  # (a system that refuses: the worker runs as placed)
                     mask = None
         try:
             return task()
         finally:
             if mask is not None:
                 with self._lock:
-                    os.sched_setaffinity(0, mask)
+                    _set_cpus(0, mask)
                     self._workers.remove((threading.get_native_id(), mask))
 
     def release(self) -> None:
@@ -399,27 +403,35 @@ class _Away:
         with self._lock:
             self._released = True
             for tid, mask in self._workers:
-                try:
-                    os.sched_setaffinity(tid, mask)
-                except OSError:  # (a thread that has just ended)
-                    pass
+                _set_cpus(tid, mask)
         with _Away._active_lock:
             _Away._active.discard(self)
 
 
+def _set_cpus(tid: int, cpus: set) -> None:
+    """Thread ``tid`` (0: this one) allowed onto ``cpus``; nothing where that thread has just
+    ended or the system refuses."""
+    try:
+        os.sched_setaffinity(tid, cpus)
+    except OSError:
+        pass
+
+
 def _current_cpu() -> int | None:
-    """The CPU this thread runs on (glibc's ``sched_getcpu``), or None where the system cannot
-    say or cannot set a thread's CPUs."""
-    if _sched_getcpu is None or not hasattr(os, "sched_setaffinity"):
+    """The CPU this thread runs on (the C library's ``sched_getcpu``), or None where the system
+    cannot say or cannot set a thread's CPUs."""
+    if _sched_getcpu is None:
         return None
     cpu = _sched_getcpu()
     return cpu if cpu >= 0 else None
 
 
 def _libc_sched_getcpu():
+    if not hasattr(os, "sched_setaffinity"):
+        return None
     try:
         return ctypes.CDLL(None).sched_getcpu
-    except (OSError, AttributeError):
+    except (OSError, AttributeError, TypeError):
         return None
 
 
