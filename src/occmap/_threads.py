@@ -301,7 +301,7 @@ def _forked() -> None:
     so the child's calls take one thread."""
     global _forked_from_openmp
     _pools.clear()
-    _Away._active, _Away._active_lock = set(), threading.Lock()  # (a parent's thread may have held the lock)
+    _Away._active, _Away._active_lock = None, threading.Lock()  # (a parent's thread may have held the lock)
     if "numba" in sys.modules and not _forked_from_openmp:
         try:
             _forked_from_openmp = sys.modules["numba"].threading_layer() == "omp"
@@ -355,10 +355,10 @@ class _Away:
     (:meth:`release`), so that one the scheduler has set aside may move to the caller's CPU rather
     than keep the caller waiting. Where the system cannot say or set CPUs, workers run as placed."""
 
-    #: The calls whose workers are kept away now: at most one (two calls at once, e.g. the next
-    #: scan traced while the tree takes this one, keep none away: pinned, their threads waited on
-    #: each other's CPUs, and the HDL-32E pair at 0.1 m took 1.13x the time).
-    _active: set[_Away] = set()
+    #: The call whose workers are kept away now, if any: one at most (two calls at once, e.g. the
+    #: next scan traced while the tree takes this one, keep none away: pinned, their threads waited
+    #: on each other's CPUs, and the HDL-32E pair at 0.1 m took 1.13x the time).
+    _active: _Away | None = None
     _active_lock = threading.Lock()
 
     def __init__(self):
@@ -367,14 +367,11 @@ class _Away:
         self._workers: list[tuple[int, set]] = []  # (native thread id, its own CPUs)
         self._caller = _current_cpu()
         with _Away._active_lock:
-            others = list(_Away._active)
-            _Away._active.clear()
-            if not others:
-                _Away._active.add(self)
-        if others:
+            other = _Away._active
+            _Away._active = self if other is None else None
+        if other is not None:
             self._released = True
-            for other in others:
-                other.release()
+            other.release()
 
     def run(self, task):
         """``task()`` on this worker, off the caller's CPU unless released."""
@@ -405,7 +402,8 @@ class _Away:
             for tid, mask in self._workers:
                 _set_cpus(tid, mask)
         with _Away._active_lock:
-            _Away._active.discard(self)
+            if _Away._active is self:
+                _Away._active = None
 
 
 def _set_cpus(tid: int, cpus: set) -> None:

@@ -22,7 +22,7 @@ from .._threads import OneCallAtATime, free_for_parallel, no_lock, thread_count
 from ..errors import InvalidArgumentError, ShapeError
 from ..logodds import logit32, occupancy_classes
 from . import insertion, pool, query, views
-from .keys import (CENTER, MAX_KEY, NO_SHIFT, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys,
+from .keys import (CENTER, DEPTH, MAX_KEY, NO_SHIFT, coord_to_keys, keys_in_range, node_cells, node_centers, pack_keys,
                    packed_in_range)
 from .marking import prepare_rays, ray_voxels
 
@@ -340,9 +340,9 @@ class OcTree(OneCallAtATime):
             depths = np.asarray(depths)
             if depths.shape != keys.shape:
                 raise ShapeError(f"depths must have the shape of keys {keys.shape}, got {depths.shape}")
-            bad = np.flatnonzero((depths < 0) | (depths > 16))
+            bad = np.flatnonzero((depths < 0) | (depths > DEPTH))
             if len(bad):
-                raise InvalidArgumentError(f"depths[{bad[0]}] = {depths[bad[0]]} is not a depth of 0 .. 16")
+                raise InvalidArgumentError(f"depths[{bad[0]}] = {depths[bad[0]]} is not a depth of 0 .. {DEPTH}")
             depths = np.ascontiguousarray(depths, np.int8)
         insertion.apply(self._pool, keys, depths, is_hit, self._rule, False, threads)
 
