@@ -327,9 +327,11 @@ def test_read_ahead_switches_threads_often_while_a_reader_runs_and_restores_the_
                     or occmap._threads._current_cpu() is None, reason="needs two CPUs and a system that sets a thread's")
 def test_share_keeps_its_worker_off_the_callers_cpu_until_the_callers_call_returns():
     """The worker runs on the CPUs it may use less the caller's while the caller works (Linux
-    would often put it on the caller's CPU, another idle), and has them all back once the
-    caller's own call returns, while it still runs (so that a worker set aside never keeps the
-    caller waiting for a CPU it may not use); a worker that has not started is cancelled."""
+    would often put it on the caller's CPU, another idle), and the caller stays on its own CPU
+    (a wake-up from a worker would draw it to the worker's); both have them all back once the
+    caller's own call returns, the worker while it still runs (so that a worker set aside never
+    keeps the caller waiting for a CPU it may not use); a worker that has not started is
+    cancelled."""
     caller = threading.get_native_id()
     full = os.sched_getaffinity(0)
     started = threading.Event()
@@ -339,6 +341,7 @@ def test_share_keeps_its_worker_off_the_callers_cpu_until_the_callers_call_retur
         if threading.get_native_id() == caller:
             if not started.wait(10):
                 pytest.skip("the worker did not start within 10 s")
+            seen["caller's while it works"] = os.sched_getaffinity(0)
             return "caller"
         seen["while the caller works"] = os.sched_getaffinity(0)
         started.set()
@@ -351,4 +354,6 @@ def test_share_keeps_its_worker_off_the_callers_cpu_until_the_callers_call_retur
     assert occmap._threads.share(task, 2) == ["caller", "worker"]
     away = seen["while the caller works"]  # (the CPU the caller ran on when it called share)
     assert away < full and len(away) == len(full) - 1
+    assert seen["caller's while it works"] == full - away
     assert seen["after the caller's call"] == full
+    assert os.sched_getaffinity(0) == full

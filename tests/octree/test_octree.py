@@ -733,6 +733,44 @@ def test_points_outside_the_key_range_are_skipped_as_octomap_does():
     assert encode_ot(ours) == ref.write()
 
 
+@pytest.mark.parametrize("discretize", [False, True])
+def test_points_dropped_within_the_runs_of_several_threads_leave_octomaps_tree(discretize, monkeypatch):
+    """Rays prepared run by run on the threads that mark them (each run's rays from its first
+    point's row on): points dropped in some runs (NaN, ends outside the key range) leave the
+    other runs' rays whole, the tree OctoMap's of the points kept, and the counts those of one
+    thread."""
+    from occmap.octree import insertion
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one Numba thread: no runs on several threads")
+    monkeypatch.setattr(insertion, "_PARALLEL_RAYS", 1000)
+    monkeypatch.setattr(insertion, "_CUBE_RAYS", 1000)
+    _cores_free(monkeypatch)
+    rng = np.random.default_rng(23)
+    pts = _room_cloud(rng, 6000)
+    bad = np.zeros(len(pts), bool)
+    bad[rng.choice(len(pts), 40, replace=False)] = True
+    cloud = pts.copy()
+    cloud[bad] = np.array([[np.nan, 0.0, 1.0], [5000.0, 1.0, 0.5], [1.0, np.inf, 2.0], [0.5, 0.5, -1e9]])[
+        np.arange(bad.sum()) % 4]
+    origin = np.array([0.1, -0.2, 0.3])
+    ref = _octomap().OcTree(0.1)
+    ref.insertPointCloud(pts[~bad], origin, discretize=discretize)
+    before = numba.get_num_threads()
+    counts = {}
+    try:
+        for threads in (1, 2):
+            numba.set_num_threads(threads)
+            tree = OcTree(0.1)
+            counts[threads] = tree.insert_point_cloud(cloud, origin, discretize=discretize)
+            assert encode_ot(tree) == ref.write()
+    finally:
+        numba.set_num_threads(before)
+    assert counts[1] == counts[2]
+    assert counts[2]["dropped"] == 40 and counts[2]["outside_key_range"] == 20
+    assert discretize or counts[2]["points"] == len(pts) - 40
+
+
 def test_discretized_rays_are_one_per_voxel_in_first_point_order():
     """:func:`marking.voxel_centres` against the unique keys of the float32 points, first-seen
     order kept, NaN rows dropped and counted."""

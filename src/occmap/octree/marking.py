@@ -208,7 +208,7 @@ def new_cube():
 
 
 #: Rays sampled (evenly over the scan) to place the cube, and points taken along each.
-_PLACE_RAYS = 256
+PLACE_RAYS = 256
 _PLACE_POINTS = 4
 #: Placements of the cube along one axis that keep a given voxel inside: 16, one per block.
 _PLACES = CUBE // 8
@@ -236,7 +236,7 @@ def cube_corner(origin, ends, res, shift):
         if lo[a] > hi[a]:
             return -1
     n = ends.shape[0]
-    step = max(1, n // _PLACE_RAYS)
+    step = max(1, n // PLACE_RAYS)
     m = (n + step - 1) // step * _PLACE_POINTS
     rel = np.empty((m, 3), np.int64)  # a point's block relative to the sensor's, per axis
     w = np.empty(m)
