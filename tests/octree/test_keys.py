@@ -69,3 +69,27 @@ def test_block_masks_relaid_in_morton_order_bit_for_bit():
         morton_words(words, out)
         got = np.unpackbits(out.view(np.uint8), bitorder="little").astype(bool)
         np.testing.assert_array_equal(got[target], bits)
+
+
+def test_blocks_merged_in_morton_order_with_or_without_room_for_their_indices(monkeypatch):
+    """Blocks marked more than once (several threads' markings) come out once each, their masks
+    OR-ed, in the Morton order of their keys (the octree's depth-first order, worked out here in
+    Python from the keys); alike where the sort keys hold the blocks' indices and where there are
+    more blocks than those bits hold (then the codes alone are sorted)."""
+    from occmap.octree import blocks as B
+
+    rng = np.random.default_rng(5)
+    keys = rng.integers(0, 1 << 16, (300, 3)) & ~7
+    codes = np.array([K.block_code(K.pack(*k)) for k in keys[rng.integers(0, len(keys), 900)]], np.int64)
+    hits, frees = (np.where(rng.random((900, 8)) < 0.3, rng.integers(-(1 << 62), 1 << 62, (900, 8)), 0) for _ in range(2))
+    expected = {}
+    for c, h, f in zip(codes, hits, frees):
+        h0, f0 = expected.get(c, (0, 0))
+        expected[c] = (h0 | h, f0 | f)
+    order = sorted(expected, key=lambda c: K.morton(*(int(v) >> 3 for v in K.unpack(K.block_key(c))), 13))
+    for index_bits in (B._INDEX_BITS, 3):
+        monkeypatch.setattr(B, "_INDEX_BITS", index_bits)
+        c2, h2, f2 = B.merge_blocks(codes, hits, frees)
+        np.testing.assert_array_equal(c2, order)
+        np.testing.assert_array_equal(h2, [expected[c][0] for c in order])
+        np.testing.assert_array_equal(f2, [expected[c][1] for c in order])

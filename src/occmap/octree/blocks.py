@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._intrinsics import bit_length, popcount, trailing_zeros
+from .._intrinsics import bit_length, popcount, prefetch, trailing_zeros
 from .._jit import inline_kernel, kernel
 from .keys import block_key, morton, pack, unpack
 
@@ -75,38 +75,69 @@ def grow_blocks(table, slots, codes, hits, frees, count):
     return t2, s2, c2, h2, f2, n2
 
 
+#: Bits below a block's Morton code in the keys :func:`morton_order` sorts (its index): its 39
+#: bits (13 an axis) and these fill an int64 short of the sign.
+_INDEX_BITS = 24
+
+
 @kernel
-def morton_order(codes):
-    """Order of the blocks by the Morton code of their block keys (the octree's DFS order)."""
+def _morton_keys(codes, index_bits):
+    """Per block, the Morton code of its block key, shifted up by ``index_bits`` with the block's
+    index below."""
     n = codes.shape[0]
-    order = np.empty(n, np.int64)
+    keys = np.empty(n, np.int64)
     for b in range(n):
         kx, ky, kz = unpack(block_key(codes[b]))
-        order[b] = morton(kx >> 3, ky >> 3, kz >> 3, 13)
-    return np.argsort(order)
+        keys[b] = (morton(kx >> 3, ky >> 3, kz >> 3, 13) << index_bits) | b
+    return keys
+
+
+def morton_order(codes) -> np.ndarray:
+    """Order of the blocks by the Morton code of their block keys (the octree's DFS order): one
+    sort of the codes with the indices below them (NumPy's sort of int64 is vectorised: 38,000
+    blocks in 0.5 ms, Numba's argsort of their codes 3.2 ms), or an argsort of the codes for
+    more blocks than the index bits hold."""
+    if len(codes) < 1 << _INDEX_BITS:
+        return np.sort(_morton_keys(codes, _INDEX_BITS)) & ((1 << _INDEX_BITS) - 1)
+    return np.argsort(_morton_keys(codes, 0))
+
+
+def merge_blocks(codes, hits, frees):
+    """Blocks of several markings concatenated → each block once, masks OR-ed, Morton-sorted."""
+    return _merge_in_order(codes, hits, frees, morton_order(codes))
 
 
 @kernel
-def merge_blocks(codes, hits, frees):
-    """Blocks of several markings concatenated → each block once, masks OR-ed, Morton-sorted."""
-    order = morton_order(codes)
+def _merge_in_order(codes, hits, frees, order):
+    """:func:`merge_blocks` of blocks in ``order``: runs of one code merged into one block."""
     n = codes.shape[0]
     c2 = np.empty(n, np.int64)
     h2 = np.empty((n, 8), np.int64)
     f2 = np.empty((n, 8), np.int64)
     m = -1
     for j in range(n):
+        if j + _AHEAD < n:  # (the blocks lie in the order they were marked: a load from memory each)
+            a = 8 * order[j + _AHEAD]
+            prefetch(hits, a)
+            prefetch(hits, a + 7)
+            prefetch(frees, a)
+            prefetch(frees, a + 7)
         b = order[j]
         if m < 0 or codes[b] != c2[m]:
             m += 1
             c2[m] = codes[b]
-            h2[m] = hits[b]
-            f2[m] = frees[b]
+            for w in range(8):
+                h2[m, w] = hits[b, w]
+                f2[m, w] = frees[b, w]
         else:
             for w in range(8):
                 h2[m, w] |= hits[b, w]
                 f2[m, w] |= frees[b, w]
     return c2[:m + 1], h2[:m + 1], f2[:m + 1]
+
+
+#: Blocks ahead whose masks :func:`_merge_in_order` asks the CPU for.
+_AHEAD = 16
 
 
 #: A block's voxels in Morton order: the ``z``-th lies ``_MORTON_OFFSET[z]`` (a packed key) from the
