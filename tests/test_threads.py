@@ -153,6 +153,25 @@ def test_free_cores_sees_a_busy_process_and_not_this_one():
     assert theirs <= max(mine - min(0.7, cpus - 0.3), 0.3), (mine, theirs)
 
 
+@pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the load is read from Linux's /proc/stat")
+def test_a_programs_first_call_finds_a_load_figure_and_a_forked_childs_its_own():
+    """The load's first window starts when occmap is imported, so that a program's first calls (a
+    robot's first scans, on a machine other processes may keep busy) are judged on a figure rather
+    than taken as free; a child made by ``fork`` starts its own (the parent's counted the parent's
+    CPU time)."""
+    code = ("import os, time, occmap._threads as t\n"
+            "time.sleep(0.15)\n"
+            "first = t.free_cores()\n"
+            "pid = os.fork()\n"
+            "if pid == 0:\n"
+            "    os._exit(0 if t._load._last is not None and t._load.free is None else 1)\n"
+            "_, status = os.waitpid(pid, 0)\n"
+            "print(first, os.waitstatus_to_exitcode(status))\n")
+    first, child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert first != "None" and 0.0 <= float(first) <= len(os.sched_getaffinity(0)) + 0.5
+    assert child == "0"
+
+
 def test_small_work_takes_one_thread_unmeasured():
     choice = ThreadChoice(min_work=100.0)
     with choice.choose(work=99.0) as parallel:

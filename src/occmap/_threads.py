@@ -152,6 +152,7 @@ class _Load:
 
 
 _load = _Load()
+_load.sample()  # (the first window starts here: a program's first calls, a tenth of a second on, find a figure)
 
 
 def free_cores() -> float | None:
@@ -295,12 +296,14 @@ _forked_from_openmp = False
 
 def _forked() -> None:
     """In a child made by ``fork``: the parent's pool threads (and its calls keeping workers away,
-    :class:`_Away`) do not exist here; and where the
+    :class:`_Away`) do not exist here, and its load windows start anew; and where the
     parent ran parallel kernels on OpenMP (Numba started before occmap could load TBB, e.g. a
     caller's own parallel code ran first), a parallel region would abort the child (GNU OpenMP),
     so the child's calls take one thread."""
-    global _forked_from_openmp
+    global _forked_from_openmp, _load
     _pools.clear()
+    _load = _Load()  # (the parent's figures count the parent's own CPU time, not the child's)
+    _load.sample()
     _Away._active, _Away._active_lock = None, threading.Lock()  # (a parent's thread may have held the lock)
     if "numba" in sys.modules and not _forked_from_openmp:
         try:
