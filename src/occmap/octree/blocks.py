@@ -107,6 +107,10 @@ def merge_blocks(codes, hits, frees):
     return _merge_in_order(codes, hits, frees, morton_order(codes))
 
 
+#: Blocks ahead whose masks :func:`_merge_in_order` asks the CPU for.
+_AHEAD = 16
+
+
 @kernel
 def _merge_in_order(codes, hits, frees, order):
     """:func:`merge_blocks` of blocks in ``order``: runs of one code merged into one block."""
@@ -134,10 +138,6 @@ def _merge_in_order(codes, hits, frees, order):
                 h2[m, w] |= hits[b, w]
                 f2[m, w] |= frees[b, w]
     return c2[:m + 1], h2[:m + 1], f2[:m + 1]
-
-
-#: Blocks ahead whose masks :func:`_merge_in_order` asks the CPU for.
-_AHEAD = 16
 
 
 #: A block's voxels in Morton order: the ``z``-th lies ``_MORTON_OFFSET[z]`` (a packed key) from the
