@@ -122,9 +122,11 @@ def test_a_forced_path_runs_whatever_the_load_and_costs_and_teaches_nothing(cloc
     costs = choice.costs
     with occmap._threads.forced_path(False):
         assert _run(choice, clock, serial_s=0.004, parallel_s=0.001, calls=3) == [False] * 3
+        assert not occmap._threads.free_for_parallel()  # (the octree's scans ask it)
     monkeypatch.setattr(occmap._threads, "free_cores", lambda: 0.0)
     with occmap._threads.forced_path(True):
         assert _run(choice, clock, serial_s=0.001, parallel_s=0.004, calls=3) == [True] * 3
+        assert occmap._threads.free_for_parallel()
         with choice.choose(work=0.5) as parallel:  # too little work for several threads, forced or not
             assert not parallel
     assert choice.costs == costs

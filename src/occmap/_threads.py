@@ -261,9 +261,10 @@ _forced: bool | None = None
 @contextmanager
 def forced_path(parallel: bool):
     """Within the block, this process's :class:`ThreadChoice` blocks with enough work take the
-    given path, whatever the load and the costs, and learn nothing (``occmap warmup`` runs each job
-    once on each path: every kernel of both paths gets compiled, with every argument type, however
-    many calls a job makes and however busy its own processes keep the cores)."""
+    given path, whatever the load and the costs, and learn nothing; and :func:`free_for_parallel`
+    answers ``parallel``, so the octree's scans take that path too. (``occmap warmup`` runs each
+    job once on each path: every kernel of both paths gets compiled, with every argument type,
+    however many calls a job makes and however busy its own processes keep the cores.)"""
     global _forced
     before, _forced = _forced, bool(parallel)
     try:
@@ -275,7 +276,10 @@ def forced_path(parallel: bool):
 def free_for_parallel() -> bool:
     """Whether other processes leave at least :data:`_FREE_FOR_PARALLEL` cores free lately
     (:func:`free_cores`; where the system does not say, True): below that, a call split between
-    threads waits for a thread the scheduler has set aside, and one thread is the faster."""
+    threads waits for a thread the scheduler has set aside, and one thread is the faster. Inside
+    :func:`forced_path`, the path it names."""
+    if _forced is not None:
+        return _forced
     free = free_cores()
     return free is None or free >= _FREE_FOR_PARALLEL
 
