@@ -180,12 +180,14 @@ def mark(origin, ends, hit, res, shift, rays: bool, threads: bool, prepare=None,
 
     ``prepare``: None where ``ends`` and ``hit`` hold the rays; else the rays are prepared run by
     run on the thread that marks them: ``prepare(a, z)`` writes those of points ``a..z-1`` from
-    row ``a`` on and returns the row past them, and ``sample`` holds some rays of the scan (the
+    row ``a`` on and returns the row past them, and ``sample()`` gives some rays of the scan (the
     cube is placed by them). (Prepared before the runs, a scan's rays were a pass on one thread,
-    a tenth of its time at 0.2 m, and a second call to wake the workers: 1 - 2 ms each time
-    on a virtual machine whose idle CPU has halted.)"""
+    a tenth of its time at 0.2 m, and a second call to wake the workers, which started 1 - 2 ms
+    later.)"""
     n = len(ends)
-    corner = M.cube_corner(origin, ends if sample is None else sample, res, shift) if rays and n >= _CUBE_RAYS else -1
+    corner = -1
+    if rays and n >= _CUBE_RAYS:
+        corner = M.cube_corner(origin, ends if sample is None else sample(), res, shift)
     # room for the blocks at the rate of this thread's last scan, and a quarter more
     room = 1.25 * getattr(_kept, "blocks_per_ray", _BLOCKS_PER_RAY) * n
     if not (threads and n >= _PARALLEL_RAYS and _parallel()):
@@ -242,9 +244,10 @@ def cloud_blocks(points, origin32, max_range: float, discretize: bool, res: floa
                                           _NO_INDICES)
         return a + prepared[a][0]
 
-    sample = None
-    if n >= _CUBE_RAYS:  # (rays enough for a cube: see mark)
-        sample = M.prepare_rays(np.ascontiguousarray(points[::n // M.PLACE_RAYS]), origins, limit, res, box, shift)[0]
+    def sample():
+        return M.prepare_rays(np.ascontiguousarray(points[::max(1, n // M.PLACE_RAYS)]), origins, limit, res, box,
+                              shift)[0]
+
     origin_key = coord_to_keys(origin32.astype(np.float64), res) - shift
     # with a box, a ray's free voxels are those before it first leaves the box: none from outside
     rays = not len(kbox) or bool(np.all((kbox[0] <= origin_key) & (origin_key <= kbox[1])))
