@@ -378,3 +378,26 @@ def test_share_keeps_its_worker_off_the_callers_cpu_until_the_callers_call_retur
     assert seen["caller's while it works"] == full - away
     assert seen["after the caller's call"] == full
     assert os.sched_getaffinity(0) == full
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2
+                    or occmap._threads._current_cpu() is None, reason="needs two CPUs and a system that sets a thread's")
+def test_share_keeps_its_pool_threads_off_the_callers_cpu_before_it_wakes_them():
+    """The pool's threads (their native ids recorded as they start) are kept off the caller's CPU
+    from the moment a call begins, before a task wakes one, and have their CPUs back when the
+    call is released: a worker woken on the caller's CPU waited there behind the caller."""
+    full = os.sched_getaffinity(0)
+    occmap._threads.share(lambda: None, 2)  # (the pool's thread exists from here on)
+    workers = occmap._threads._pool_threads["workers"]
+    assert workers and threading.get_native_id() not in workers
+    os.sched_setaffinity(0, {occmap._threads._current_cpu()})  # (the caller stays where it is)
+    try:
+        away = occmap._threads._Away(workers)
+        caller = away._caller
+        kept = [os.sched_getaffinity(tid) for tid in workers]
+        away.release()
+        back = [os.sched_getaffinity(tid) for tid in workers]
+    finally:
+        os.sched_setaffinity(0, full)
+    assert kept == [full - {caller}] * len(workers)
+    assert back == [full] * len(workers)

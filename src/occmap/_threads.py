@@ -306,6 +306,7 @@ def _forked() -> None:
     so the child's calls take one thread."""
     global _forked_from_openmp, _load
     _pools.clear()
+    _pool_threads.clear()
     _load = _Load()  # (the parent's figures count the parent's own CPU time, not the child's)
     _load.sample()
     _Away._active, _Away._active_lock = None, threading.Lock()  # (a parent's thread may have held the lock)
@@ -320,10 +321,16 @@ os.register_at_fork(after_in_child=_forked)
 
 
 def pool(name: str, workers: int) -> ThreadPoolExecutor:
-    """This process's pool of ``workers`` threads named ``occmap-{name}``, made on first use."""
+    """This process's pool of ``workers`` threads named ``occmap-{name}``, made on first use; the
+    native ids of its threads started so far in :data:`_pool_threads` under ``name``."""
     if name not in _pools:
-        _pools[name] = ThreadPoolExecutor(max_workers=workers, thread_name_prefix=f"occmap-{name}")
+        threads = _pool_threads[name] = []
+        _pools[name] = ThreadPoolExecutor(max_workers=workers, thread_name_prefix=f"occmap-{name}",
+                                          initializer=lambda: threads.append(threading.get_native_id()))
     return _pools[name]
+
+
+_pool_threads: dict[str, list[int]] = {}
 
 
 def share(task, threads: int | None = None) -> list:
@@ -341,7 +348,7 @@ def share(task, threads: int | None = None) -> list:
     away = None
     if n > 1:
         helpers = pool("workers", max(_max_threads() - 1, 1))
-        away = _Away()
+        away = _Away(_pool_threads["workers"])
         futures = [helpers.submit(away.run, task) for _ in range(n - 1)]
         away.hold()
     results = [task()]
@@ -370,10 +377,14 @@ class _Away:
     _active: _Away | None = None
     _active_lock = threading.Lock()
 
-    def __init__(self):
+    def __init__(self, workers=()):
+        """Kept away from the calling thread's CPU: the threads (native ids) of ``workers`` now,
+        before they are woken (a thread woken by the caller lands on the caller's CPU, where it
+        waited behind the caller, held there, for milliseconds: 3 - 4 ms, one call in three, the
+        other CPU idle), and any other worker when it starts :meth:`run`."""
         self._lock = threading.Lock()
         self._released = False
-        self._workers: list[tuple[int, set]] = []  # (native thread id, its own CPUs)
+        self._workers: dict[int, set] = {}  # native thread id → its own CPUs
         self._held: tuple[int, set] | None = None  # the caller's, while held on its CPU
         self._caller = _current_cpu()
         with _Away._active_lock:
@@ -382,20 +393,30 @@ class _Away:
         if other is not None:
             self._released = True
             other.release()
+        with self._lock:
+            for tid in workers:
+                self._keep_away(tid)
 
     def run(self, task):
         """``task()`` on this worker, off the caller's CPU unless released."""
+        tid = threading.get_native_id()
         with self._lock:
-            mask = self._limit(away=True)
-            if mask is not None:
-                self._workers.append((threading.get_native_id(), mask))
+            if tid not in self._workers:
+                self._keep_away(tid)
         try:
             return task()
         finally:
-            if mask is not None:
-                with self._lock:
-                    _set_cpus(0, mask)
-                    self._workers.remove((threading.get_native_id(), mask))
+            with self._lock:
+                mask = self._workers.pop(tid, None)
+                if mask is not None:
+                    _set_cpus(tid, mask)
+
+    def _keep_away(self, tid: int) -> None:
+        """Thread ``tid`` limited to the CPUs it may use but the caller's unless released (its
+        CPUs before kept, to be given back)."""
+        mask = self._limit(tid, away=True)
+        if mask is not None:
+            self._workers[tid] = mask
 
     def hold(self) -> None:
         """The calling thread kept on its CPU until :meth:`release`: unheld, it was drawn to a
@@ -404,21 +425,23 @@ class _Away:
         other idle, for milliseconds (scan.dat at 0.2 m: 19 - 21 ms against 10 - 13 in one round
         of four)."""
         with self._lock:
-            mask = self._limit(away=False)
+            tid = threading.get_native_id()
+            mask = self._limit(tid, away=False)
             if mask is not None:
-                self._held = threading.get_native_id(), mask
+                self._held = tid, mask
 
-    def _limit(self, away: bool) -> set | None:
-        """This thread limited to the CPUs it may use but the caller's (``away``) or to the
+    def _limit(self, tid: int, away: bool) -> set | None:
+        """Thread ``tid`` limited to the CPUs it may use but the caller's (``away``) or to the
         caller's alone, unless released: its CPUs before, or None where it is left as placed
-        (released, no other CPU, or a system that cannot say or set them)."""
+        (released, no other CPU, a thread that has ended, or a system that cannot say or set
+        them)."""
         if self._released or self._caller is None:
             return None
         try:
-            mask = os.sched_getaffinity(0)
+            mask = os.sched_getaffinity(tid)
             if not mask - {self._caller}:
                 return None
-            os.sched_setaffinity(0, mask - {self._caller} if away else {self._caller})
+            os.sched_setaffinity(tid, mask - {self._caller} if away else {self._caller})
             return mask
         except OSError:
             return None
@@ -428,8 +451,9 @@ class _Away:
         kept away."""
         with self._lock:
             self._released = True
-            for tid, mask in self._workers + ([self._held] if self._held else []):
+            for tid, mask in list(self._workers.items()) + ([self._held] if self._held else []):
                 _set_cpus(tid, mask)
+            self._workers.clear()
             self._held = None
         with _Away._active_lock:
             if _Away._active is self:
