@@ -822,6 +822,43 @@ def test_lazy_insertion_then_update_and_prune_matches_octomap():
     assert_same_as_octomap(ours, eager_ref)
 
 
+def test_scans_inserted_together_after_lazy_ones_match_octomap():
+    """Scans inserted together settle the nodes they change once, after the last: OctoMap's tree
+    from the same scans inserted eagerly one by one. Nodes they change nothing below are left as
+    they were: scans inserted lazily before (inner nodes then updated, nothing pruned) leave
+    collapsible nodes that OctoMap keeps, and so must this (a prune afterwards still finds them)."""
+    octomap = _octomap()
+    rng = np.random.default_rng(31)
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    for _ in range(2):
+        pts, origin = _room_cloud(rng, 3000, half=3.0) + [6.0, 0.0, 0.0], rng.uniform(-0.3, 0.3, 3) + [6.0, 0.0, 0.0]
+        ours.insert_point_cloud(pts, origin, lazy=True)
+        ref.insertPointCloud(pts, origin, lazy_eval=True)
+    ours.update_inner_occupancy()
+    ref.updateInnerOccupancy()
+    scans = [(_room_cloud(rng, 4000), rng.uniform(-0.3, 0.3, 3)) for _ in range(4)]
+    ours.insert_point_clouds([p for p, _ in scans], [o for _, o in scans])
+    for pts, origin in scans:
+        ref.insertPointCloud(pts, origin)
+    assert_same_as_octomap(ours, ref)
+    before = ours.num_nodes()
+    ours.prune()
+    assert ours.num_nodes() < before
+
+
+def test_scans_inserted_together_leave_a_settled_tree_when_one_is_refused():
+    """A scan refused midway (a bad array) leaves the scans before it inserted and their nodes
+    settled: the tree those scans give inserted one by one."""
+    rng = np.random.default_rng(32)
+    scans = [_room_cloud(rng, 3000) for _ in range(2)]
+    together, one_by_one = OcTree(0.1), OcTree(0.1)
+    with pytest.raises(ShapeError):
+        together.insert_point_clouds(scans + [np.zeros((5, 2))], np.zeros((3, 3)))
+    for pts in scans:
+        one_by_one.insert_point_cloud(pts, np.zeros(3))
+    assert encode_ot(together) == encode_ot(one_by_one)
+
+
 def test_real_scan_matches_octomap(data_dir):
     octomap = _octomap()
     pts = np.loadtxt(bz2.open(data_dir / "octomap" / "scan.dat.bz2"))
@@ -1219,9 +1256,9 @@ def test_an_update_never_allocates_past_its_limit_when_the_free_list_runs_short(
     words[0, 0] = 1
     block = (np.array([12345 + 1], np.int64), words, np.zeros((1, 8), np.int64), np.zeros((0, 3), np.int64), 0,
              0.85, -0.4, -2.0, 3.5, True, True)
-    assert update.apply_blocks(slots, meta, *block, len(slots), no_spine, update.new_work()) == (0, False)
+    assert update.apply_blocks(slots, meta, *block, len(slots), no_spine, update.new_work(), np.zeros(0, np.int64)) == (0, False)
     np.testing.assert_array_equal(meta, [16, 8, 1])
     grown = pool.new_slots(24 + update.BLOCK_ROOM)
     grown[:24] = slots
-    assert update.apply_blocks(grown, meta, *block, len(grown), no_spine, update.new_work()) == (1, True)
+    assert update.apply_blocks(grown, meta, *block, len(grown), no_spine, update.new_work(), np.zeros(0, np.int64)) == (1, True)
     assert meta[pool.TOP] <= len(grown)

@@ -29,7 +29,7 @@ from . import blocks as B
 from . import marking as M
 from . import pool as P
 from .keys import DEPTH, coord_to_keys, shared_depth
-from .update import BLOCK_ROOM, apply_blocks, apply_voxels, new_work
+from .update import BLOCK_ROOM, apply_blocks, apply_voxels, new_work, settle_blocks
 
 #: Scans with at least this many rays are marked by several threads, in runs of rays
 #: (:func:`_guided`).
@@ -286,18 +286,39 @@ def apply(pool: P.Pool, keys: np.ndarray, depths: np.ndarray, is_hit: np.ndarray
     _apply(pool, run, keys, np.arange(len(keys) + 1), lazy, threads)
 
 
-def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = False) -> None:
+def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = False, changes=None) -> None:
     """Apply a scan's marked blocks (:func:`mark`) to ``pool``, only voxels within the key box
     ``kbox`` ((0, 3): everywhere): the updates :func:`apply` makes of :func:`voxels`, with no
     list between (:func:`.update.apply_blocks`); with ``threads``, many blocks on two threads when
-    Numba's count and the machine's load allow."""
+    Numba's count and the machine's load allow. ``changes``: a list, for updates whose settling
+    is left to :func:`settle_changes` (not lazy ones), which takes the blocks' codes and changes."""
     codes, hits, frees = blocks
+    settle_nodes = not lazy and changes is None
+    found = np.zeros(len(codes) if changes is not None else 0, np.int64)
 
     def run(meta, start, stop, limit, spines):
-        return apply_blocks(pool.slots, meta, codes[:stop], hits[:stop], frees[:stop], kbox, start, *rule, not lazy,
-                            not lazy, limit, spines, new_work())
+        return apply_blocks(pool.slots, meta, codes[:stop], hits[:stop], frees[:stop], kbox, start, *rule,
+                            settle_nodes, not lazy, limit, spines, new_work(), found[:stop])
 
-    _apply(pool, run, codes - 1, B.marked_before(hits, frees), lazy, threads)
+    _apply(pool, run, codes - 1, B.marked_before(hits, frees), not settle_nodes, threads)
+    if changes is not None:
+        changes.append((codes, found))
+
+
+def settle_changes(pool: P.Pool, changes) -> None:
+    """Settle the nodes that updates applied by :func:`apply_marked` with ``changes`` changed
+    something below, each once (:func:`.update.settle_blocks`): a batch of scans leaves the tree
+    that eager updates, each settling what it changed, leave (a block of a drive is updated by
+    scan after scan: settled once, not after each; pruned only at the end, not pruned and
+    expanded again)."""
+    if not changes:
+        return
+    codes = np.concatenate([c for c, _ in changes])
+    found = np.concatenate([f for _, f in changes])
+    order = B.morton_order(codes)
+    codes, found = codes[order], found[order]
+    starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
+    settle_blocks(pool.slots, pool.meta, codes[starts], np.bitwise_or.reduceat(found, starts), new_work())
 
 
 def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool) -> None:

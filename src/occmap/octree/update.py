@@ -290,7 +290,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
 
 @kernel_without_refcounts
 def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo, hi, settle_nodes, merge, limit,
-                 spines, work):
+                 spines, work, changes):
     """The updates of a scan's marked blocks (:mod:`.blocks`: codes and hit and free masks,
     Morton-sorted, each block once) from block ``start`` on, only voxels within the key box
     ``kbox`` ((0, 3): everywhere): each marked voxel once, a hit where hit (a voxel both hit and
@@ -299,7 +299,10 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
     :func:`apply_voxels` of :func:`.blocks.block_voxels`, and the same tree, with no list between.
     Returns (the number of blocks, or the one at which the slots below ``limit`` ran out — nothing
     of it applied yet; whether any value changed); ``settle_nodes``, ``spines``, ``work`` as for
-    :func:`apply_voxels`.
+    :func:`apply_voxels`. ``changes`` (int64 (n,), zeros; (0,): none wanted) takes each block's
+    nodes with a value changed at or below them, for :func:`settle_blocks` (with ``settle_nodes``
+    false): bit ``8·w + k`` the block's node's grandchild ``k`` below its child ``w`` (depth 15),
+    set too where the change is above it (a leaf holding it took the update).
 
     One loop takes every step down: to the block's node, then through the block's masks (Morton
     words: a word a child of the block's node, a byte a grandchild, a bit a voxel). At a node it
@@ -343,6 +346,7 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
             any_hit |= hit[w] != 0
             any_free |= marked[w] & ~hit[w] != 0
         whole = merge and uniform_block(marked, hit)
+        below_nodes = np.int64(0)  # the block's changes (see changes)
         d, dirty = resume(slots, meta, path, known, dirty, base, previous, settle_nodes, spines)
         previous = base
         new[d] = False
@@ -407,13 +411,18 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                     level += 1
                     path[level] = child
                     below[level] = ch
+                    below_nodes = np.int64(-1) if ch else below_nodes
                     break
                 below[level] |= ch
+                if ch:
+                    below_nodes |= np.int64(0xFF) << 8 * i if level == BLOCK_DEPTH else np.int64(1) << 8 * word + i
                 continue
             if level == DEPTH - 2:  # the child's children are voxels: all of them at once
                 ch, taken = update_children(slots, meta, child, fresh, m, h, l_hit, l_miss, lo, hi, settle_nodes)
                 room -= taken
                 below[level] |= ch
+                if ch:
+                    below_nodes |= np.int64(1) << 8 * word + i
                 continue
             level += 1
             path[level] = child
@@ -445,7 +454,62 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
         if level >= BLOCK_DEPTH and below[BLOCK_DEPTH]:
             dirty = DEPTH
             changed = True
+        if changes.shape[0]:
+            changes[b] = below_nodes
         known = min(level, BLOCK_DEPTH)
     if settle_nodes and known >= 0:
         leave(slots, meta, path, min(dirty, known - 1), -1, spines)
     return n, changed
+
+
+@kernel_without_refcounts
+def settle_blocks(slots, meta, codes, changes, work):
+    """Settle, once, every node that updates applied without settling (:func:`apply_blocks` with
+    ``settle_nodes`` false) changed a value at or below: ``codes`` the blocks (Morton-sorted, each
+    once) and ``changes`` their nodes with changes below (as :func:`apply_blocks` gives them, OR-ed
+    over the updates). Deepest first: within a block, then the nodes above it as the walk leaves
+    them; each from its children as they are now, as an eager update leaves a node after the last
+    change below it. Nodes with no change below are left as they are (a tree built with lazy
+    updates keeps its unpruned nodes there, as OctoMap's does). ``work``: scratch (:func:`new_work`)."""
+    path = work[0]
+    path[0] = 0
+    known = -1  # deepest entry of path the last block's walk reached
+    previous = 0
+    for b in range(codes.shape[0]):
+        mask = changes[b]
+        if mask == 0:
+            continue
+        base = block_key(codes[b])
+        kx, ky, kz = unpack(base)
+        d = 0
+        if known >= 0:
+            shared = shared_depth(base, previous)
+            leave(slots, meta, path, known - 1, shared, _NO_SPINES)
+            d = min(shared, known)
+        previous = base
+        node = path[d]
+        while d < BLOCK_DEPTH and slots[node].child >= 0:  # (a leaf above the block took its update)
+            node = slots[node].child + child_index(kx, ky, kz, d)
+            d += 1
+            path[d] = node
+        known = d
+        if d < BLOCK_DEPTH or slots[node].child < 0:
+            continue
+        c = slots[node].child
+        for w in range(8):
+            nodes = (mask >> 8 * w) & 0xFF
+            g = slots[c + w].child
+            if nodes == 0 or g < 0:
+                continue
+            while nodes != 0:
+                k = trailing_zeros(nodes)
+                nodes &= nodes - 1
+                if slots[g + k].child >= 0:
+                    settle(slots, meta, g + k, True, True)
+            settle(slots, meta, c + w, True, True)
+        settle(slots, meta, node, True, True)
+    if known >= 0:
+        leave(slots, meta, path, known - 1, -1, _NO_SPINES)
+
+
+_NO_SPINES = np.full((2, DEPTH + 1), -1, np.int64)
