@@ -440,9 +440,9 @@ def test_a_drive_s_sparse_scans_on_two_threads_give_the_one_thread_tree(monkeypa
     cuts = []
     runs = insertion._apply_runs
 
-    def counted(pool, run, keys, voxels, lazy):
+    def counted(pool, run, keys, *rest):
         cuts.append(len(keys))
-        return runs(pool, run, keys, voxels, lazy)
+        return runs(pool, run, keys, *rest)
 
     monkeypatch.setattr(insertion, "_apply_runs", counted)
     for lazy in (False, True):
@@ -461,6 +461,43 @@ def test_a_drive_s_sparse_scans_on_two_threads_give_the_one_thread_tree(monkeypa
             trees.append(encode_ot(tree))
         assert trees[0] == trees[1]
     assert len(cuts) == 8
+
+
+def test_a_drive_inserted_together_on_two_threads_settles_on_two_and_gives_the_one_by_one_tree(monkeypatch):
+    """A drive's scans inserted together settle their changes after the last scan in runs of
+    blocks on two threads (paths shared between runs settled after them): the tree the scans
+    give inserted one by one on one thread."""
+    from occmap.octree import insertion
+    from occmap.sim.world3d import VELODYNE_HDL32, simulate_drive
+
+    drive = simulate_drive(4, VELODYNE_HDL32.with_azimuth_step(np.radians(2.0)), rng=4)
+    monkeypatch.setattr(insertion, "_PARALLEL_VOXELS", 1000)
+    _cores_free(monkeypatch)
+    settled = []
+    runs = insertion._apply_runs
+
+    def counted(pool, run, keys, voxels, lazy, room):
+        if room == 0:
+            settled.append(len(keys))
+        return runs(pool, run, keys, voxels, lazy, room)
+
+    monkeypatch.setattr(insertion, "_apply_runs", counted)
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        together = OcTree(0.1)
+        together.insert_point_clouds(drive)
+    finally:
+        numba.set_num_threads(before)
+    numba.set_num_threads(1)
+    try:
+        one_by_one = OcTree(0.1)
+        for cloud in drive:
+            one_by_one.insert_point_cloud(cloud.world_points(), cloud.origin)
+    finally:
+        numba.set_num_threads(before)
+    assert len(settled) == 1 and settled[0] > 1000
+    assert encode_ot(together) == encode_ot(one_by_one)
 
 
 def test_one_numba_thread_means_no_worker_thread(monkeypatch):
@@ -844,6 +881,33 @@ def test_scans_inserted_together_after_lazy_ones_match_octomap():
     before = ours.num_nodes()
     ours.prune()
     assert ours.num_nodes() < before
+
+
+def test_whole_nodes_updated_together_after_lazy_scans_keep_octomaps_unpruned_nodes():
+    """Dense scans inserted together mark whole nodes near the sensor alike (one update of the
+    node, passed to its subtree); lazy scans before saturated some of the voxels below, leaving
+    collapsible nodes unpruned. Only the nodes below which a value changed are settled: the
+    unchanged ones stay unpruned, as in OctoMap (settling the whole subtree lost 544 nodes)."""
+    octomap = _octomap()
+    rng = np.random.default_rng(33)
+
+    def sphere(n, radius):
+        v = rng.normal(size=(n, 3))
+        return radius * v / np.linalg.norm(v, axis=1)[:, None]
+
+    ours, ref = OcTree(0.1), octomap.OcTree(0.1)
+    origin = np.array([0.01, 0.02, 0.03])
+    sparse = sphere(400, 1.2)
+    for _ in range(6):  # (free voxels near the sensor saturated)
+        ours.insert_point_cloud(sparse, origin, lazy=True)
+        ref.insertPointCloud(sparse, origin, lazy_eval=True)
+    ours.update_inner_occupancy()
+    ref.updateInnerOccupancy()
+    dense = [sphere(20000, 2.0) for _ in range(2)]
+    ours.insert_point_clouds(dense, [origin, origin])
+    for pts in dense:
+        ref.insertPointCloud(pts, origin)
+    assert_same_as_octomap(ours, ref)
 
 
 def test_scans_inserted_together_leave_a_settled_tree_when_one_is_refused():

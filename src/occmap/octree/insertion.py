@@ -305,12 +305,12 @@ def apply_marked(pool: P.Pool, blocks, kbox, rule, lazy: bool, threads: bool = F
         changes.append((codes, found))
 
 
-def settle_changes(pool: P.Pool, changes) -> None:
+def settle_changes(pool: P.Pool, changes, threads: bool = False) -> None:
     """Settle the nodes that updates applied by :func:`apply_marked` with ``changes`` changed
     something below, each once (:func:`.update.settle_blocks`): a batch of scans leaves the tree
     that eager updates, each settling what it changed, leave (a block of a drive is updated by
     scan after scan: settled once, not after each; pruned only at the end, not pruned and
-    expanded again)."""
+    expanded again). With ``threads``, many nodes on two threads, as :func:`apply_marked`."""
     if not changes:
         return
     codes = np.concatenate([c for c, _ in changes])
@@ -318,18 +318,27 @@ def settle_changes(pool: P.Pool, changes) -> None:
     order = B.morton_order(codes)
     codes, found = codes[order], found[order]
     starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
-    settle_blocks(pool.slots, pool.meta, codes[starts], np.bitwise_or.reduceat(found, starts), new_work())
+    codes, found = codes[starts], np.bitwise_or.reduceat(found, starts)
+
+    def run(meta, start, stop, limit, spines):
+        return settle_blocks(pool.slots, meta, codes[:stop], found[:stop], start, spines, new_work())
+
+    # (a node settled stands for the eight voxels below it: the weight of eight updates)
+    nodes = np.unpackbits(found.view(np.uint8)).reshape(-1, 64).sum(axis=1)
+    _apply(pool, run, codes - 1, np.r_[0, np.cumsum(8 * nodes)], False, threads, room=0)
 
 
-def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool) -> None:
+def _apply(pool: P.Pool, run, keys, voxels, lazy: bool, threads: bool, room: float | None = None) -> None:
     """Updates ``run(meta, start, stop, limit, spines)`` (:func:`.update.apply_voxels` or
     :func:`.update.apply_blocks` of a scan: items ``start..stop-1``, nodes of ``spines`` left
     unsettled, returning the item where the slots below ``limit`` ran out and whether any value
     changed) whose items' first voxels have packed keys ``keys``, Morton-sorted, and ``voxels[i]``
     voxels before item ``i``: on two threads (with ``threads``) when there are many voxels and
-    Numba's count and the machine's load allow (:func:`_parallel`)."""
+    Numba's count and the machine's load allow (:func:`_parallel`). ``room``: slots the updates
+    may need, a voxel (default :data:`_ROOM_PER_VOXEL`; 0: they allocate none, as
+    :func:`.update.settle_blocks`)."""
     if threads and voxels[-1] >= _PARALLEL_VOXELS and len(keys) >= 2 and _parallel():
-        _apply_runs(pool, run, keys, voxels, lazy)
+        _apply_runs(pool, run, keys, voxels, lazy, room)
         return
     _apply_range(pool, run, 0, len(keys))
 
@@ -351,7 +360,7 @@ def _apply_range(pool: P.Pool, run, start: int, stop: int) -> bool:
         pool.grow(used + 1.25 * rate * (stop - start))
 
 
-def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
+def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool, room: float | None) -> None:
     """The items in runs of voxels (:func:`_guided`), which two threads take in turn (a thread
     that is done early takes more: on a busy computer a scan takes about what one thread takes).
     Where two runs meet, the nodes their paths share (the path to the node at the cut's depth, the
@@ -392,8 +401,9 @@ def _apply_runs(pool: P.Pool, run, keys, voxels, lazy: bool) -> None:
     # onto the free list, it put pages into use that the tree did not need: on a virtual machine
     # 2 ms a MiB, as much as the update of a scan at 0.1 m takes.)
     top = int(pool.meta[P.TOP])
-    need = int(_ROOM_PER_VOXEL * voxels[n]) + 2 * _CHUNK
-    if pool.slots.shape[0] < top + need:
+    room = _ROOM_PER_VOXEL if room is None else room
+    need = int(room * voxels[n]) + 2 * _CHUNK
+    if room and pool.slots.shape[0] < top + need:
         pool.grow(top + need)
     capacity = pool.slots.shape[0]  # (the pool does not grow while the threads run)
     unused = [top]  # the first slot no chunk holds

@@ -238,7 +238,9 @@ class OcTree(OneCallAtATime):
         that other processes leave free, the next scan's rays are traced on another thread (shared
         with the workers where it is large) while the tree takes the current one (here when that
         thread has not started by then), the workers taking runs of the update where it is large.
-        Returns the summed summary."""
+        Inner nodes are settled (maximum of their children, pruned) once, after the last scan, where
+        the scans changed something below them: the tree eager updates leave, with a region seen by
+        scan after scan settled once rather than after each. Returns the summed summary."""
         clouds = list(clouds)
         if origins is None:
             pairs = [(c.world_points(), c.origin) for c in clouds]
@@ -269,7 +271,7 @@ class OcTree(OneCallAtATime):
                 for name, value in self._count(summary).items():
                     total[name] += value
         finally:
-            insertion.settle_changes(self._pool, changes)
+            insertion.settle_changes(self._pool, changes, threads=True)
         return total
 
     def _scan_blocks(self, points, origin, max_range: float, discretize: bool, threads: bool):

@@ -128,24 +128,34 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
     saturated (the early abort); a child missing below an inner node (unknown space) becomes a
     leaf with the update of a new node; nodes with a change below them are settled, deepest first
     (pruned where their children came out alike). Allocates nothing; ``scratch`` is int64
-    (3, 17) of the caller's. Returns whether any value changed."""
+    (3, 17) of the caller's. Returns (whether any value changed, the nodes at depth 15 with a
+    change at or below them, or where a leaf above them changed: for ``node`` at depth 13 bit
+    ``8·a + b`` its child ``a``'s child ``b``, at depth 14 bit ``b``; as :func:`apply_blocks`
+    reports a block's changes)."""
     voxels_hit = 0xFF if hit else 0
     if depth == DEPTH - 1:
-        return update_children(slots, meta, node, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi, settle_nodes)[0]
+        return update_children(slots, meta, node, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi, settle_nodes)[0], 1
     stack, next_child, below = scratch[0], scratch[1], scratch[2]  # below[s]: a value changed below stack[s]
     stack[0] = node
     next_child[0] = 0
     below[0] = 0
     sp = 0
+    positions = np.int64(0)
     while True:
         c = slots[stack[sp]].child
         i = next_child[sp]
         if i < 8:
             next_child[sp] = i + 1
             j = c + i
-            if slots[j].child >= 0 and depth + sp + 1 == DEPTH - 1:  # its children are voxels
+            at = depth + sp + 1  # j's depth; its places among the nodes at depth 15 (see Returns):
+            if at == DEPTH - 1:
+                place = np.int64(1) << (8 * (next_child[0] - 1) + i if sp == 1 else i)
+            else:  # (a leaf at depth 14 below a node at 13 stands for its eight)
+                place = np.int64(0xFF) << 8 * i if sp == 0 else np.int64(0)
+            if slots[j].child >= 0 and at == DEPTH - 1:  # its children are voxels
                 if update_children(slots, meta, j, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi, settle_nodes)[0]:
                     below[sp] = 1
+                    positions |= place
                 continue
             if slots[j].child >= 0:
                 sp += 1
@@ -156,11 +166,12 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
             meta[SIZE] += np.isnan(slots[j].value)  # (a slot of a child block with no node in it)
             if update_leaf(slots, j, False, hit, l_hit, l_miss, lo, hi):
                 below[sp] = 1
+                positions |= place
             continue
         if below[sp] and settle_nodes:
             settle(slots, meta, stack[sp], True, True)
         if sp == 0:
-            return below[0] != 0
+            return below[0] != 0, positions
         below[sp - 1] |= below[sp]
         sp -= 1
 
@@ -260,7 +271,7 @@ def apply_voxels(slots, meta, keys, depths, is_hit, start, l_hit, l_miss, lo, hi
         if absorbed:
             continue
         if slots[node].child >= 0:
-            if update_subtree(slots, meta, node, d, hit, l_hit, l_miss, lo, hi, settle_nodes, scratch):
+            if update_subtree(slots, meta, node, d, hit, l_hit, l_miss, lo, hi, settle_nodes, scratch)[0]:
                 dirty = DEPTH
                 changed = True
             continue
@@ -403,19 +414,19 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
                 # the child's voxels are one update: a leaf takes it as one voxel, an inner node
                 # passes it to its subtree
                 if slots[child].child >= 0:
-                    ch = update_subtree(slots, meta, child, level + 1, h != 0, l_hit, l_miss, lo, hi, settle_nodes,
-                                        scratch)
-                else:
-                    ch = update_leaf(slots, child, fresh, h != 0, l_hit, l_miss, lo, hi)
+                    ch, places = update_subtree(slots, meta, child, level + 1, h != 0, l_hit, l_miss, lo, hi,
+                                                settle_nodes, scratch)
+                else:  # (a leaf: nothing below it to settle)
+                    ch, places = update_leaf(slots, child, fresh, h != 0, l_hit, l_miss, lo, hi), np.int64(-1)
                 if level < BLOCK_DEPTH:  # (the whole block)
                     level += 1
                     path[level] = child
                     below[level] = ch
-                    below_nodes = np.int64(-1) if ch else below_nodes
+                    below_nodes = places if ch else below_nodes
                     break
                 below[level] |= ch
                 if ch:
-                    below_nodes |= np.int64(0xFF) << 8 * i if level == BLOCK_DEPTH else np.int64(1) << 8 * word + i
+                    below_nodes |= (places & 0xFF) << 8 * i if level == BLOCK_DEPTH else np.int64(1) << 8 * word + i
                 continue
             if level == DEPTH - 2:  # the child's children are voxels: all of them at once
                 ch, taken = update_children(slots, meta, child, fresh, m, h, l_hit, l_miss, lo, hi, settle_nodes)
@@ -463,19 +474,22 @@ def apply_blocks(slots, meta, codes, hits, frees, kbox, start, l_hit, l_miss, lo
 
 
 @kernel_without_refcounts
-def settle_blocks(slots, meta, codes, changes, work):
+def settle_blocks(slots, meta, codes, changes, start, spines, work):
     """Settle, once, every node that updates applied without settling (:func:`apply_blocks` with
     ``settle_nodes`` false) changed a value at or below: ``codes`` the blocks (Morton-sorted, each
     once) and ``changes`` their nodes with changes below (as :func:`apply_blocks` gives them, OR-ed
-    over the updates). Deepest first: within a block, then the nodes above it as the walk leaves
-    them; each from its children as they are now, as an eager update leaves a node after the last
-    change below it. Nodes with no change below are left as they are (a tree built with lazy
-    updates keeps its unpruned nodes there, as OctoMap's does). ``work``: scratch (:func:`new_work`)."""
+    over the updates), from block ``start`` on. Deepest first: within a block, then the nodes
+    above it as the walk leaves them; each from its children as they are now, as an eager update
+    leaves a node after the last change below it. Nodes with no change below are left as they are
+    (a tree built with lazy updates keeps its unpruned nodes there, as OctoMap's does); so are
+    those of ``spines`` (see :func:`apply_voxels`: runs of blocks settled side by side). Returns
+    (the number of blocks, True), as :func:`apply_blocks` would (it allocates nothing).
+    ``work``: scratch (:func:`new_work`)."""
+    work[:] = 0
     path = work[0]
-    path[0] = 0
     known = -1  # deepest entry of path the last block's walk reached
     previous = 0
-    for b in range(codes.shape[0]):
+    for b in range(start, codes.shape[0]):
         mask = changes[b]
         if mask == 0:
             continue
@@ -484,7 +498,7 @@ def settle_blocks(slots, meta, codes, changes, work):
         d = 0
         if known >= 0:
             shared = shared_depth(base, previous)
-            leave(slots, meta, path, known - 1, shared, _NO_SPINES)
+            leave(slots, meta, path, known - 1, shared, spines)
             d = min(shared, known)
         previous = base
         node = path[d]
@@ -496,11 +510,20 @@ def settle_blocks(slots, meta, codes, changes, work):
         if d < BLOCK_DEPTH or slots[node].child < 0:
             continue
         c = slots[node].child
-        for w in range(8):
-            nodes = (mask >> 8 * w) & 0xFF
+        for w in range(8):  # the nodes to settle, and their children, fetched from memory side by side
             g = slots[c + w].child
+            if (mask >> 8 * w) & 0xFF != 0 and g >= 0:
+                prefetch(slots, g)
+        for w in range(8):
+            g = slots[c + w].child
+            nodes = (mask >> 8 * w) & 0xFF
             if nodes == 0 or g < 0:
                 continue
+            t = nodes
+            while t != 0:
+                k = trailing_zeros(t)
+                t &= t - 1
+                prefetch(slots, max(slots[g + k].child, 0))
             while nodes != 0:
                 k = trailing_zeros(nodes)
                 nodes &= nodes - 1
@@ -509,7 +532,5 @@ def settle_blocks(slots, meta, codes, changes, work):
             settle(slots, meta, c + w, True, True)
         settle(slots, meta, node, True, True)
     if known >= 0:
-        leave(slots, meta, path, known - 1, -1, _NO_SPINES)
-
-
-_NO_SPINES = np.full((2, DEPTH + 1), -1, np.int64)
+        leave(slots, meta, path, known - 1, -1, spines)
+    return codes.shape[0], True
