@@ -883,12 +883,15 @@ def test_scans_inserted_together_after_lazy_ones_match_octomap():
     assert ours.num_nodes() < before
 
 
-def test_whole_nodes_updated_together_after_lazy_scans_keep_octomaps_unpruned_nodes():
+def test_whole_nodes_updated_together_after_lazy_scans_keep_octomaps_unpruned_nodes(monkeypatch):
     """Dense scans inserted together mark whole nodes near the sensor alike (one update of the
     node, passed to its subtree); lazy scans before saturated some of the voxels below, leaving
     collapsible nodes unpruned. Only the nodes below which a value changed are settled: the
     unchanged ones stay unpruned, as in OctoMap (settling the whole subtree lost 544 nodes)."""
+    from occmap.octree import insertion
+
     octomap = _octomap()
+    monkeypatch.setattr(insertion, "SETTLE_AFTER_SCANS", 2)
     rng = np.random.default_rng(33)
 
     def sphere(n, radius):
@@ -910,9 +913,12 @@ def test_whole_nodes_updated_together_after_lazy_scans_keep_octomaps_unpruned_no
     assert_same_as_octomap(ours, ref)
 
 
-def test_scans_inserted_together_leave_a_settled_tree_when_one_is_refused():
+def test_scans_inserted_together_leave_a_settled_tree_when_one_is_refused(monkeypatch):
     """A scan refused midway (a bad array) leaves the scans before it inserted and their nodes
     settled: the tree those scans give inserted one by one."""
+    from occmap.octree import insertion
+
+    monkeypatch.setattr(insertion, "SETTLE_AFTER_SCANS", 2)
     rng = np.random.default_rng(32)
     scans = [_room_cloud(rng, 3000) for _ in range(2)]
     together, one_by_one = OcTree(0.1), OcTree(0.1)

@@ -53,6 +53,13 @@ _CHUNK = (2 << 20) // P.SLOT.itemsize
 #: occmap.octree.marking.CUBE).
 _CUBE_RAYS = 4096
 
+#: Batches of at least this many scans settle their changes once, after the last
+#: (:func:`settle_changes`). (A region seen by scan after scan is settled once instead of after
+#: each; the settle walks its blocks again, out of the cache by then: a simulated drive at 0.1 m,
+#: one core, 1.18x faster over 50 scans, 1.13x over 8, as fast over 3; the dense pairs and
+#: triples of the sample scans 0.91 - 0.93x.)
+SETTLE_AFTER_SCANS = 4
+
 #: Depths for updates that are all voxels (:func:`apply`).
 VOXELS = np.zeros(0, np.int8)
 

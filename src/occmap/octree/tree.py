@@ -238,9 +238,10 @@ class OcTree(OneCallAtATime):
         that other processes leave free, the next scan's rays are traced on another thread (shared
         with the workers where it is large) while the tree takes the current one (here when that
         thread has not started by then), the workers taking runs of the update where it is large.
-        Inner nodes are settled (maximum of their children, pruned) once, after the last scan, where
-        the scans changed something below them: the tree eager updates leave, with a region seen by
-        scan after scan settled once rather than after each. Returns the summed summary."""
+        In a batch of several scans (:data:`.insertion.SETTLE_AFTER_SCANS`) inner nodes are settled
+        (maximum of their children, pruned) once, after the last scan, where the scans changed
+        something below them: the tree eager updates leave, with a region seen by scan after scan
+        settled once rather than after each. Returns the summed summary."""
         clouds = list(clouds)
         if origins is None:
             pairs = [(c.world_points(), c.origin) for c in clouds]
@@ -252,9 +253,9 @@ class OcTree(OneCallAtATime):
         total = dict.fromkeys(self.stats, 0)
         pending = None
         ahead = thread_count() >= 2
-        # the nodes the scans change are settled once, after the last (the same tree: see
+        # the nodes many scans change are settled once, after the last (the same tree: see
         # insertion.settle_changes), also when a scan is refused midway
-        changes = [] if not lazy and len(pairs) > 1 else None
+        changes = [] if not lazy and len(pairs) >= insertion.SETTLE_AFTER_SCANS else None
         try:
             for k in range(len(pairs)):
                 if pending is not None and pending.cancel():
