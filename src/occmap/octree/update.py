@@ -120,6 +120,17 @@ def update_children(slots, meta, node, new, marked, hit, l_hit, l_miss, lo, hi, 
     return changed, taken
 
 
+@inline_kernel
+def _places(at, sp, first, i):
+    """The places among the nodes at depth 15 (see :func:`update_subtree`'s Returns) of the node
+    at depth ``at``, child ``i`` of the node ``sp`` levels below the subtree's, ``first`` the
+    subtree's child on the way: the node itself at depth 15; the eight it stands for, a leaf at
+    depth 14 below a node at 13; else none."""
+    if at == DEPTH - 1:
+        return np.int64(1) << (8 * first + i if sp == 1 else i)
+    return np.int64(0xFF) << 8 * i if at == DEPTH - 2 and sp == 0 else np.int64(0)
+
+
 @kernel_without_refcounts
 def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_nodes, scratch):
     """Every voxel below inner ``node`` (at ``depth``) takes one hit (``hit``) or miss, leaving
@@ -147,15 +158,10 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
         if i < 8:
             next_child[sp] = i + 1
             j = c + i
-            at = depth + sp + 1  # j's depth; its places among the nodes at depth 15 (see Returns):
-            if at == DEPTH - 1:
-                place = np.int64(1) << (8 * (next_child[0] - 1) + i if sp == 1 else i)
-            else:  # (a leaf at depth 14 below a node at 13 stands for its eight)
-                place = np.int64(0xFF) << 8 * i if sp == 0 else np.int64(0)
-            if slots[j].child >= 0 and at == DEPTH - 1:  # its children are voxels
+            if slots[j].child >= 0 and depth + sp + 1 == DEPTH - 1:  # its children are voxels
                 if update_children(slots, meta, j, False, 0xFF, voxels_hit, l_hit, l_miss, lo, hi, settle_nodes)[0]:
                     below[sp] = 1
-                    positions |= place
+                    positions |= _places(depth + sp + 1, sp, next_child[0] - 1, i)
                 continue
             if slots[j].child >= 0:
                 sp += 1
@@ -166,7 +172,7 @@ def update_subtree(slots, meta, node, depth, hit, l_hit, l_miss, lo, hi, settle_
             meta[SIZE] += np.isnan(slots[j].value)  # (a slot of a child block with no node in it)
             if update_leaf(slots, j, False, hit, l_hit, l_miss, lo, hi):
                 below[sp] = 1
-                positions |= place
+                positions |= _places(depth + sp + 1, sp, next_child[0] - 1, i)
             continue
         if below[sp] and settle_nodes:
             settle(slots, meta, stack[sp], True, True)
@@ -495,11 +501,7 @@ def settle_blocks(slots, meta, codes, changes, start, spines, work):
             continue
         base = block_key(codes[b])
         kx, ky, kz = unpack(base)
-        d = 0
-        if known >= 0:
-            shared = shared_depth(base, previous)
-            leave(slots, meta, path, known - 1, shared, spines)
-            d = min(shared, known)
+        d = resume(slots, meta, path, known, DEPTH, base, previous, True, spines)[0]  # (every block changed)
         previous = base
         node = path[d]
         while d < BLOCK_DEPTH and slots[node].child >= 0:  # (a leaf above the block took its update)
